@@ -1,0 +1,1 @@
+"""haulprofile analysis: logs to gradient, mass, representative cycles, wheel loads and simulation."""

@@ -1,0 +1,1 @@
+"""Digital elevation models read from local files (never downloaded at run time)."""

@@ -1,0 +1,41 @@
+"""Distance and acceleration from wheel speed, on the signals table's own time base.
+
+``accel_mps2`` is the derivative of wheel speed after a zero-phase low-pass (a centred moving
+average of ``window_s``, 1 s by default): wheel speed is quantised (1/256 km/h on J1939, 1 km/h on
+OBD-II) and differentiating it raw gives noise of several m/s² at 10 Hz. ``distance_m`` is the
+trapezoidal integral of speed; samples outside ``valid`` contribute nothing.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+
+def distance_m(time_s: np.ndarray, speed_mps: np.ndarray) -> np.ndarray:
+    """Driven distance [m]: trapezoidal integral of speed, NaN speeds counted as 0."""
+    speed = np.nan_to_num(np.asarray(speed_mps, dtype=float))
+    steps = 0.5 * (speed[1:] + speed[:-1]) * np.diff(np.asarray(time_s, dtype=float))
+    return np.concatenate([[0.0], np.cumsum(steps)])
+
+
+def acceleration_mps2(time_s: np.ndarray, speed_mps: np.ndarray, window_s: float = 1.0) -> np.ndarray:
+    """Longitudinal acceleration [m/s²] from speed: centred moving average, then central difference."""
+    time = np.asarray(time_s, dtype=float)
+    speed = pd.Series(np.asarray(speed_mps, dtype=float))
+    dt = np.nanmedian(np.diff(time)) if len(time) > 1 else 1.0
+    window = max(1, int(round(window_s / dt)))
+    smooth = speed.rolling(window, center=True, min_periods=1).mean().to_numpy()
+    if len(time) < 2:
+        return np.zeros_like(smooth)
+    return np.gradient(smooth, time)
+
+
+def stage(ctx) -> None:
+    frame = ctx.signals
+    if "distance_m" not in frame.columns:
+        frame["distance_m"] = distance_m(frame["time_s"].to_numpy(), frame["speed_mps"].to_numpy())
+    if "accel_mps2" not in frame.columns:
+        frame["accel_mps2"] = acceleration_mps2(frame["time_s"].to_numpy(), frame["speed_mps"].to_numpy())
+    ctx.summary["distance_km"] = float(frame["distance_m"].iloc[-1] / 1000.0)
+    ctx.summary["duration_s"] = float(frame["time_s"].iloc[-1] - frame["time_s"].iloc[0])

@@ -1,0 +1,65 @@
+"""VECTO distance-based driving cycles (``.vdri``): ``<s>,<v>,<grad>,<stop>``.
+
+``<s>`` distance [m], ``<v>`` target speed [km/h], ``<grad>`` road gradient [%], ``<stop>`` standstill
+time [s] at that distance (a stop is a row with v = 0 and stop > 0). Inside the code the cycle is a
+DataFrame in SI units: ``distance_m``, ``target_speed_mps``, ``gradient_pct``, ``stop_time_s``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .errors import UserError
+
+KMH_PER_MPS = 3.6
+HEADER = ("<s>", "<v>", "<grad>", "<stop>")
+COLUMNS = ("distance_m", "target_speed_mps", "gradient_pct", "stop_time_s")
+
+
+class CycleFileError(UserError):
+    pass
+
+
+def read_vdri(path: str | Path) -> pd.DataFrame:
+    """Read a VECTO distance-based cycle into SI columns (`COLUMNS`)."""
+    path = Path(path)
+    if not path.is_file():
+        raise CycleFileError(f"cycle file {path} not found")
+    try:
+        raw = pd.read_csv(path, comment="#", skipinitialspace=True)
+    except Exception as exc:
+        raise CycleFileError(f"{path}: cannot read as a VECTO cycle: {exc}") from None
+    raw.columns = [c.strip() for c in raw.columns]
+    missing = [h for h in HEADER if h not in raw.columns]
+    if missing:
+        raise CycleFileError(f"{path}: not a distance-based VECTO cycle, missing column(s) {', '.join(missing)}")
+    values = raw[list(HEADER)].apply(pd.to_numeric, errors="coerce")
+    if values.isna().any().any():
+        row = int(values.isna().any(axis=1).to_numpy().argmax())
+        raise CycleFileError(f"{path}: row {row + 2} has a value that is not a number")
+    cycle = pd.DataFrame({
+        "distance_m": values["<s>"].to_numpy(float),
+        "target_speed_mps": values["<v>"].to_numpy(float) / KMH_PER_MPS,
+        "gradient_pct": values["<grad>"].to_numpy(float),
+        "stop_time_s": values["<stop>"].to_numpy(float),
+    })
+    if np.any(np.diff(cycle["distance_m"].to_numpy()) < 0):
+        raise CycleFileError(f"{path}: distance <s> decreases; a VECTO cycle is sorted by distance")
+    return cycle
+
+
+def write_vdri(cycle: pd.DataFrame, path: str | Path) -> Path:
+    """Write SI columns (`COLUMNS`) as a VECTO ``.vdri`` file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    out = pd.DataFrame({
+        "<s>": np.round(cycle["distance_m"].to_numpy(float), 2),
+        "<v>": np.round(cycle["target_speed_mps"].to_numpy(float) * KMH_PER_MPS, 3),
+        "<grad>": np.round(cycle["gradient_pct"].to_numpy(float), 4),
+        "<stop>": np.round(cycle["stop_time_s"].to_numpy(float), 2),
+    })
+    out.to_csv(path, index=False)
+    return path

@@ -1,0 +1,335 @@
+"""The data contract between the truck and the workstation: every MCAP topic, once.
+
+Both the logger and the analysis import this module; nobody re-types a topic name.
+`docs/data-format.md` explains the choices. Summary:
+
+* Time base. Every record carries ``t_mono_ns``: CLOCK_MONOTONIC of the logger in integer
+  nanoseconds, which never jumps. MCAP ``publish_time`` is the same monotonic clock at the moment
+  the message was handed to the writer; MCAP ``log_time`` is CLOCK_REALTIME (so Foxglove shows
+  dates). ``/time/sync`` pairs both clocks (and GPS UTC once the receiver has a fix) once per
+  second, so analysis maps monotonic time to wall-clock and GPS time, across clock jumps.
+* High-rate topics (CAN frames, IMU) are *packed*: a message is a little-endian array of
+  fixed-size records described by a NumPy dtype (``encoding = "haulprofile.packed"``), a few
+  hundred records per message. Decoding is one ``np.frombuffer`` per message.
+* Low-rate topics are JSON with a JSON Schema (``jsonschema``), readable in Foxglove as is.
+  GPS fixes use the field names of ``foxglove.LocationFix`` and open on Foxglove's map.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+PACKED_ENCODING = "haulprofile.packed"
+"""Message and schema encoding of packed topics; the schema data is the JSON of the dtype."""
+
+JSON_ENCODING = "json"
+JSON_SCHEMA_ENCODING = "jsonschema"
+
+CONTRACT_VERSION = 1
+
+# CAN record flags (bit field in ``flags``).
+CAN_FLAG_EXTENDED = 0x01
+CAN_FLAG_REMOTE = 0x02
+CAN_FLAG_ERROR = 0x04
+CAN_FLAG_TX = 0x08
+"""Set on frames the logger transmitted itself (OBD-II and J1939 requests, CTS answers)."""
+CAN_FLAG_HW_TIMESTAMP = 0x10
+"""``t_mono_ns`` came from the kernel/hardware receive timestamp, not from user space."""
+
+CAN_FRAME_DTYPE = np.dtype(
+    [
+        ("t_mono_ns", "<u8"),
+        ("arbitration_id", "<u4"),
+        ("flags", "u1"),
+        ("dlc", "u1"),
+        ("channel", "u1"),
+        ("reserved", "u1"),
+        ("data", "u1", (8,)),
+    ]
+)
+"""One classic CAN frame, 24 bytes. ``data`` beyond ``dlc`` is zero."""
+
+IMU_SAMPLE_DTYPE = np.dtype(
+    [
+        ("t_mono_ns", "<u8"),
+        ("accel_raw", "<i2", (3,)),
+        ("gyro_raw", "<i2", (3,)),
+    ]
+)
+"""One LSM9DS1 accelerometer+gyroscope FIFO sample, raw two's-complement counts (x, y, z).
+
+Physical values: ``accel_raw * accel_scale_mps2_per_lsb`` and ``gyro_raw *
+gyro_scale_radps_per_lsb`` from the channel metadata (set by the configured full scale).
+"""
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One MCAP channel: name, schema and what a reader needs to know about it."""
+
+    name: str
+    schema_name: str
+    encoding: str
+    rate_hz: float
+    description: str
+    dtype: np.dtype | None = None
+    json_schema: dict = field(default_factory=dict)
+    units: dict = field(default_factory=dict)
+
+    @property
+    def schema_encoding(self) -> str:
+        return PACKED_ENCODING if self.encoding == PACKED_ENCODING else JSON_SCHEMA_ENCODING
+
+    def schema_data(self) -> bytes:
+        """The bytes stored in the MCAP schema record."""
+        if self.encoding == PACKED_ENCODING:
+            return json.dumps({"numpy_dtype": dtype_to_json(self.dtype), "units": self.units}).encode()
+        return json.dumps(self.json_schema).encode()
+
+
+def dtype_to_json(dtype: np.dtype) -> list:
+    """A dtype as JSON-able ``[[name, format, shape], ...]`` (round-trips through `dtype_from_json`)."""
+    return [[name, dtype.fields[name][0].base.str, list(dtype.fields[name][0].shape)] for name in dtype.names]
+
+
+def dtype_from_json(spec: list) -> np.dtype:
+    return np.dtype([(name, fmt, tuple(shape)) if shape else (name, fmt) for name, fmt, shape in spec])
+
+
+def _obj(properties: dict, required: list[str] | None = None, title: str = "") -> dict:
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": title,
+        "type": "object",
+        "properties": properties,
+        "required": required if required is not None else list(properties),
+    }
+
+
+_NUM = {"type": "number"}
+_INT = {"type": "integer"}
+_NULLABLE_NUM = {"type": ["number", "null"]}
+_T_MONO = {"t_mono_ns": {"type": "integer", "description": "CLOCK_MONOTONIC of the logger [ns]"}}
+_FOXGLOVE_TIME = {
+    "type": "object",
+    "properties": {"sec": _INT, "nsec": _INT},
+    "required": ["sec", "nsec"],
+}
+
+CAN_FRAMES = Topic(
+    name="/can/frames",
+    schema_name="haulprofile.CanFrames",
+    encoding=PACKED_ENCODING,
+    rate_hz=1500.0,
+    description="Every CAN frame received or sent, raw, batched (one message per ~0.2 s or 512 frames).",
+    dtype=CAN_FRAME_DTYPE,
+    units={"t_mono_ns": "ns"},
+)
+
+IMU = Topic(
+    name="/imu",
+    schema_name="haulprofile.ImuSamples",
+    encoding=PACKED_ENCODING,
+    rate_hz=952.0,
+    description="LSM9DS1 accelerometer and gyroscope FIFO samples, raw counts, batched per FIFO read.",
+    dtype=IMU_SAMPLE_DTYPE,
+    units={"t_mono_ns": "ns", "accel_raw": "LSB", "gyro_raw": "LSB"},
+)
+
+BAROMETER = Topic(
+    name="/barometer",
+    schema_name="haulprofile.Barometer",
+    encoding=JSON_ENCODING,
+    rate_hz=25.0,
+    description="LPS25HB pressure and temperature; raw register counts kept beside SI values.",
+    json_schema=_obj(
+        {
+            **_T_MONO,
+            "pressure_pa": _NUM,
+            "temperature_c": _NUM,
+            "pressure_raw": {"type": "integer", "description": "PRESS_OUT 24-bit, 4096 LSB/hPa"},
+            "temperature_raw": {"type": "integer", "description": "TEMP_OUT 16-bit, 42.5 + raw/480 degC"},
+        },
+        title="haulprofile.Barometer",
+    ),
+    units={"pressure_pa": "Pa", "temperature_c": "degC"},
+)
+
+HUMIDITY = Topic(
+    name="/humidity",
+    schema_name="haulprofile.Humidity",
+    encoding=JSON_ENCODING,
+    rate_hz=12.5,
+    description="HTS221 relative humidity and temperature (factory calibration applied), raw counts kept.",
+    json_schema=_obj(
+        {
+            **_T_MONO,
+            "relative_humidity_pct": _NUM,
+            "temperature_c": _NUM,
+            "humidity_raw": _INT,
+            "temperature_raw": _INT,
+        },
+        title="haulprofile.Humidity",
+    ),
+    units={"relative_humidity_pct": "%", "temperature_c": "degC"},
+)
+
+MAGNETOMETER = Topic(
+    name="/magnetometer",
+    schema_name="haulprofile.Magnetometer",
+    encoding=JSON_ENCODING,
+    rate_hz=10.0,
+    description="LSM9DS1 magnetometer, raw counts and tesla.",
+    json_schema=_obj(
+        {
+            **_T_MONO,
+            "magnetic_field_t": {"type": "array", "items": _NUM, "minItems": 3, "maxItems": 3},
+            "magnetic_raw": {"type": "array", "items": _INT, "minItems": 3, "maxItems": 3},
+        },
+        title="haulprofile.Magnetometer",
+    ),
+    units={"magnetic_field_t": "T"},
+)
+
+GPS_FIX = Topic(
+    name="/gps/fix",
+    schema_name="foxglove.LocationFix",
+    encoding=JSON_ENCODING,
+    rate_hz=10.0,
+    description=(
+        "Position fix. Fields of foxglove.LocationFix (timestamp, frame_id, latitude, longitude, "
+        "altitude, position_covariance, position_covariance_type) plus haulprofile extras."
+    ),
+    json_schema=_obj(
+        {
+            "timestamp": _FOXGLOVE_TIME,
+            "frame_id": {"type": "string"},
+            "latitude": _NUM,
+            "longitude": _NUM,
+            "altitude": _NUM,
+            "position_covariance": {"type": "array", "items": _NUM, "minItems": 9, "maxItems": 9},
+            "position_covariance_type": {"type": "integer", "enum": [0, 1, 2, 3]},
+            **_T_MONO,
+            "gps_time_utc_ns": {"type": ["integer", "null"], "description": "receiver UTC time of the fix [ns since epoch]"},
+            "speed_mps": _NULLABLE_NUM,
+            "course_deg": _NULLABLE_NUM,
+            "h_acc_m": _NULLABLE_NUM,
+            "v_acc_m": _NULLABLE_NUM,
+            "fix_quality": _INT,
+            "satellites": _INT,
+            "hdop": _NULLABLE_NUM,
+        },
+        required=["timestamp", "frame_id", "latitude", "longitude", "altitude", "position_covariance",
+                  "position_covariance_type", "t_mono_ns"],
+        title="foxglove.LocationFix",
+    ),
+    units={"latitude": "deg", "longitude": "deg", "altitude": "m", "h_acc_m": "m", "v_acc_m": "m",
+           "speed_mps": "m/s"},
+)
+"""``timestamp`` is the wall-clock (GPS UTC when known) of the fix; covariance diagonal is
+(h_acc², h_acc², v_acc²) in m² with type 2 (diagonal known) when accuracies are known."""
+
+GPS_NMEA = Topic(
+    name="/gps/nmea",
+    schema_name="haulprofile.NmeaSentences",
+    encoding=JSON_ENCODING,
+    rate_hz=1.0,
+    description="Raw NMEA sentences as received (checksum-valid or not), batched once per second.",
+    json_schema=_obj(
+        {**_T_MONO, "sentences": {"type": "array", "items": {"type": "string"}},
+         "t_mono_ns_each": {"type": "array", "items": _INT}},
+        title="haulprofile.NmeaSentences",
+    ),
+)
+
+TIME_SYNC = Topic(
+    name="/time/sync",
+    schema_name="haulprofile.TimeSync",
+    encoding=JSON_ENCODING,
+    rate_hz=1.0,
+    description="Pairs of the logger's clocks: monotonic, realtime and (with a GPS fix) GPS UTC.",
+    json_schema=_obj(
+        {**_T_MONO, "t_realtime_ns": _INT, "gps_time_utc_ns": {"type": ["integer", "null"]}},
+        title="haulprofile.TimeSync",
+    ),
+)
+
+DIAGNOSTICS = Topic(
+    name="/diagnostics",
+    schema_name="haulprofile.Diagnostics",
+    encoding=JSON_ENCODING,
+    rate_hz=1.0,
+    description="Per-source health once per second: rates, drops, errors, queue depth, disk.",
+    json_schema=_obj(
+        {
+            **_T_MONO,
+            "sources": {"type": "object", "additionalProperties": {"type": "object"}},
+            "queue_depth": _INT,
+            "disk_free_bytes": _INT,
+            "messages": {"type": "array", "items": {"type": "string"}},
+        },
+        required=["t_mono_ns", "sources"],
+        title="haulprofile.Diagnostics",
+    ),
+)
+
+TOPICS: dict[str, Topic] = {
+    t.name: t
+    for t in (CAN_FRAMES, IMU, BAROMETER, HUMIDITY, MAGNETOMETER, GPS_FIX, GPS_NMEA, TIME_SYNC, DIAGNOSTICS)
+}
+
+PROFILE = "haulprofile"
+"""MCAP header profile of files written by haulprofile."""
+
+
+def pack(topic: Topic, records: np.ndarray) -> bytes:
+    """Serialise a record array for a packed topic."""
+    if records.dtype != topic.dtype:
+        records = records.astype(topic.dtype)
+    return np.ascontiguousarray(records).tobytes()
+
+
+def unpack(topic: Topic, payload: bytes) -> np.ndarray:
+    """Record array of a packed message (read-only view on ``payload``)."""
+    if len(payload) % topic.dtype.itemsize:
+        raise ValueError(f"{topic.name}: message of {len(payload)} bytes is not a whole number of "
+                         f"{topic.dtype.itemsize}-byte records")
+    return np.frombuffer(payload, dtype=topic.dtype)
+
+
+def encode_json(record: dict) -> bytes:
+    return json.dumps(record, separators=(",", ":"), allow_nan=False).encode()
+
+
+def location_fix(
+    t_mono_ns: int,
+    wall_time_ns: int,
+    latitude_deg: float,
+    longitude_deg: float,
+    altitude_m: float,
+    h_acc_m: float | None,
+    v_acc_m: float | None,
+    **extras,
+) -> dict:
+    """A ``foxglove.LocationFix``-compatible record with the accuracy as covariance diagonal."""
+    if h_acc_m is not None and v_acc_m is not None:
+        cov = [h_acc_m**2, 0.0, 0.0, 0.0, h_acc_m**2, 0.0, 0.0, 0.0, v_acc_m**2]
+        cov_type = 2
+    else:
+        cov, cov_type = [0.0] * 9, 0
+    return {
+        "timestamp": {"sec": wall_time_ns // 1_000_000_000, "nsec": wall_time_ns % 1_000_000_000},
+        "frame_id": "gps",
+        "latitude": latitude_deg,
+        "longitude": longitude_deg,
+        "altitude": altitude_m,
+        "position_covariance": cov,
+        "position_covariance_type": cov_type,
+        "t_mono_ns": int(t_mono_ns),
+        "h_acc_m": h_acc_m,
+        "v_acc_m": v_acc_m,
+        **extras,
+    }

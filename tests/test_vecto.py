@@ -1,0 +1,20 @@
+import numpy as np
+import pytest
+
+from analysis.vecto import CycleFileError, read_vdri, write_vdri
+
+
+@pytest.mark.parametrize("name", ["LongHaul", "RegionalDelivery", "UrbanDelivery"])
+def test_real_vecto_cycles_round_trip(shared_data, tmp_path, name):
+    cycle = read_vdri(shared_data / "vecto-cycles" / f"{name}.vdri")
+    assert cycle["distance_m"].is_monotonic_increasing
+    assert (cycle.loc[cycle["stop_time_s"] > 0, "target_speed_mps"] == 0).all()
+    back = read_vdri(write_vdri(cycle, tmp_path / "c.vdri"))
+    np.testing.assert_allclose(back.to_numpy(), cycle.to_numpy(), atol=1e-3)
+
+
+def test_bad_cycle(tmp_path):
+    path = tmp_path / "bad.vdri"
+    path.write_text("<s>,<v>\n0,1\n")
+    with pytest.raises(CycleFileError, match="missing column"):
+        read_vdri(path)
