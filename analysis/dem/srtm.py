@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from .bilinear import bilinear_m
 
 VOID = -32768
 SAMPLES_PER_SIDE = {1: 3601, 3: 1201}
@@ -80,8 +81,9 @@ class SrtmDem:
         return self._tiles[name]
 
     def height_m(self, latitude_deg, longitude_deg) -> np.ndarray:
-        """Bilinearly interpolated terrain height [m] at each point; NaN where a void is touched
-        or the position is NaN."""
+        """Bilinearly interpolated terrain height [m] at each point (1" and 3" tiles alike); void
+        corners are left out of the interpolation, NaN where all four are voids or the position
+        is NaN. Raises `MissingTileError` naming the tile when a point lies outside the DEM."""
         lat = np.atleast_1d(np.asarray(latitude_deg, dtype=float))
         lon = np.atleast_1d(np.asarray(longitude_deg, dtype=float))
         out = np.full(lat.shape, np.nan)
@@ -97,10 +99,6 @@ class SrtmDem:
             n = grid.shape[0] - 1
             row = (tlat + 1 - lat[ok][sel]) * n
             col = (lon[ok][sel] - tlon) * n
-            r0 = np.clip(np.floor(row).astype(int), 0, n - 1)
-            c0 = np.clip(np.floor(col).astype(int), 0, n - 1)
-            fr, fc = row - r0, col - c0
-            values[sel] = (grid[r0, c0] * (1 - fr) * (1 - fc) + grid[r0, c0 + 1] * (1 - fr) * fc
-                           + grid[r0 + 1, c0] * fr * (1 - fc) + grid[r0 + 1, c0 + 1] * fr * fc)
+            values[sel] = bilinear_m(grid, row, col)
         out[ok] = values
         return out
