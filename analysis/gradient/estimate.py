@@ -1,0 +1,208 @@
+"""Road height and gradient on a distance grid: map-matching, barometer, IMU and fusion (5)-(8)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .. import kinematics
+from ..errors import UserError
+from . import grid as distance_grid
+from . import sources
+
+
+@dataclass(frozen=True)
+class GradientSettings:
+    """Grid and smoothing lengths [m]; the defaults are measured on the virtual truck
+    (see ``docs/estimation.md``)."""
+
+    spacing_m: float = 10.0
+    map_sigma_m: float = 60.0
+    baro_sigma_m: float = 40.0
+    imu_sigma_m: float = 40.0
+    anchor_sigma_m: float = 3000.0
+    gps_jump_tolerance_m: float = 25.0
+    gps_reacquire_s: float = 30.0
+    stuck_sensor_s: float = 5.0
+
+
+@dataclass
+class GradientResult:
+    grid: pd.DataFrame
+    """One row per grid point: distance_m and each source's height/gradient/weight."""
+    samples: dict[str, np.ndarray]
+    """Columns for the signals table (height_m, gradient_pct and each source's)."""
+    notes: list[str] = field(default_factory=list)
+
+
+def _column(frame: pd.DataFrame, name: str) -> np.ndarray | None:
+    if name not in frame.columns or frame[name].isna().all():
+        return None
+    return frame[name].to_numpy(dtype=float)
+
+
+def _sample_rate_hz(time_s: np.ndarray) -> float:
+    steps = np.diff(time_s)
+    steps = steps[steps > 0]
+    return 1.0 / float(np.median(steps)) if len(steps) else 1.0
+
+
+def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings = GradientSettings()) -> GradientResult:
+    """Heights [m] and gradients [%] of every available source and their fusion (8).
+
+    ``frame`` is a signals table (time_s, speed_mps; distance_m/accel_mps2 are computed if absent);
+    ``dem`` anything with ``height_m(lat, lon)`` (`analysis.dem.open_dem`). Raises `UserError`
+    when neither a DEM with GPS nor a barometer is available, or no sample is valid.
+    """
+    notes: list[str] = []
+    time_s = frame["time_s"].to_numpy(dtype=float)
+    speed = frame["speed_mps"].to_numpy(dtype=float)
+    distance = _column(frame, "distance_m")
+    if distance is None:
+        distance = kinematics.distance_m(time_s, speed)
+    accel = _column(frame, "accel_mps2")
+    if accel is None:
+        accel = kinematics.acceleration_mps2(time_s, speed)
+    valid = np.isfinite(distance)
+    if "valid" in frame.columns:
+        valid &= frame["valid"].to_numpy(dtype=bool)
+    if not valid.any():
+        raise UserError("gradient: no valid samples (no finite distance); check speed_mps and the valid column")
+    spacing = settings.spacing_m
+    index = np.where(valid, distance_grid.grid_index(distance, spacing), -1)
+    n_bins = int(index.max()) + 1
+    s_grid = np.arange(n_bins) * spacing
+    rate_hz = _sample_rate_hz(time_s)
+    out = pd.DataFrame({"distance_m": s_grid})
+
+    map_level = map_slope = None
+    weight_map = np.zeros(n_bins)
+    lat, lon = _column(frame, "latitude_deg"), _column(frame, "longitude_deg")
+    if dem is not None and lat is not None and lon is not None:
+        east, north = sources.local_east_north_m(lat, lon)
+        jumped = sources.gps_outliers(east, north, distance, time_s, settings.gps_jump_tolerance_m,
+                                      settings.gps_reacquire_s)
+        n_jumps = int(np.sum(jumped & np.isfinite(lat)))
+        if n_jumps:
+            notes.append(f"{n_jumps} GPS fixes left out of map-matching (jumped away from the wheel-speed track)")
+        fix_ok = valid & ~jumped
+        terrain = np.full(len(frame), np.nan)
+        terrain[fix_ok] = dem.height_m(lat[fix_ok], lon[fix_ok])
+        h_acc, v_acc = _column(frame, "gps_h_acc_m"), _column(frame, "gps_v_acc_m")
+        if h_acc is None or v_acc is None:
+            notes.append("no GPS accuracy columns: map weight 1 wherever there is a fix")
+            accuracy_weight = np.ones(len(frame))
+        else:
+            accuracy_weight = sources.map_weight(h_acc, v_acc)
+        accuracy_weight = np.where(np.isfinite(terrain), accuracy_weight, np.nan)
+        bin_terrain = distance_grid.bin_mean(index, terrain, n_bins)
+        bin_weight = np.nan_to_num(distance_grid.bin_mean(index, accuracy_weight, n_bins))
+        map_level, map_slope, support = distance_grid.local_linear(bin_terrain, bin_weight, spacing, settings.map_sigma_m)
+        kernel_weight, _, _ = distance_grid.local_linear(bin_weight, np.isfinite(bin_terrain), spacing, settings.map_sigma_m)
+        weight_map = np.clip(np.nan_to_num(kernel_weight), 0, 1) * np.isfinite(map_slope)
+        out["height_map_m"] = map_level
+        out["gradient_map_pct"] = 100 * map_slope
+    elif dem is None:
+        notes.append("no DEM: map-matching off")
+    else:
+        notes.append("no GPS position columns (latitude_deg, longitude_deg): map-matching off")
+    out["weight_map"] = weight_map
+
+    baro_level = baro_slope = None
+    pressure = _column(frame, "pressure_pa")
+    if pressure is not None:
+        pressure = sources.stuck_to_nan(pressure, max(3, int(settings.stuck_sensor_s * rate_hz)))
+        baro = sources.barometric_height_m(pressure)
+        bin_baro = distance_grid.bin_mean(index, baro, n_bins)
+        temperature = _column(frame, "air_temperature_c")
+        if temperature is not None:
+            bin_baro = _temperature_corrected(bin_baro, distance_grid.bin_mean(index, temperature, n_bins))
+        if map_level is not None and np.any(weight_map > 0):
+            offset, _, _ = distance_grid.local_linear(map_level - bin_baro, weight_map, spacing, settings.anchor_sigma_m)
+            offset = _fill_nan(s_grid, offset)
+        else:
+            offset = np.zeros(n_bins)
+            gps_alt = _column(frame, "gps_altitude_m")
+            if gps_alt is not None:
+                gap = distance_grid.bin_mean(index, gps_alt - baro, n_bins)
+                offset[:] = np.nanmedian(gap) if np.isfinite(gap).any() else 0.0
+        anchored = bin_baro + offset
+        baro_level, baro_slope, baro_support = distance_grid.local_linear(
+            anchored, np.isfinite(anchored).astype(float), spacing, settings.baro_sigma_m)
+        if np.isnan(bin_baro).mean() > 0.01 and np.isfinite(bin_baro).any():
+            notes.append(f"barometer missing on {100 * np.isnan(bin_baro).mean():.0f} % of the distance")
+        out["height_baro_m"] = baro_level
+        out["gradient_baro_pct"] = 100 * baro_slope
+    else:
+        notes.append("no pressure_pa: barometric height off")
+
+    accel_imu = _column(frame, "accel_x_mps2")
+    if accel_imu is not None:
+        sin_angle = distance_grid.bin_mean(index, sources.imu_sin_angle(accel_imu, accel), n_bins)
+        level, _, _ = distance_grid.local_linear(sin_angle, np.ones(n_bins), spacing, settings.imu_sigma_m)
+        out["gradient_imu_pct"] = 100 * np.tan(np.arcsin(np.clip(level, -1, 1)))
+
+    if map_slope is None and baro_slope is None:
+        raise UserError("gradient: needs a DEM (--dem DIR) with GPS positions, or a barometer (pressure_pa); "
+                        "this input has neither")
+    w_map = weight_map if map_slope is not None else np.zeros(n_bins)
+    w_baro = sources.WEIGHT_BARO * np.isfinite(baro_slope) if baro_slope is not None else np.zeros(n_bins)
+    g_map = np.nan_to_num(map_slope) if map_slope is not None else np.zeros(n_bins)
+    g_baro = np.nan_to_num(baro_slope) if baro_slope is not None else np.zeros(n_bins)
+    total = w_map + w_baro
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fused_slope = np.where(total > 0, (w_map * g_map + w_baro * g_baro) / total, np.nan)
+    if np.isnan(fused_slope).any():
+        notes.append(f"no source on {100 * np.isnan(fused_slope).mean():.1f} % of the distance: gradient "
+                     f"interpolated across")
+        fused_slope = _fill_nan(s_grid, fused_slope, fill=0.0)
+    fused_height = _integrate(fused_slope, spacing)
+    fused_height += _height_offset(fused_height, map_level, w_map, baro_level)
+    out["height_m"] = fused_height
+    out["gradient_pct"] = 100 * fused_slope
+
+    samples = {}
+    for name in out.columns:
+        if name != "distance_m":
+            samples[name] = np.interp(distance, s_grid, out[name].to_numpy(), left=np.nan, right=np.nan)
+    for name in ("height_m", "gradient_pct"):
+        samples[name] = np.where(np.isfinite(distance), samples[name], np.nan)
+    return GradientResult(grid=out, samples=samples, notes=notes)
+
+
+def _temperature_corrected(height_m, temperature_c):
+    """Height differences of (6) scaled by T_actual / T_standard (the hypsometric equation)."""
+    ratio = (np.asarray(temperature_c) + 273.15) / sources.standard_temperature_k(height_m)
+    ratio = np.where(np.isfinite(ratio), ratio, 1.0)
+    steps = np.diff(height_m) * ratio[1:]
+    first = np.flatnonzero(np.isfinite(height_m))
+    if len(first) == 0:
+        return height_m
+    corrected = np.concatenate([[0.0], np.nancumsum(steps)]) + height_m[first[0]]
+    return np.where(np.isfinite(height_m), corrected, np.nan)
+
+
+def _fill_nan(x, y, fill=None):
+    ok = np.isfinite(y)
+    if not ok.any():
+        return np.full_like(y, 0.0 if fill is None else fill)
+    return np.interp(x, x[ok], y[ok])
+
+
+def _integrate(slope, spacing_m):
+    """Height [m] whose central derivative on the grid is ``slope``: trapezoidal integral."""
+    steps = 0.5 * (slope[1:] + slope[:-1]) * spacing_m
+    return np.concatenate([[0.0], np.cumsum(steps)])
+
+
+def _height_offset(relative_m, map_level, weight_map, baro_level):
+    """Constant that puts the integrated height on the map (weighted) or barometric level."""
+    for level, weight in ((map_level, weight_map), (baro_level, None)):
+        if level is None:
+            continue
+        w = np.isfinite(level) * (1.0 if weight is None else weight)
+        if w.sum() > 0:
+            return float(np.sum(w * np.nan_to_num(level - relative_m)) / w.sum())
+    return 0.0

@@ -1,0 +1,89 @@
+"""The height and gradient sources of equations (6)-(8), per sample, before gridding."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ..road_load import G_MPS2
+
+SEA_LEVEL_PRESSURE_PA = 101325.0
+WEIGHT_BARO = 0.7
+"""w_baro of (8), constant as in the paper."""
+H_ACC_LIMIT_M = 10.0
+V_ACC_LIMIT_M = 15.0
+EARTH_RADIUS_M = 6_371_000.0
+
+
+def barometric_height_m(pressure_pa, reference_pressure_pa: float = SEA_LEVEL_PRESSURE_PA):
+    """(6): h = 44330.8 m (1 - (p/p0)^(1/5.255)) [m]."""
+    return 44330.8 * (1.0 - (np.asarray(pressure_pa, dtype=float) / reference_pressure_pa) ** (1 / 5.255))
+
+
+def standard_temperature_k(height_m):
+    """Temperature of the standard atmosphere behind (6) [K]: 288.15 K - 6.5 K/km."""
+    return 288.15 - 0.0065 * np.asarray(height_m, dtype=float)
+
+
+def map_weight(h_acc_m, v_acc_m, h_limit_m: float = H_ACC_LIMIT_M, v_limit_m: float = V_ACC_LIMIT_M):
+    """w_map of (8) from the GPS accuracies [m]: clip(1 - max(h_acc/h_lim, v_acc/v_lim), 0, 1);
+    0 where an accuracy is unknown (NaN)."""
+    ratio = np.maximum(np.asarray(h_acc_m, dtype=float) / h_limit_m, np.asarray(v_acc_m, dtype=float) / v_limit_m)
+    return np.where(np.isfinite(ratio), np.clip(1.0 - ratio, 0.0, 1.0), 0.0)
+
+
+def imu_sin_angle(accel_imu_mps2, accel_mps2):
+    """(7): sin(alpha) = (a_imu - dv/dt) / g, clipped to [-1, 1]."""
+    return np.clip((np.asarray(accel_imu_mps2, dtype=float) - np.asarray(accel_mps2, dtype=float)) / G_MPS2, -1, 1)
+
+
+def stuck_to_nan(values, run_samples: int):
+    """NaN for runs of at least ``run_samples`` bit-identical values (a sensor that stopped but
+    whose last reading was carried forward); a live barometer never repeats itself that long."""
+    values = np.asarray(values, dtype=float).copy()
+    if len(values) == 0:
+        return values
+    change = np.concatenate([[True], values[1:] != values[:-1]])
+    run_id = np.cumsum(change)
+    run_length = np.bincount(run_id)[run_id]
+    values[run_length >= run_samples] = np.nan
+    return values
+
+
+def _gps_outliers_reference(east_m, north_m, distance_m, time_s, tolerance_m, reacquire_s):
+    bad = np.zeros(len(east_m), dtype=np.bool_)
+    last = -1
+    for k in range(len(east_m)):
+        if not (np.isfinite(east_m[k]) and np.isfinite(north_m[k])):
+            bad[k] = True
+            continue
+        if last < 0:
+            last = k
+            continue
+        chord = np.hypot(east_m[k] - east_m[last], north_m[k] - north_m[last])
+        driven = abs(distance_m[k] - distance_m[last])
+        if chord > driven + tolerance_m + 0.05 * driven and time_s[k] - time_s[last] < reacquire_s:
+            bad[k] = True
+        else:
+            last = k
+    return bad
+
+
+gps_outliers = numba.njit(cache=True)(_gps_outliers_reference)
+gps_outliers.__doc__ = """Fixes that jumped: farther from the last good fix than the wheel says the truck drove
+(plus ``tolerance_m`` [m] and 5 %). After ``reacquire_s`` [s] without a good fix the next fix
+is accepted as the new reference. NaN fixes count as bad. (numba kernel;
+``_gps_outliers_reference`` is the same loop in plain Python.)"""
+
+
+def local_east_north_m(latitude_deg, longitude_deg):
+    """Equirectangular east/north [m] around the first finite fix (enough for step lengths)."""
+    lat = np.asarray(latitude_deg, dtype=float)
+    lon = np.asarray(longitude_deg, dtype=float)
+    finite = np.flatnonzero(np.isfinite(lat) & np.isfinite(lon))
+    if len(finite) == 0:
+        return np.full(lat.shape, np.nan), np.full(lat.shape, np.nan)
+    lat0, lon0 = lat[finite[0]], lon[finite[0]]
+    north = np.radians(lat - lat0) * EARTH_RADIUS_M
+    east = np.radians(lon - lon0) * EARTH_RADIUS_M * np.cos(np.radians(lat0))
+    return east, north
