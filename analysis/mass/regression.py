@@ -1,0 +1,111 @@
+"""The mass regression (10) from a signals table: y = F_wheel - F_aero, phi = a + g (c_r cos a + sin a),
+and the data filter of paper §2.2.2 (v > 5.5 m/s, a > 0.1 m/s², engine torque > 500 Nm, no gear
+shift, no braking)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from .. import road_load
+from ..errors import UserError
+
+
+@dataclass(frozen=True)
+class FilterSettings:
+    """Thresholds of the data filter [SI units] and the force smoothing window [s]."""
+
+    min_speed_mps: float = 5.5
+    min_accel_mps2: float = 0.1
+    min_engine_torque_nm: float = 500.0
+    shift_margin_s: float = 1.0
+    ratio_tolerance: float = 0.04
+    smoothing_window_s: float = 1.0
+
+
+@dataclass
+class Regression:
+    phi: np.ndarray
+    """Regressor phi_k [m/s²] (10)."""
+    y: np.ndarray
+    """Output y_k = F_wheel - F_aero [N] (10)."""
+    usable: np.ndarray
+    """Samples passing the data filter."""
+    rejected: dict[str, int]
+    """How many samples each filter rule removed (a sample may fail several)."""
+
+
+def _centred_mean(values: np.ndarray, window: int) -> np.ndarray:
+    return pd.Series(values).rolling(window, center=True, min_periods=1).mean().to_numpy()
+
+
+def _widen(mask: np.ndarray, samples: int) -> np.ndarray:
+    if samples <= 0:
+        return mask
+    return np.convolve(mask.astype(float), np.ones(2 * samples + 1), "same") > 0
+
+
+def _column(frame, name):
+    return frame[name].to_numpy(dtype=float) if name in frame.columns else None
+
+
+def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = FilterSettings()) -> Regression:
+    """Regression (10) per sample and the data filter; needs speed_mps, accel_mps2, gradient_pct,
+    engine_speed_rpm, engine_torque_nm (UserError naming what is missing)."""
+    needed = ["speed_mps", "accel_mps2", "gradient_pct", "engine_speed_rpm", "engine_torque_nm"]
+    missing = [c for c in needed if c not in frame.columns or frame[c].isna().all()]
+    if missing:
+        raise UserError(f"mass: needs column(s) {', '.join(missing)} (engine data from CAN and the gradient stage)")
+    time_s = frame["time_s"].to_numpy(dtype=float)
+    speed, accel = _column(frame, "speed_mps"), _column(frame, "accel_mps2")
+    gradient = _column(frame, "gradient_pct")
+    engine_rpm, engine_torque = _column(frame, "engine_speed_rpm"), _column(frame, "engine_torque_nm")
+    steps = np.diff(time_s)
+    dt = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 0.1
+    window = max(1, int(round(settings.smoothing_window_s / dt)))
+    margin = max(0, int(round(settings.shift_margin_s / dt)))
+
+    wheel_torque = road_load.wheel_torque_from_engine_nm(engine_torque, engine_rpm, speed, vehicle.wheel_radius_m,
+                                                         vehicle.driveline_efficiency)
+    wheel_force = road_load.wheel_force_from_torque_n(wheel_torque, vehicle.wheel_radius_m)
+    # the same centred window that made accel_mps2 from wheel speed, so both sides of (1) match in time
+    y = _centred_mean(wheel_force, window) - road_load.aero_force_n(speed, vehicle.drag_coefficient,
+                                                                     vehicle.frontal_area_m2)
+    per_kg = (road_load.rolling_force_n(1.0, gradient, vehicle.rolling_resistance_coefficient)
+              + road_load.climbing_force_n(1.0, gradient))
+    phi = accel + per_kg
+
+    with np.errstate(invalid="ignore", divide="ignore"):
+        total_ratio = (2 * np.pi * engine_rpm / 60.0) * vehicle.wheel_radius_m / speed
+    shifting = np.zeros(len(frame), bool)
+    gear = _column(frame, "current_gear")
+    if gear is not None:
+        shifting |= np.concatenate([[False], np.diff(gear) != 0]) | ~np.isfinite(gear)
+    steady = _centred_mean(total_ratio, window)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        shifting |= ~(np.abs(total_ratio / steady - 1) < settings.ratio_tolerance)
+    if vehicle.total_ratios:
+        ratios = np.asarray(vehicle.total_ratios)
+        with np.errstate(invalid="ignore"):
+            nearest = np.min(np.abs(total_ratio[:, None] / ratios[None, :] - 1), axis=1)
+        shifting |= ~(nearest < settings.ratio_tolerance)
+    brake = _column(frame, "brake_switch")
+    braking = np.nan_to_num(brake) > 0.5 if brake is not None else np.zeros(len(frame), bool)
+    valid = frame["valid"].to_numpy(dtype=bool) if "valid" in frame.columns else np.ones(len(frame), bool)
+
+    rules = {
+        "invalid or missing data": ~valid | ~np.isfinite(y) | ~np.isfinite(phi),
+        f"speed <= {settings.min_speed_mps} m/s": ~(speed > settings.min_speed_mps),
+        f"acceleration <= {settings.min_accel_mps2} m/s²": ~(accel > settings.min_accel_mps2),
+        f"engine torque <= {settings.min_engine_torque_nm} Nm": ~(_centred_mean(engine_torque, window)
+                                                                   > settings.min_engine_torque_nm),
+        "gear shift or open clutch": _widen(shifting, margin + window // 2),
+        "braking": _widen(braking, margin + window // 2),
+    }
+    usable = np.ones(len(frame), bool)
+    for rejected in rules.values():
+        usable &= ~rejected
+    return Regression(phi=np.where(usable, phi, np.nan), y=np.where(usable, y, np.nan), usable=usable,
+                      rejected={name: int(mask.sum()) for name, mask in rules.items()})
