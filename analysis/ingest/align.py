@@ -1,0 +1,149 @@
+"""All streams onto one time base: bins of 1/rate on the logger's monotonic clock.
+
+Streams are reduced block by block (so a 10-hour log never sits in memory at full rate): each
+sample falls in bin ``t_mono_ns // period_ns``; a bin's value is the mean of its samples
+("mean" signals) or the last sample ("last" signals: gear, switches). After all blocks, a value is
+held into following empty bins for at most `hold_bins` (1.5 sample periods, never more than 1 s
+for dynamic signals), and never into a bin where the logger recorded nothing: such bins are
+gaps, ``valid`` False, every signal NaN.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+MAX_HOLD_S = 1.0
+"""No value is carried across a missing second."""
+QUASI_STATIC_HOLD_S = 60.0
+"""Signals that change only at stops (reported mass) are held this long between messages."""
+
+
+@dataclass
+class _Stream:
+    kind: str
+    bins: list = field(default_factory=list)
+    sums: list = field(default_factory=list)
+    counts: list = field(default_factory=list)
+    n: int = 0
+    t_first: int | None = None
+    t_last: int | None = None
+
+
+class BinAccumulator:
+    """Per-bin sums/counts (or last values) of named streams, fed in blocks."""
+
+    def __init__(self, rate_hz: float):
+        if not rate_hz > 0:
+            raise ValueError("rate_hz must be positive")
+        self.period_ns = int(round(1e9 / rate_hz))
+        self.streams: dict[str, _Stream] = {}
+        self._activity: list[np.ndarray] = []
+
+    def add(self, name: str, time_ns: np.ndarray, values: np.ndarray, kind: str = "mean") -> None:
+        """Add samples (time [ns, continuous monotonic], values); NaN values count as absent."""
+        values = np.asarray(values, dtype=np.float64)
+        keep = np.isfinite(values)
+        time_ns, values = np.asarray(time_ns, dtype=np.int64)[keep], values[keep]
+        stream = self.streams.setdefault(name, _Stream(kind))
+        if len(values) == 0:
+            return
+        bins = time_ns // self.period_ns
+        if kind == "last":
+            order = np.argsort(time_ns, kind="stable")[::-1]
+            unique, first = np.unique(bins[order], return_index=True)
+            stream.bins.append(unique)
+            stream.sums.append(values[order][first])
+            stream.counts.append(np.ones(len(unique)))
+        else:
+            unique, inverse = np.unique(bins, return_inverse=True)
+            stream.bins.append(unique)
+            stream.sums.append(np.bincount(inverse, values, len(unique)))
+            stream.counts.append(np.bincount(inverse, minlength=len(unique)).astype(np.float64))
+        stream.n += len(values)
+        t0, t1 = int(time_ns.min()), int(time_ns.max())
+        stream.t_first = t0 if stream.t_first is None else min(stream.t_first, t0)
+        stream.t_last = t1 if stream.t_last is None else max(stream.t_last, t1)
+
+    def mark_recorded(self, time_ns: np.ndarray) -> None:
+        """Note that the logger recorded something at these times (defines ``valid``)."""
+        if len(time_ns):
+            self._activity.append(np.unique(np.asarray(time_ns, dtype=np.int64) // self.period_ns))
+
+    def bin_range(self) -> tuple[int, int] | None:
+        """(first bin, number of bins) covering every recorded time; None if nothing was."""
+        if not self._activity:
+            return None
+        lo = min(int(a[0]) for a in self._activity)
+        hi = max(int(a[-1]) for a in self._activity)
+        return lo, hi - lo + 1
+
+    def recorded(self, first_bin: int, n_bins: int) -> np.ndarray:
+        mask = np.zeros(n_bins, dtype=bool)
+        for bins in self._activity:
+            mask[bins - first_bin] = True
+        return mask
+
+    def series(self, name: str, first_bin: int, n_bins: int) -> np.ndarray:
+        """Per-bin value of one stream (NaN where it has no sample), before holding."""
+        stream = self.streams[name]
+        out = np.full(n_bins, np.nan)
+        if not stream.bins:
+            return out
+        bins = np.concatenate(stream.bins) - first_bin
+        sums, counts = np.concatenate(stream.sums), np.concatenate(stream.counts)
+        if stream.kind == "last":
+            out[bins] = sums
+            return out
+        total = np.bincount(bins, sums, n_bins)
+        count = np.bincount(bins, counts, n_bins)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out = np.where(count > 0, total / count, np.nan)
+        return out
+
+    def sample_period_s(self, name: str) -> float:
+        """Mean interval between samples of a stream [s] (inf for fewer than two)."""
+        stream = self.streams[name]
+        if stream.n < 2:
+            return float("inf")
+        return (stream.t_last - stream.t_first) / (stream.n - 1) / 1e9
+
+
+def hold(values: np.ndarray, recorded: np.ndarray, limit_bins: int) -> np.ndarray:
+    """Carry each value forward into at most ``limit_bins`` empty bins, never into unrecorded bins."""
+    out = values.copy()
+    if limit_bins > 0:
+        out = pd.Series(out).ffill(limit=limit_bins).to_numpy(copy=True)
+        # A hold must not jump a gap: bins after an unrecorded bin only keep their own values.
+        gap_id = np.cumsum(~recorded)
+        source_gap = pd.Series(np.where(np.isfinite(values), gap_id, np.nan)).ffill().to_numpy()
+        crossed = np.isfinite(out) & ~np.isfinite(values) & (source_gap != gap_id)
+        out[crossed] = np.nan
+    out[~recorded] = np.nan
+    return out
+
+
+def hold_bins(period_s: float, rate_hz: float, max_hold_s: float = MAX_HOLD_S) -> int:
+    """Bins to hold a stream sampled every ``period_s`` [s]: 1.5 periods, capped at ``max_hold_s``."""
+    if not np.isfinite(period_s):
+        period_s = max_hold_s
+    return int(np.ceil(min(1.5 * period_s, max_hold_s) * rate_hz))
+
+
+def wall_clock_ns(grid_mono_ns: np.ndarray, pairs: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray | None:
+    """Wall-clock [ns] of monotonic times from the best (first non-empty) list of clock pairs.
+
+    The offset wall - mono is interpolated linearly between pairs and held beyond the ends, so a
+    jump of the realtime clock shows as a step only where it happened.
+    """
+    for mono, wall in pairs:
+        if len(mono) == 0:
+            continue
+        order = np.argsort(mono, kind="stable")
+        mono, wall = np.asarray(mono, dtype=np.int64)[order], np.asarray(wall, dtype=np.int64)[order]
+        offset = wall - mono
+        relative = (offset - offset[0]).astype(np.float64)
+        return grid_mono_ns + offset[0] + np.round(np.interp(grid_mono_ns, mono, relative)).astype(np.int64)
+    return None

@@ -1,0 +1,306 @@
+"""A linear, damage-tolerant MCAP reader: whole files, files cut by power loss, flipped bytes.
+
+The mcap library's seeking reader needs the footer and summary, which a file cut by power loss
+does not have; its stream reader stops at the first damaged record. This reader walks the records
+itself: every chunk whose CRC (and decompression) checks out yields its messages, a damaged chunk
+is counted and skipped, and after damage it resynchronises on the next chunk record that
+validates. Messages whose channel record was lost stay unattributed and are counted.
+"""
+
+from __future__ import annotations
+
+import mmap
+import struct
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator
+
+import zstandard
+
+MAGIC = b"\x89MCAP0\r\n"
+OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
+OP_DATA_END = 0x0F
+_VALID_OPS = set(range(0x01, 0x10))
+_U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
+_RECORD_HEAD = struct.Struct("<BQ")
+_MESSAGE_HEAD = struct.Struct("<HIQQ")
+_CHUNK_HEAD = struct.Struct("<QQQII")
+_ZSTD_MARK = b"\x04\x00\x00\x00zstd"
+_LZ4_MARK = b"\x03\x00\x00\x00lz4"
+
+
+class DamagedRecord(Exception):
+    """A record that does not parse or whose CRC does not match."""
+
+
+@dataclass(frozen=True)
+class Channel:
+    id: int
+    topic: str
+    message_encoding: str
+    schema_name: str
+    schema_encoding: str
+    schema_data: bytes
+    metadata: dict
+
+
+@dataclass
+class ReadReport:
+    """What a linear read found in one file [bytes, counts]."""
+
+    path: str
+    file_bytes: int = 0
+    read_bytes: int = 0
+    """Bytes up to the end of the last record that parsed (the recovered part of the file)."""
+    chunks: int = 0
+    bad_chunks: int = 0
+    skipped_bytes: int = 0
+    messages: int = 0
+    unattributed_messages: int = 0
+    complete: bool = False
+    """True when the footer and closing magic were read."""
+    header_ok: bool = True
+    profile: str = ""
+    problems: list[str] = field(default_factory=list)
+
+    def warning(self) -> str | None:
+        """One line for the user when anything was lost; None for an intact file."""
+        if self.complete and not self.bad_chunks and not self.skipped_bytes and not self.unattributed_messages:
+            return None
+        parts = []
+        if not self.complete:
+            parts.append(f"cut short (no footer): recovered {self.read_bytes} of {self.file_bytes} bytes")
+        if self.bad_chunks:
+            parts.append(f"{self.bad_chunks} of {self.chunks} chunks damaged (bad CRC or data) and skipped")
+        if self.skipped_bytes:
+            parts.append(f"{self.skipped_bytes} damaged bytes skipped")
+        if self.unattributed_messages:
+            parts.append(f"{self.unattributed_messages} messages of channels whose definition was lost")
+        return f"{self.path}: " + "; ".join(parts) + f"; {self.messages} messages read"
+
+
+@dataclass(frozen=True)
+class RawMessage:
+    channel: Channel
+    sequence: int
+    log_time_ns: int
+    publish_time_ns: int
+    data: bytes
+
+
+def _string(buf, pos: int) -> tuple[str, int]:
+    (n,) = _U32.unpack_from(buf, pos)
+    end = pos + 4 + n
+    if end > len(buf):
+        raise DamagedRecord("string beyond record")
+    return bytes(buf[pos + 4:end]).decode("utf-8"), end
+
+
+def _parse_schema(body) -> tuple[int, str, str, bytes]:
+    (schema_id,) = _U16.unpack_from(body, 0)
+    name, pos = _string(body, 2)
+    encoding, pos = _string(body, pos)
+    (n,) = _U32.unpack_from(body, pos)
+    if pos + 4 + n > len(body):
+        raise DamagedRecord("schema data beyond record")
+    return schema_id, name, encoding, bytes(body[pos + 4:pos + 4 + n])
+
+
+def _parse_channel(body) -> tuple[int, int, str, str, dict]:
+    channel_id, schema_id = struct.unpack_from("<HH", body, 0)
+    topic, pos = _string(body, 4)
+    encoding, pos = _string(body, pos)
+    (map_len,) = _U32.unpack_from(body, pos)
+    pos += 4
+    end = pos + map_len
+    if end > len(body):
+        raise DamagedRecord("channel metadata beyond record")
+    metadata = {}
+    while pos < end:
+        key, pos = _string(body, pos)
+        value, pos = _string(body, pos)
+        metadata[key] = value
+    return channel_id, schema_id, topic, encoding, metadata
+
+
+class _Channels:
+    """Schema and channel records seen so far, and messages waiting for their channel."""
+
+    def __init__(self):
+        self.schemas: dict[int, tuple[str, str, bytes]] = {}
+        self.channels: dict[int, Channel] = {}
+        self.pending: dict[int, tuple[int, int, int, bytes]] = {}
+
+    def add_schema(self, body) -> None:
+        schema_id, name, encoding, data = _parse_schema(body)
+        self.schemas[schema_id] = (name, encoding, data)
+
+    def add_channel(self, body) -> None:
+        channel_id, schema_id, topic, encoding, metadata = _parse_channel(body)
+        name, schema_encoding, data = self.schemas.get(schema_id, ("", "", b""))
+        self.channels[channel_id] = Channel(channel_id, topic, encoding, name, schema_encoding, data, metadata)
+
+
+def _inner_records(data: bytes) -> list[tuple[int, memoryview]]:
+    """The records of a decompressed chunk; raises DamagedRecord if they do not tile it exactly."""
+    view = memoryview(data)
+    records, pos, size = [], 0, len(data)
+    while pos < size:
+        if pos + 9 > size:
+            raise DamagedRecord("record header beyond chunk")
+        opcode, length = _RECORD_HEAD.unpack_from(view, pos)
+        if opcode not in _VALID_OPS or pos + 9 + length > size:
+            raise DamagedRecord("record beyond chunk")
+        records.append((opcode, view[pos + 9:pos + 9 + length]))
+        pos += 9 + length
+    return records
+
+
+def _chunk_payload(body) -> bytes:
+    """Decompressed, CRC-checked records of a chunk body."""
+    if len(body) < _CHUNK_HEAD.size:
+        raise DamagedRecord("chunk header short")
+    _start, _end, size, crc, comp_len = _CHUNK_HEAD.unpack_from(body, 0)
+    pos = _CHUNK_HEAD.size
+    if comp_len > 8 or pos + comp_len + 8 > len(body):
+        raise DamagedRecord("chunk compression field damaged")
+    compression = bytes(body[pos:pos + comp_len])
+    pos += comp_len
+    (data_len,) = _U64.unpack_from(body, pos)
+    pos += 8
+    if pos + data_len != len(body):
+        raise DamagedRecord("chunk data length does not match record")
+    raw = body[pos:]
+    try:
+        if compression == b"zstd":
+            data = zstandard.ZstdDecompressor().decompress(raw, max_output_size=size)
+        elif compression == b"lz4":
+            import lz4.frame
+            data = lz4.frame.decompress(bytes(raw))
+        elif compression == b"":
+            data = bytes(raw)
+        else:
+            raise DamagedRecord(f"unknown chunk compression {compression!r}")
+    except (zstandard.ZstdError, RuntimeError, ValueError) as exc:
+        raise DamagedRecord(f"chunk does not decompress: {exc}") from None
+    if len(data) != size or (crc != 0 and zlib.crc32(data) != crc):
+        raise DamagedRecord("chunk CRC mismatch")
+    return data
+
+
+def _valid_chunk_at(buf, pos: int) -> bool:
+    if pos < 0 or pos + 9 > len(buf) or buf[pos] != OP_CHUNK:
+        return False
+    (length,) = _U64.unpack_from(buf, pos + 1)
+    if pos + 9 + length > len(buf):
+        return False
+    try:
+        _inner_records(_chunk_payload(buf[pos + 9:pos + 9 + length]))
+    except (DamagedRecord, struct.error, MemoryError):
+        return False
+    return True
+
+
+def _resync(buf, start: int) -> int:
+    """Offset of the next compressed chunk record after ``start`` that validates, or len(buf)."""
+    best = len(buf)
+    for mark in (_ZSTD_MARK, _LZ4_MARK):
+        at = buf.find(mark, start + 1 + 37)
+        while 0 <= at and at - 37 < best:
+            if _valid_chunk_at(buf, at - 37):
+                best = at - 37
+                break
+            at = buf.find(mark, at + 1)
+    return best
+
+
+def read_file(path: str | Path, report: ReadReport | None = None) -> Iterator[RawMessage]:
+    """Yield every recoverable message of one MCAP file in file order; fill ``report``."""
+    path = Path(path)
+    report = report if report is not None else ReadReport(str(path))
+    report.path = str(path)
+    with open(path, "rb") as handle:
+        report.file_bytes = size = handle.seek(0, 2)
+        if size == 0:
+            report.header_ok = False
+            report.problems.append("empty file")
+            return
+        with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+            yield from _walk(buf, report)
+
+
+def _walk(buf, report: ReadReport) -> Iterator[RawMessage]:
+    size = len(buf)
+    channels = _Channels()
+    pos = len(MAGIC)
+    if buf[:len(MAGIC)] != MAGIC:
+        report.header_ok = False
+        report.problems.append("no MCAP magic at the start")
+        pos = _resync(buf, 0)
+    while pos + 9 <= size:
+        opcode, length = _RECORD_HEAD.unpack_from(buf, pos)
+        end = pos + 9 + length
+        if opcode not in _VALID_OPS or end > size:
+            nxt = _resync(buf, pos)
+            report.skipped_bytes += nxt - pos if nxt < size else 0
+            pos = nxt
+            continue
+        body = buf[pos + 9:end]
+        if opcode == OP_CHUNK:
+            report.chunks += 1
+            try:
+                messages = _messages(_inner_records(_chunk_payload(body)), channels, report)
+            except (DamagedRecord, struct.error, UnicodeDecodeError):
+                report.bad_chunks += 1
+                nxt = _resync(buf, pos)
+                report.read_bytes = max(report.read_bytes, min(end, nxt))
+                report.skipped_bytes += max(0, nxt - end) if nxt < size else 0
+                pos = nxt
+                continue
+            yield from messages
+        elif opcode in (OP_SCHEMA, OP_CHANNEL, OP_MESSAGE):
+            try:
+                messages = _messages([(opcode, body)], channels, report)
+            except (DamagedRecord, struct.error, UnicodeDecodeError):
+                messages = []
+                report.skipped_bytes += end - pos
+            yield from messages
+        elif opcode == OP_HEADER:
+            try:
+                report.profile, _ = _string(body, 0)
+            except (DamagedRecord, struct.error, UnicodeDecodeError):
+                pass
+        elif opcode == OP_FOOTER:
+            report.complete = buf[end:end + len(MAGIC)] == MAGIC
+            report.read_bytes = min(size, end + len(MAGIC))
+            break
+        report.read_bytes = end
+        pos = end
+    for waiting in channels.pending.values():
+        report.unattributed_messages += len(waiting)
+    channels.pending.clear()
+
+
+def _messages(records, channels: _Channels, report: ReadReport) -> list[RawMessage]:
+    # Channel records of one chunk are checked before its messages are handed out, so a damaged
+    # record inside a CRC-valid chunk cannot stop the loop half-way through a chunk.
+    out = []
+    for opcode, body in records:
+        if opcode == OP_MESSAGE:
+            channel_id, sequence, log_time, publish_time = _MESSAGE_HEAD.unpack_from(body, 0)
+            data = bytes(body[_MESSAGE_HEAD.size:])
+            channel = channels.channels.get(channel_id)
+            if channel is None:
+                channels.pending.setdefault(channel_id, []).append((sequence, log_time, publish_time, data))
+                continue
+            out.append(RawMessage(channel, sequence, log_time, publish_time, data))
+        elif opcode == OP_SCHEMA:
+            channels.add_schema(body)
+        elif opcode == OP_CHANNEL:
+            channels.add_channel(body)
+            channel = channels.channels[struct.unpack_from("<H", body, 0)[0]]
+            for sequence, log_time, publish_time, data in channels.pending.pop(channel.id, []):
+                out.append(RawMessage(channel, sequence, log_time, publish_time, data))
+    report.messages += len(out)
+    return out

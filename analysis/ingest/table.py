@@ -1,0 +1,225 @@
+"""Logs to the signals table: stream, decode block by block, align, name the columns.
+
+CAN frames are gathered into blocks of `BLOCK_FRAMES` records (one ``np.frombuffer`` over the
+joined payloads), decoded with NumPy (J1939 SPNs per source address, OBD-II and transport
+protocol frames set aside for matching and reassembly at the end, a user's DBC), and reduced to
+output bins at once, so memory grows with the output, not with the log.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from logger import contract, j1939
+
+from .. import kinematics
+from . import align, j1939_decode, obd_decode
+from . import dbc as dbc_module
+from .logs import LogError, Timeline, decode_json, expand, foreign, is_mcap, iter_log_messages
+
+BLOCK_FRAMES = 1 << 20
+"""CAN records decoded at once (24 MiB)."""
+BLOCK_IMU = 1 << 20
+LAST_KIND = {"current_gear", "selected_gear", "brake_switch", "clutch_switch", "axle_location"}
+ACCEL_SCALE_KEY = "accel_scale_mps2_per_lsb"
+
+
+@dataclass
+class _Json:
+    time_ns: list = field(default_factory=list)
+    fields: dict = field(default_factory=dict)
+
+    def add(self, t: int, record: dict, names: tuple[str, ...]) -> None:
+        self.time_ns.append(t)
+        for name in names:
+            value = record.get(name)
+            self.fields.setdefault(name, []).append(float(value) if isinstance(value, (int, float)) else np.nan)
+
+    def arrays(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        return np.array(self.time_ns, dtype=np.int64), np.array(self.fields.get(name, []), dtype=np.float64)
+
+
+JSON_FIELDS = {
+    contract.BAROMETER.name: ("pressure_pa", "temperature_c"),
+    contract.HUMIDITY.name: ("relative_humidity_pct", "temperature_c"),
+    contract.GPS_FIX.name: ("latitude", "longitude", "altitude", "h_acc_m", "v_acc_m", "gps_time_utc_ns",
+                            "fix_quality"),
+    contract.TIME_SYNC.name: ("t_realtime_ns", "gps_time_utc_ns"),
+}
+
+
+class Ingest:
+    """Accumulates decoded, binned streams of one set of logs; `table()` builds the signals table."""
+
+    def __init__(self, rate_hz: float = 10.0, database=None):
+        self.rate_hz = rate_hz
+        self.acc = align.BinAccumulator(rate_hz)
+        self.database = database
+        self.dbc_messages = dbc_module.messages(database) if database is not None else []
+        self.tp_parts: list[np.ndarray] = []
+        self.obd_parts: list[np.ndarray] = []
+        self.can_pending: list[bytes] = []
+        self.can_pending_records = 0
+        self.imu_pending: dict[float, list[bytes]] = {}
+        self.json: dict[str, _Json] = {}
+        self.log_pairs: tuple[list, list] = ([], [])
+        self.topic_counts: dict[str, int] = {}
+        self.can_frames = 0
+        self.messages = 0
+        self.imu_samples = 0
+        self.notes: list[str] = []
+        self.sources: dict[str, list[int]] = {}
+        self.tp_stats = j1939_decode.TpStats()
+        self.obd_stats = obd_decode.ObdStats()
+
+    # -- feeding -----------------------------------------------------------------------------
+    def feed(self, message, offset_ns: int) -> None:
+        """One MCAP message whose times are shifted by ``offset_ns`` onto the continuous line."""
+        topic = message.topic
+        self.topic_counts[topic] = self.topic_counts.get(topic, 0) + 1
+        self.messages += 1
+        if self.messages % 256 == 1:
+            self.log_pairs[0].append(message.t_mono_ns)
+            self.log_pairs[1].append(message.log_time_ns)
+        if topic == contract.CAN_FRAMES.name:
+            self._pend_can(message.data, offset_ns)
+        elif topic == contract.IMU.name:
+            self._pend_imu(message, offset_ns)
+        elif topic in JSON_FIELDS:
+            record = decode_json(message)
+            if record is not None and isinstance(record.get("t_mono_ns"), int):
+                self.json.setdefault(topic, _Json()).add(record["t_mono_ns"] + offset_ns, record, JSON_FIELDS[topic])
+
+    def _pend_can(self, payload: bytes, offset_ns: int) -> None:
+        size = contract.CAN_FRAME_DTYPE.itemsize
+        payload = payload[:len(payload) - len(payload) % size]
+        if offset_ns:
+            records = np.frombuffer(payload, contract.CAN_FRAME_DTYPE).copy()
+            records["t_mono_ns"] += np.uint64(offset_ns)
+            payload = records.tobytes()
+        self.can_pending.append(payload)
+        self.can_pending_records += len(payload) // size
+        if self.can_pending_records >= BLOCK_FRAMES:
+            self.flush_can()
+
+    def flush_can(self) -> None:
+        if self.can_pending:
+            frames = np.frombuffer(b"".join(self.can_pending), contract.CAN_FRAME_DTYPE)
+            self.can_pending, self.can_pending_records = [], 0
+            self.feed_frames(frames)
+
+    def _pend_imu(self, message, offset_ns: int) -> None:
+        scale = message.channel.metadata.get(ACCEL_SCALE_KEY)
+        try:
+            scale = float(scale)
+        except (TypeError, ValueError):
+            if "imu-scale" not in self.notes:
+                self.notes.append("imu-scale")
+            return
+        size = contract.IMU_SAMPLE_DTYPE.itemsize
+        payload = message.data[:len(message.data) - len(message.data) % size]
+        if offset_ns:
+            records = np.frombuffer(payload, contract.IMU_SAMPLE_DTYPE).copy()
+            records["t_mono_ns"] += np.uint64(offset_ns)
+            payload = records.tobytes()
+        pending = self.imu_pending.setdefault(scale, [])
+        pending.append(payload)
+        if sum(map(len, pending)) >= BLOCK_IMU * size:
+            self.flush_imu()
+
+    def flush_imu(self) -> None:
+        for scale, pending in self.imu_pending.items():
+            if not pending:
+                continue
+            samples = np.frombuffer(b"".join(pending), contract.IMU_SAMPLE_DTYPE)
+            pending.clear()
+            self.imu_samples += len(samples)
+            t = samples["t_mono_ns"].astype(np.int64)
+            self.acc.mark_recorded(t)
+            accel = samples["accel_raw"].astype(np.float64) * scale
+            for axis, name in enumerate(("accel_x_mps2", "accel_y_mps2", "accel_z_mps2")):
+                self.acc.add(name, t, accel[:, axis])
+
+    def feed_frames(self, frames: np.ndarray) -> None:
+        """A block of raw CAN records (contract dtype, continuous monotonic time)."""
+        if len(frames) == 0:
+            return
+        self.can_frames += len(frames)
+        t_all = frames["t_mono_ns"].astype(np.int64)
+        self.acc.mark_recorded(t_all)
+        for pgn, decoded in j1939_decode.decode_block(frames).items():
+            self._add_decoded(decoded)
+        self.tp_parts.append(j1939_decode.tp_frames(frames))
+        self.obd_parts.append(obd_decode.obd_frames(frames))
+        if self.database is not None:
+            for name, (t, values) in dbc_module.decode_frames(self.database, frames, self.dbc_messages).items():
+                self.acc.add(f"dbc:{name}", t, values)
+
+    def _add_decoded(self, decoded: j1939_decode.DecodedPgn) -> None:
+        for source in np.unique(decoded.source):
+            mask = decoded.source == source
+            t = decoded.time_ns[mask]
+            if decoded.pgn == j1939.PGN_VW:
+                location = decoded.values["axle_location"][mask]
+                weight = decoded.values["axle_weight_kg"][mask]
+                for axle in np.unique(location[np.isfinite(location)]):
+                    self.acc.add(f"axle_weight_kg#{int(axle)}@{int(source)}", t[location == axle],
+                                 weight[location == axle])
+                continue
+            for name, values in decoded.values.items():
+                self.acc.add(f"{name}@{int(source)}", t, values[mask], "last" if name in LAST_KIND else "mean")
+
+    # -- finishing ---------------------------------------------------------------------------
+    def finish_streams(self) -> None:
+        """Flush pending blocks; reassemble TP sessions; match OBD-II; bin the JSON topics."""
+        self.flush_can()
+        self.flush_imu()
+        tp = np.concatenate(self.tp_parts) if self.tp_parts else np.zeros(0, contract.CAN_FRAME_DTYPE)
+        tp_messages, self.tp_stats = j1939_decode.reassemble(tp)
+        self.tp_messages = tp_messages
+        for decoded in j1939_decode.decode_tp(tp_messages).values():
+            self._add_decoded(decoded)
+        if self.database is not None:
+            for name, (t, values) in dbc_module.decode_long(self.database, tp_messages).items():
+                self.acc.add(f"dbc:{name}", t, values)
+        obd = np.concatenate(self.obd_parts) if self.obd_parts else np.zeros(0, contract.CAN_FRAME_DTYPE)
+        decoded_obd, self.obd_stats = obd_decode.decode(obd)
+        for name, (t, values) in decoded_obd.items():
+            self.acc.add(f"obd:{name}", t, values)
+        for topic, stream in self.json.items():
+            t = np.array(stream.time_ns, dtype=np.int64)
+            self.acc.mark_recorded(np.sort(t))
+            prefix = {contract.BAROMETER.name: "baro", contract.HUMIDITY.name: "hum",
+                      contract.GPS_FIX.name: "gps", contract.TIME_SYNC.name: "sync"}[topic]
+            if topic == contract.GPS_FIX.name:
+                fix = stream.arrays("fix_quality")[1]
+                has_fix = ~(fix == 0)
+            for name in JSON_FIELDS[topic]:
+                if name in ("gps_time_utc_ns", "t_realtime_ns", "fix_quality"):
+                    continue
+                t_field, values = stream.arrays(name)
+                if topic == contract.GPS_FIX.name:
+                    values = np.where(has_fix, values, np.nan)
+                self.acc.add(f"{prefix}:{name}", t_field, values)
+
+    def clock_pairs(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(mono, wall) pairs, best first: GPS UTC from time sync and fixes, realtime, log_time."""
+        pairs = []
+        gps_mono, gps_wall = [], []
+        for topic in (contract.TIME_SYNC.name, contract.GPS_FIX.name):
+            if topic in self.json:
+                t, utc = self.json[topic].arrays("gps_time_utc_ns")
+                ok = np.isfinite(utc)
+                gps_mono.append(t[ok])
+                gps_wall.append(utc[ok].astype(np.int64))
+        if gps_mono:
+            pairs.append((np.concatenate(gps_mono), np.concatenate(gps_wall)))
+        if contract.TIME_SYNC.name in self.json:
+            t, real = self.json[contract.TIME_SYNC.name].arrays("t_realtime_ns")
+            ok = np.isfinite(real)
+            pairs.append((t[ok], real[ok].astype(np.int64)))
+        pairs.append((np.array(self.log_pairs[0], dtype=np.int64), np.array(self.log_pairs[1], dtype=np.int64)))
+        return pairs
