@@ -1,0 +1,61 @@
+"""``analyze simulate CYCLE --vehicle FILE [--payload-kg M] [--aux-power-w P] [--out DIR]``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from ..errors import UserError
+from ..vehicle import load_vehicle
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("cycle", type=Path,
+                        help="a VECTO .vdri, a time-based CSV/Parquet (time_s, speed_mps[, gradient_pct, "
+                             "mass_kg]) or a signals table")
+    parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
+    parser.add_argument("--payload-kg", type=float, help="payload [kg] (default: half the vehicle's max payload)")
+    parser.add_argument("--aux-power-w", help="auxiliary power [W]: a number, or a CSV with time_s, power_w "
+                                              "(default: the vehicle file's)")
+    parser.add_argument("--epto-power-w", default="0", help="ePTO power [W]: a number or a CSV with time_s, power_w")
+    parser.add_argument("--obc-power-w", default="0",
+                        help="on-board charger power into the battery [W]: a number or a CSV with time_s, power_w")
+    parser.add_argument("--time-step-s", type=float, default=0.1, help="integration step [s] (default 0.1)")
+    parser.add_argument("--out", type=Path, default=Path("simulation-out"), help="output directory")
+
+
+def power_input(text: str | None, name: str):
+    """A constant [W] or a (time_s, power_w) CSV as the simulator takes it."""
+    if text is None:
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    path = Path(text)
+    if not path.is_file():
+        raise UserError(f"{name}: give a number in W or a CSV file with time_s, power_w ({text} not found)")
+    return pd.read_csv(path)
+
+
+def run(args) -> int:
+    from ..simulate import DriverSettings, read_cycle, simulate
+    from ..simulate.output import write_outputs
+
+    if not 0.01 <= args.time_step_s <= 1.0:
+        raise UserError(f"--time-step-s {args.time_step_s} is outside 0.01..1 s")
+    vehicle = load_vehicle(args.vehicle)
+    cycle = read_cycle(args.cycle, vehicle, args.payload_kg)
+    result = simulate(cycle, vehicle, aux_power_w=power_input(args.aux_power_w, "--aux-power-w"),
+                      epto_power_w=power_input(args.epto_power_w, "--epto-power-w"),
+                      obc_power_w=power_input(args.obc_power_w, "--obc-power-w"),
+                      settings=DriverSettings(time_step_s=args.time_step_s))
+    write_outputs(result, args.out)
+    s = result.summary
+    print(f"{s['cycle']}: {s['distance_km']:.2f} km in {s['duration_s']:.0f} s, "
+          f"battery {s['battery_kwh_per_km']:.3f} kWh/km, wheel (positive) {s['wheel_positive_kwh_per_km']:.3f} kWh/km, "
+          f"SOC {s['initial_soc']:.3f} -> {s['final_soc']:.3f}, "
+          f"{s['missed_target_intervals']} interval(s) below target ({s['missed_target_s']:.1f} s)")
+    print(f"wrote {args.out}")
+    return 0
