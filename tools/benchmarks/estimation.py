@@ -1,0 +1,142 @@
+"""Gradient and mass estimation: (1) our RLS kernel against padasip's FilterRLS on the same
+regression and forgetting factor (equal estimates, speed ratio); (2) gradient + LS/RLS/LM over a
+long drive at 10 Hz: seconds after JIT and peak RSS, measured in a fresh process."""
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bench import CACHE_DIR, result
+
+FORGETTING_FACTOR = 0.9985
+CURB_MASS_KG = 8818.8
+INITIAL_COVARIANCE = 1000.0
+
+
+def mass_regression(n: int, seed: int = 0):
+    """phi [m/s²] and y [N] of (10) for a 22 t truck with noise, as the data filter leaves them."""
+    rng = np.random.default_rng(seed)
+    phi = 0.1 + rng.gamma(2.0, 0.12, n)
+    y = 22_007.4 * phi + rng.normal(0, 1500, n)
+    return phi, y
+
+
+def bench_rls_vs_padasip(quick: bool):
+    import padasip
+
+    from analysis.mass import kernels
+
+    n = 20_000 if quick else 100_000
+    phi, y = mass_regression(n)
+    phi2 = phi.reshape(-1, 1)
+    kernels.rls(phi2[:10], y[:10], FORGETTING_FACTOR, np.array([CURB_MASS_KG]), np.array([[INITIAL_COVARIANCE]]))
+    runs = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        ours = kernels.rls(phi2, y, FORGETTING_FACTOR, np.array([CURB_MASS_KG]), np.array([[INITIAL_COVARIANCE]]))
+        runs.append(time.perf_counter() - t0)
+    ours_s = min(runs)
+    peer = padasip.filters.FilterRLS(1, mu=FORGETTING_FACTOR, eps=1 / INITIAL_COVARIANCE, w=np.array([CURB_MASS_KG]))
+    t0 = time.perf_counter()
+    _, _, history = peer.run(y, phi2)
+    peer_s = time.perf_counter() - t0
+    peer_path = np.append(history[1:, 0], peer.w[0])  # padasip logs weights before each update
+    deviation = float(np.max(np.abs(peer_path / ours[:, 0] - 1)))
+    assert deviation < 1e-9, deviation
+    return [result("rls_kernel_vs_padasip_FilterRLS", ours_s, "s", "padasip FilterRLS", peer_s,
+                   samples=n, forgetting_factor=FORGETTING_FACTOR, final_mass_kg=float(ours[-1, 0]),
+                   peer_final_mass_kg=float(peer_path[-1]), max_relative_deviation=deviation)]
+
+
+def long_drive(hours: float, rate_hz: float = 10.0):
+    """A synthetic signals table and SRTM tiles for a drive along 47.5 N, cached in .bench-cache."""
+    from analysis import road_load
+    from analysis.dem.srtm import write_hgt
+    from analysis.kinematics import acceleration_mps2, distance_m
+    from analysis.vehicle import load_vehicle
+
+    folder = CACHE_DIR / f"estimation-{hours:g}h"
+    table = folder / "signals.parquet"
+    if table.is_file():
+        return table, folder / "dem"
+    rng = np.random.default_rng(1)
+    vehicle = load_vehicle("rigid-18t")
+    time_s = np.arange(0, hours * 3600, 1 / rate_hz)
+    target = np.clip(17 + 5 * np.sin(time_s / 90) + 3 * np.sin(time_s / 23 + 1), 0, None)
+    target *= np.clip(np.abs(((time_s + 900) % 1800) - 900) / 60 - 0.5, 0, 1)  # a 60 s stop every 30 min
+    speed = pd.Series(target).rolling(int(10 * rate_hz), center=True, min_periods=1).mean().to_numpy()
+    accel = np.gradient(speed, time_s)
+    s = distance_m(time_s, speed)
+
+    def road(x):
+        return 500 + 40 * np.sin(x / 1500) + 15 * np.sin(x / 400 + 1) + 4 * np.sin(x / 170)
+
+    gradient = 100 * (road(s + 0.5) - road(s - 0.5))
+    force = road_load.wheel_force_n(speed, accel, gradient, 20_000.0, vehicle)
+    ratios = np.array(vehicle.total_ratios)
+    rpm_per_mps = ratios * 60 / (2 * np.pi * vehicle.wheel_radius_m)
+    gear = np.argmax(speed[:, None] * rpm_per_mps[None, :] < 1500, axis=1)
+    m_per_deg = np.radians(1) * 6_371_000 * np.cos(np.radians(47.5))
+    lon = 6.02 + s / m_per_deg
+    folder.mkdir(parents=True, exist_ok=True)
+    n_side = 1201
+    for tile_lon in range(6, int(np.floor(lon.max())) + 1):
+        lons = tile_lon + np.arange(n_side) / (n_side - 1)
+        heights = road((lons - 6.02) * m_per_deg) + 1.5 * np.sin((lons - 6.02) * m_per_deg / 230)
+        write_hgt(folder / "dem" / f"N47E{tile_lon:03d}.hgt", np.repeat(heights[None, :], n_side, axis=0))
+    frame = pd.DataFrame({
+        "time_s": time_s, "speed_mps": speed + rng.normal(0, 0.02, len(time_s)),
+        "latitude_deg": 47.5 + rng.normal(0, 1.5e-5, len(time_s)), "longitude_deg": lon,
+        "gps_h_acc_m": np.full(len(time_s), 2.0), "gps_v_acc_m": np.full(len(time_s), 3.0),
+        "pressure_pa": 101325 * (1 - road(s) / 44330.8) ** 5.255 + rng.normal(0, 2, len(time_s)),
+        "accel_x_mps2": accel + 9.81 * np.sin(np.arctan(gradient / 100)) + rng.normal(0, 0.2, len(time_s)),
+        "engine_speed_rpm": speed * rpm_per_mps[gear],
+        "engine_torque_nm": force * vehicle.wheel_radius_m / (vehicle.driveline_efficiency * ratios[gear]),
+        "current_gear": gear + 1.0,
+    })
+    frame["accel_mps2"] = acceleration_mps2(time_s, frame["speed_mps"].to_numpy())
+    frame["distance_m"] = distance_m(time_s, frame["speed_mps"].to_numpy())
+    frame.to_parquet(table)
+    return table, folder / "dem"
+
+
+CHILD = """
+import json, resource, sys, time
+import pandas as pd
+from analysis.dem import open_dem
+from analysis.gradient import estimate_gradient
+from analysis.mass import estimate_mass
+from analysis.vehicle import load_vehicle
+frame = pd.read_parquet(sys.argv[1])
+dem, vehicle = open_dem(sys.argv[2]), load_vehicle("rigid-18t")
+def run(part):
+    gradient = estimate_gradient(part, dem)
+    part = part.assign(**gradient.samples)
+    return estimate_mass(part, vehicle)
+run(frame.iloc[:20000])  # JIT and tile loading
+t0 = time.perf_counter()
+mass = run(frame)
+seconds = time.perf_counter() - t0
+ok = [s["mass_ls_kg"] for s in mass.segments if s["status"] == "ok"]
+print(json.dumps({"seconds": seconds, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                  "samples": len(frame), "segments_ok": len(ok), "median_mass_kg": sorted(ok)[len(ok) // 2]}))
+"""
+
+
+def bench_gradient_and_mass_long_drive(quick: bool):
+    hours = 1.0 if quick else 10.0
+    table, dem = long_drive(hours)
+    out = subprocess.run([sys.executable, "-c", CHILD, str(table), str(dem)], capture_output=True, text=True,
+                         check=True, cwd=Path(__file__).resolve().parents[2])
+    measured = json.loads(out.stdout.strip().splitlines()[-1])
+    return [result(f"gradient_and_mass_{hours:g}h_at_10Hz", measured["seconds"], "s", **{
+                k: v for k, v in measured.items() if k != "seconds"}),
+            result(f"gradient_and_mass_{hours:g}h_at_10Hz_peak_rss", measured["peak_rss_mb"], "MB")]
+
+
+BENCHMARKS = [bench_rls_vs_padasip, bench_gradient_and_mass_long_drive]
