@@ -1,0 +1,273 @@
+"""Transition counts of the 2D chain (physics.md, Markov section), stored sparsely and additive.
+
+Counting works on 1 Hz samples (`resample_1hz`). Before counting, each sample is put into its
+classes and made physically consistent (`enforce_physics`):
+
+* a standstill run keeps the gradient class of its first sample (the place where the truck
+  stopped): no gradient change at standstill;
+* a driving run (between two standstills) keeps one mass class, the median of its samples; the
+  stop before it ends with that mass and the stop after it starts with it: mass changes only
+  between two standstill samples.
+
+Any transition that still breaks these rules (a one-sample stop between two masses) is dropped and
+counted in ``n_dropped``. Only observed transitions are stored: memory grows with the data, not
+with the class grid. ``counts_a + counts_b`` is the chain of both data sets (a fleet is a sum).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ..errors import UserError
+from . import classes as cls
+
+QUANTITIES = ("speed_mps", "gradient_pct", "accel_mps2", "mass_kg")
+NEEDED = ("time_s", "speed_mps", "gradient_pct", "mass_kg")
+GAP_S = 2.0
+
+
+class CountingError(UserError):
+    pass
+
+
+def resample_1hz(signals: pd.DataFrame, gap_s: float = GAP_S) -> pd.DataFrame:
+    """Signals at whole seconds: speed and gradient linear, mass held (it changes in steps).
+
+    A time gap longer than ``gap_s`` [s], a sample with ``valid`` False or a missing value splits
+    the data into segments (column ``segment``); no transition is counted across a split.
+    """
+    missing = [c for c in NEEDED if c not in signals.columns]
+    if missing:
+        raise CountingError(f"signals lack column(s) {', '.join(missing)} needed for the driving cycle")
+    frame = signals[list(NEEDED)].astype(float)
+    usable = np.isfinite(frame.to_numpy()).all(axis=1)
+    if "valid" in signals.columns:
+        usable &= signals["valid"].fillna(False).to_numpy(bool)
+    time = frame["time_s"].to_numpy()
+    breaks = np.concatenate([[True], (np.diff(time) > gap_s) | ~usable[1:] | ~usable[:-1]])
+    run_id = np.cumsum(breaks)
+    pieces = []
+    for run in np.unique(run_id[usable]):
+        rows = np.flatnonzero((run_id == run) & usable)
+        t = time[rows]
+        grid = np.arange(np.ceil(t[0]), np.floor(t[-1]) + 0.5, 1.0)
+        if grid.size == 0:
+            continue
+        held = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, len(t) - 1)
+        pieces.append(pd.DataFrame({
+            "time_s": grid,
+            "speed_mps": np.interp(grid, t, frame["speed_mps"].to_numpy()[rows]),
+            "gradient_pct": np.interp(grid, t, frame["gradient_pct"].to_numpy()[rows]),
+            "mass_kg": frame["mass_kg"].to_numpy()[rows][held],
+            "segment": len(pieces),
+        }))
+    if not pieces:
+        raise CountingError("no usable samples: speed, gradient and mass are all needed at the same time")
+    return pd.concat(pieces, ignore_index=True)
+
+
+def _runs(flags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end (exclusive) of the runs of equal values in a boolean array."""
+    edges = np.flatnonzero(np.diff(flags.astype(np.int8))) + 1
+    return np.concatenate([[0], edges]), np.concatenate([edges, [len(flags)]])
+
+
+def enforce_physics(speed_class, gradient_class, mass_class):
+    """Classes of one segment with no gradient change at standstill and mass changes only at
+    standstill (module docstring); returns new (gradient_class, mass_class) arrays."""
+    gradient_class = np.array(gradient_class, dtype=np.int64)
+    mass_class = np.array(mass_class, dtype=np.int64)
+    moving = np.asarray(speed_class) > 0
+    if moving.size == 0:
+        return gradient_class, mass_class
+    starts, ends = _runs(moving)
+    run_mass = {}
+    for i, (a, b) in enumerate(zip(starts, ends)):
+        if moving[a]:
+            run_mass[i] = int(np.round(np.median(mass_class[a:b])))
+            mass_class[a:b] = run_mass[i]
+        else:
+            gradient_class[a:b] = gradient_class[a]
+    for i, (a, b) in enumerate(zip(starts, ends)):
+        if not moving[a]:
+            if i - 1 in run_mass:
+                mass_class[a] = run_mass[i - 1]
+            if i + 1 in run_mass:
+                mass_class[b - 1] = run_mass[i + 1]
+    return gradient_class, mass_class
+
+
+def physically_possible(from_key: np.ndarray, to_key: np.ndarray) -> np.ndarray:
+    """True where a transition is possible: gradient fixed while both ends stand still, mass fixed
+    unless both ends stand still."""
+    v0, g0, m0 = cls.decode(from_key)
+    v1, g1, m1 = cls.decode(to_key)
+    standstill = (v0 == 0) & (v1 == 0)
+    return np.where(standstill, g0 == g1, m0 == m1)
+
+
+def moments_of(values: np.ndarray) -> np.ndarray:
+    """Additive moments [n, sum, sum of squares, min, max] of ``values``."""
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        return np.array([0.0, 0.0, 0.0, np.inf, -np.inf])
+    return np.array([values.size, values.sum(), np.square(values).sum(), values.min(), values.max()])
+
+
+def add_moments(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.concatenate([a[..., :3] + b[..., :3], np.minimum(a[..., 3:4], b[..., 3:4]),
+                           np.maximum(a[..., 4:5], b[..., 4:5])], axis=-1)
+
+
+def statistics_of(moments: np.ndarray) -> np.ndarray:
+    """(mean, std, min, max) per quantity from additive moments (population std)."""
+    n = np.maximum(moments[..., 0], 1)
+    mean = moments[..., 1] / n
+    std = np.sqrt(np.maximum(moments[..., 2] / n - mean ** 2, 0.0))
+    return np.stack([mean, std, moments[..., 3], moments[..., 4]], axis=-1)
+
+
+@dataclass
+class TransitionCounts:
+    """Observed transitions of the chain: ``count[i]`` times ``from_key[i]`` → ``to_key[i]``.
+
+    Sorted by (from_key, to_key), one entry per pair. ``moments`` holds additive moments
+    (`moments_of`) of the class-centre samples per quantity of `QUANTITIES` (acceleration from
+    1 Hz differences of class-centre speeds), the measured side of the criteria.
+    """
+
+    widths: cls.ClassWidths
+    from_key: np.ndarray
+    to_key: np.ndarray
+    count: np.ndarray
+    moments: np.ndarray = field(default_factory=lambda: np.tile(moments_of([]), (len(QUANTITIES), 1)))
+    n_samples: int = 0
+    n_dropped: int = 0
+    n_closed: int = 0
+
+    def __len__(self) -> int:
+        return len(self.count)
+
+    def __add__(self, other: "TransitionCounts") -> "TransitionCounts":
+        if not isinstance(other, TransitionCounts):
+            return NotImplemented
+        if other.widths != self.widths:
+            raise CountingError(f"cannot add transition counts of different class widths "
+                                f"({self.widths.as_dict()} and {other.widths.as_dict()}); count both with the same")
+        from_key, to_key, count = _merge(np.concatenate([self.from_key, other.from_key]),
+                                         np.concatenate([self.to_key, other.to_key]),
+                                         np.concatenate([self.count, other.count]))
+        return TransitionCounts(self.widths, from_key, to_key, count, add_moments(self.moments, other.moments),
+                                self.n_samples + other.n_samples, self.n_dropped + other.n_dropped,
+                                self.n_closed + other.n_closed)
+
+    def __radd__(self, other):
+        return self if other == 0 else self.__add__(other)
+
+    @property
+    def statistics(self) -> np.ndarray:
+        """(mean, std, min, max) of the measured data, one row per quantity of `QUANTITIES`."""
+        return statistics_of(self.moments)
+
+    @property
+    def nbytes(self) -> int:
+        return self.from_key.nbytes + self.to_key.nbytes + self.count.nbytes
+
+
+def _merge(from_key, to_key, count):
+    """Sum the counts of equal (from, to) pairs; return them sorted."""
+    if len(count) == 0:
+        return from_key.astype(np.int64), to_key.astype(np.int64), count.astype(np.int64)
+    states, inverse = np.unique(np.concatenate([from_key, to_key]), return_inverse=True)
+    n = len(from_key)
+    pair = inverse[:n].astype(np.int64) * len(states) + inverse[n:]
+    pairs, where = np.unique(pair, return_inverse=True)
+    summed = np.bincount(where, weights=count, minlength=len(pairs)).astype(np.int64)
+    return states[pairs // len(states)], states[pairs % len(states)], summed
+
+
+def _first_standstill(segments, standstill, gradient, order, skip=None):
+    """(segment, index) of the first standstill with gradient class ``gradient`` along ``order``."""
+    for t in order:
+        candidates = standstill[t] if skip is None or t != skip[0] else standstill[t][standstill[t] != skip[1]]
+        same = candidates[cls.decode(segments[t][candidates])[1] == gradient]
+        if same.size:
+            return t, same[0]
+    return None
+
+
+def _closures(segments: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Closing transitions, standstill to standstill at the same gradient class: each segment's last
+    standstill → the first like it in the following segments (cyclically, then its own), and the
+    last standstill like a segment's first standstill in the preceding segments → that first one."""
+    from_keys, to_keys = [], []
+    standstill = [np.flatnonzero(cls.decode(keys)[0] == 0) for keys in segments]
+    n = len(segments)
+    for i, keys in enumerate(segments):
+        if standstill[i].size == 0:
+            continue
+        first, last = standstill[i][0], standstill[i][-1]
+        forward = [(i + step) % n for step in range(1, n)] + [i]
+        found = _first_standstill(segments, standstill, cls.decode(keys[last])[1], forward, skip=(i, last))
+        if found is not None:
+            from_keys.append(keys[last])
+            to_keys.append(segments[found[0]][found[1]])
+        backward = [(i - step) % n for step in range(1, n)] + [i]
+        reversed_standstill = [s[::-1] for s in standstill]
+        found = _first_standstill(segments, reversed_standstill, cls.decode(keys[first])[1], backward,
+                                  skip=(i, first))
+        if found is not None:
+            from_keys.append(segments[found[0]][found[1]])
+            to_keys.append(keys[first])
+    return np.array(from_keys, dtype=np.int64), np.array(to_keys, dtype=np.int64)
+
+
+def count_transitions(signals, widths: cls.ClassWidths | None = None, close_loops: bool = True) -> TransitionCounts:
+    """Count the chain's transitions in a signals table (any rate; resampled to 1 Hz), a mapping of
+    1 Hz arrays ``speed_mps`` [m/s], ``gradient_pct`` [%], ``mass_kg`` [kg] (optional ``time_s`` [s],
+    ``segment``), or a list of either (one vehicle's logs, linked by ``close_loops``).
+
+    ``close_loops`` **[choice]**: the truck's next drive starts from a standstill like the one it
+    parked at (`_closures`); without it, every drive's end is a dead end and, at fine mass classes,
+    every payload is its own closed chain (docs/cycles.md).
+    """
+    widths = widths or cls.ClassWidths()
+    items = signals if isinstance(signals, (list, tuple)) else [signals]
+    segments, from_parts, to_parts, moment_parts = [], [], [], []
+    n_samples = n_dropped = 0
+    for item in items:
+        frame = item if isinstance(item, pd.DataFrame) else pd.DataFrame(dict(item))
+        if "time_s" not in frame.columns:
+            frame = frame.assign(time_s=np.arange(len(frame), dtype=float))
+        if "segment" not in frame.columns:
+            frame = resample_1hz(frame)
+        for _, seg in frame.groupby("segment", sort=False):
+            speed_class = cls.class_index(np.clip(seg["speed_mps"].to_numpy(), 0, None), widths.speed_mps)
+            gradient_class, mass_class = enforce_physics(
+                speed_class, cls.class_index(seg["gradient_pct"].to_numpy(), widths.gradient_pct),
+                cls.class_index(seg["mass_kg"].to_numpy(), widths.mass_kg))
+            keys = cls.encode(speed_class, gradient_class, mass_class)
+            possible = physically_possible(keys[:-1], keys[1:])
+            from_parts.append(keys[:-1][possible])
+            to_parts.append(keys[1:][possible])
+            n_dropped += int((~possible).sum())
+            n_samples += len(keys)
+            segments.append(keys)
+            speed, gradient, mass = cls.centres(keys, widths)
+            moment_parts.append(np.stack([moments_of(speed), moments_of(gradient), moments_of(np.diff(speed)),
+                                          moments_of(mass)]))
+    n_closed = 0
+    if close_loops:
+        closing_from, closing_to = _closures(segments)
+        from_parts.append(closing_from)
+        to_parts.append(closing_to)
+        n_closed = len(closing_from)
+    moments = moment_parts[0]
+    for part in moment_parts[1:]:
+        moments = add_moments(moments, part)
+    from_all, to_all = np.concatenate(from_parts), np.concatenate(to_parts)
+    from_key, to_key, count = _merge(from_all, to_all, np.ones(len(from_all), dtype=np.int64))
+    return TransitionCounts(widths, from_key, to_key, count, moments, n_samples, n_dropped, n_closed)

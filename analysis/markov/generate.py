@@ -1,0 +1,213 @@
+"""Monte Carlo generation: walks through the chain at 1 Hz, in numba, seeded per candidate.
+
+Candidate ``i`` of seed ``S`` draws its random numbers from a SplitMix64 stream seeded by
+(S, i) alone, so a candidate is the same whichever batch it was drawn in, and the best of
+10 000 can be drawn again from its index without keeping 10 000 paths in memory.
+
+With ``update_counts`` a walk takes each transition out of the counts it draws from (drawing
+without replacement from the measured transitions, as the paper updates its matrices after each
+selection); a row used up is refilled with its measured counts. Over a walk as long as the data
+this reproduces the measured statistics exactly; over 1800 s of hours of data it slightly narrows
+the spread between candidates (finite-population factor) and leaves their mean unchanged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+import pandas as pd
+
+from ..errors import UserError
+from .chain import Chain, build_chain
+from .counting import TransitionCounts
+
+GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+MIX2 = np.uint64(0x94D049BB133111EB)
+TWO_POW_MINUS_53 = 1.0 / 9007199254740992.0
+
+
+class GenerationError(UserError):
+    pass
+
+
+@numba.njit(cache=True)
+def _mix(z):
+    z = (z ^ (z >> np.uint64(30))) * MIX1
+    z = (z ^ (z >> np.uint64(27))) * MIX2
+    return z ^ (z >> np.uint64(31))
+
+
+@numba.njit(cache=True)
+def _uniform(rng):
+    """Next uniform number in [0, 1) of the SplitMix64 stream in ``rng`` (uint64[1])."""
+    rng[0] += GOLDEN
+    return np.float64(_mix(rng[0]) >> np.uint64(11)) * TWO_POW_MINUS_53
+
+
+@numba.njit(cache=True)
+def _walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, index, update, remaining, touched,
+          path):
+    """One candidate: states ``path[0..n-1]`` from a start state, one transition per second."""
+    rng = np.empty(1, np.uint64)
+    rng[0] = _mix(np.uint64(seed) ^ _mix(np.uint64(index) + GOLDEN))
+    u = _uniform(rng) * start_cum[-1]
+    j = 0
+    while j < start_cum.shape[0] - 1 and start_cum[j] <= u:
+        j += 1
+    s = start_state[j]
+    path[0] = s
+    n_touched = 0
+    for k in range(1, path.shape[0]):
+        a = row_ptr[s]
+        b = row_ptr[s + 1]
+        if update:
+            total = 0
+            for j in range(a, b):
+                total += remaining[j]
+            if total == 0:
+                for j in range(a, b):
+                    remaining[j] = count[j]
+                    total += count[j]
+            u = _uniform(rng) * total
+            acc = 0
+            j = a
+            while j < b - 1:
+                acc += remaining[j]
+                if acc > u:
+                    break
+                j += 1
+            remaining[j] -= 1
+            touched[n_touched] = j
+            n_touched += 1
+        else:
+            u = _uniform(rng) * cum_count[b - 1]
+            j = a
+            while j < b - 1 and cum_count[j] <= u:
+                j += 1
+        s = dest[j]
+        path[k] = s
+    for t in range(n_touched):
+        remaining[touched[t]] = count[touched[t]]
+
+
+@numba.njit(cache=True)
+def _path_statistics(path, speed, gradient, mass, out):
+    """(mean, std, min, max) of speed, gradient, acceleration (1 Hz speed difference) and mass
+    along ``path`` into ``out[4, 4]`` (population std)."""
+    for q in range(4):
+        n = path.shape[0] if q != 2 else path.shape[0] - 1
+        total = 0.0
+        total_sq = 0.0
+        low = np.inf
+        high = -np.inf
+        for k in range(n):
+            if q == 0:
+                x = speed[path[k]]
+            elif q == 1:
+                x = gradient[path[k]]
+            elif q == 2:
+                x = speed[path[k + 1]] - speed[path[k]]
+            else:
+                x = mass[path[k]]
+            total += x
+            total_sq += x * x
+            low = min(low, x)
+            high = max(high, x)
+        mean = total / max(n, 1)
+        out[q, 0] = mean
+        out[q, 1] = np.sqrt(max(total_sq / max(n, 1) - mean * mean, 0.0))
+        out[q, 2] = low
+        out[q, 3] = high
+
+
+def path_statistics_reference(path, speed, gradient, mass) -> np.ndarray:
+    """NumPy reference of `_path_statistics`."""
+    series = [speed[path], gradient[path], np.diff(speed[path]), mass[path]]
+    return np.array([[x.mean(), x.std(), x.min(), x.max()] for x in series])
+
+
+@numba.njit(cache=True)
+def _batch(row_ptr, dest, count, cum_count, start_state, start_cum, speed, gradient, mass, seed, first_index,
+           n_steps, update, stats, paths):
+    """Candidates ``first_index …`` : statistics into ``stats[i]``; paths into ``paths[i]`` when
+    ``paths`` has rows (otherwise one path buffer is reused)."""
+    keep = paths.shape[0] > 0
+    buffer = np.empty(n_steps, np.int64)
+    remaining = count.copy()
+    touched = np.empty(n_steps, np.int64)
+    for i in range(stats.shape[0]):
+        path = paths[i] if keep else buffer
+        _walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, first_index + i, update,
+              remaining, touched, path)
+        _path_statistics(path, speed, gradient, mass, stats[i])
+
+
+def _as_chain(counts) -> Chain:
+    return counts if isinstance(counts, Chain) else build_chain(counts)
+
+
+def _steps(duration_s: float) -> int:
+    if not np.isfinite(duration_s) or duration_s < 2:
+        raise GenerationError(f"cycle duration must be at least 2 s, got {duration_s}")
+    return int(round(duration_s)) + 1
+
+
+def _check_seed(seed: int) -> int:
+    if not 0 <= int(seed) < 2**63:
+        raise GenerationError(f"seed must be a non-negative integer, got {seed}")
+    return int(seed)
+
+
+def run_batch(chain: Chain, duration_s: float, n_candidates: int, seed: int, first_index: int = 0,
+              update_counts: bool = False, keep_paths: bool = False):
+    """Statistics (n, 4, 4) of candidates ``first_index …``, and their paths if ``keep_paths``."""
+    n_steps = _steps(duration_s)
+    stats = np.empty((n_candidates, 4, 4))
+    paths = np.empty((n_candidates if keep_paths else 0, n_steps), np.int64)
+    _batch(chain.row_ptr, chain.dest, chain.count, chain.cum_count, chain.start_state, chain.start_cum,
+           chain.speed_mps, chain.gradient_pct, chain.mass_kg, _check_seed(seed), int(first_index), n_steps,
+           bool(update_counts), stats, paths)
+    return stats, paths
+
+
+def cycle_frame(chain: Chain, path: np.ndarray) -> pd.DataFrame:
+    """A candidate as a 1 Hz cycle: time [s], class-centre speed [m/s], acceleration to the next
+    second [m/s²] (0 at the end), gradient [%], mass [kg], distance at constant speed per second [m]."""
+    speed = chain.speed_mps[path]
+    return pd.DataFrame({
+        "time_s": np.arange(len(path), dtype=float),
+        "speed_mps": speed,
+        "accel_mps2": np.append(np.diff(speed), 0.0),
+        "gradient_pct": chain.gradient_pct[path],
+        "mass_kg": chain.mass_kg[path],
+        "distance_m": np.concatenate([[0.0], np.cumsum(speed[:-1])]),
+    })
+
+
+@dataclass
+class Candidates:
+    """Generated candidates: ``paths[i]`` state ids of candidate ``first_index + i`` of ``seed``."""
+
+    chain: Chain
+    paths: np.ndarray
+    statistics: np.ndarray
+    seed: int
+    first_index: int
+    update_counts: bool
+
+    def __len__(self) -> int:
+        return len(self.paths)
+
+    def frame(self, i: int) -> pd.DataFrame:
+        return cycle_frame(self.chain, self.paths[i])
+
+
+def generate(counts: TransitionCounts | Chain, duration_s: float = 1800.0, n_candidates: int = 100,
+             seed: int = 0, update_counts: bool = False, first_index: int = 0) -> Candidates:
+    """Draw ``n_candidates`` cycles of ``duration_s`` [s] at 1 Hz, starting at standstill."""
+    chain = _as_chain(counts)
+    stats, paths = run_batch(chain, duration_s, n_candidates, seed, first_index, update_counts, keep_paths=True)
+    return Candidates(chain, paths, stats, int(seed), int(first_index), bool(update_counts))
