@@ -211,12 +211,14 @@ def run_kernel(time_based, row_pos, row_target, row_gradient, row_f_roll, row_f_
             f_climb = _interp(tm, row_pos, row_f_climb)
             mass = _interp(tm, row_pos, row_mass)
             grad = _interp(tm, row_pos, row_gradient)
-            target = _interp(t + dt, row_pos, row_target)
+            target = _interp(t, row_pos, row_target)
+            target_next = _interp(t + dt, row_pos, row_target)
         else:
             while k + 1 < n_rows and row_pos[k + 1] <= s + 1e-9:
                 k += 1
             f_roll, f_climb, mass, grad = row_f_roll[k], row_f_climb[k], row_mass[k], row_gradient[k]
             target = row_target[k]
+            target_next = target
         m_eff = mass + m_rot
         f_aero = p[P_AERO] * v * v
         f_res = f_roll + f_climb + f_aero
@@ -228,14 +230,14 @@ def run_kernel(time_based, row_pos, row_target, row_gradient, row_f_roll, row_f_
                 next_stop += 1
             else:
                 state, timer = STANDSTILL, 0.0
-        if time_based and target <= 1e-6 and v <= 1e-6:
+        if time_based and target_next <= 1e-6 and v <= 1e-6:
             state = STANDSTILL
         elif time_based:
             state = DRIVE
         if state == STANDSTILL:
             a_wish = 0.0
         elif time_based:
-            a_wish = (target - v) / dt
+            a_wish = (target_next - v) / dt
         else:
             a_ctrl = min((target - v) / max(p[P_CTRL_TAU], dt), p[P_ACC_MAX])
             horizon = v * v / (2.0 * 0.05) + 50.0
