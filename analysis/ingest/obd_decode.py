@@ -1,6 +1,6 @@
 """OBD-II mode 01 (SAE J1979) responses matched to their requests, vectorised.
 
-A response counts only when a request for the same PID was sent (functional 0x7DF / 0x18DB33F1,
+A response counts only when a request for the same PID was sent (and not yet answered by that ECU) (functional 0x7DF / 0x18DB33F1,
 or physical 0x7E0-0x7E7 / 0x18DA..F1) at most `MAX_RESPONSE_DELAY_NS` before it; unanswered
 requests and unrequested responses are counted. Single-frame ISO-TP payloads only (mode 01 PIDs
 fit in one frame).
@@ -76,6 +76,11 @@ def decode(frames: np.ndarray) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]]
         before = np.searchsorted(req_t, resp_t, side="right") - 1
         matched = before >= 0
         matched[matched] &= (resp_t[matched] - req_t[before[matched]]) <= MAX_RESPONSE_DELAY_NS
+        # each ECU answers a request once: a second answer to the same request is not a match
+        pair = before.astype(np.int64) * (1 << 32) + frames["arbitration_id"][resp].astype(np.int64)
+        first = np.zeros(len(pair), dtype=bool)
+        first[np.unique(pair, return_index=True)[1]] = True
+        matched &= first
         stats.matched += int(matched.sum())
         stats.unrequested += int((~matched).sum())
         payload = data[resp][matched, 3:3 + pid.n_bytes].astype(np.float64)

@@ -36,10 +36,15 @@ class _Json:
         self.time_ns.append(t)
         for name in names:
             value = record.get(name)
-            self.fields.setdefault(name, []).append(float(value) if isinstance(value, (int, float)) else np.nan)
+            if name.endswith("_ns"):  # clock readings stay exact integers; -1 marks absent
+                value = value if isinstance(value, int) and value >= 0 else -1
+            else:
+                value = float(value) if isinstance(value, (int, float)) else np.nan
+            self.fields.setdefault(name, []).append(value)
 
     def arrays(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        return np.array(self.time_ns, dtype=np.int64), np.array(self.fields.get(name, []), dtype=np.float64)
+        dtype = np.int64 if name.endswith("_ns") else np.float64
+        return np.array(self.time_ns, dtype=np.int64), np.array(self.fields.get(name, []), dtype=dtype)
 
 
 JSON_FIELDS = {
@@ -212,14 +217,12 @@ class Ingest:
         for topic in (contract.TIME_SYNC.name, contract.GPS_FIX.name):
             if topic in self.json:
                 t, utc = self.json[topic].arrays("gps_time_utc_ns")
-                ok = np.isfinite(utc)
-                gps_mono.append(t[ok])
-                gps_wall.append(utc[ok].astype(np.int64))
+                gps_mono.append(t[utc >= 0])
+                gps_wall.append(utc[utc >= 0])
         if gps_mono:
             pairs.append((np.concatenate(gps_mono), np.concatenate(gps_wall)))
         if contract.TIME_SYNC.name in self.json:
             t, real = self.json[contract.TIME_SYNC.name].arrays("t_realtime_ns")
-            ok = np.isfinite(real)
-            pairs.append((t[ok], real[ok].astype(np.int64)))
+            pairs.append((t[real >= 0], real[real >= 0]))
         pairs.append((np.array(self.log_pairs[0], dtype=np.int64), np.array(self.log_pairs[1], dtype=np.int64)))
         return pairs

@@ -1,0 +1,224 @@
+"""MCAP logs written by the foundation's LogWriter → ingest: values, time base, files, damage."""
+
+import io
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from analysis.errors import UserError
+from analysis.ingest import ingest_logs, iter_log_messages, read_frames, read_logs, synthetic
+from analysis.ingest.mcap_read import ReadReport, read_file
+from analysis.ingest.recover import recover
+from logger import contract, j1939
+
+DURATION_S = 90.0
+
+# Quantisation of each quantity on its way through the log (J1939-71 resolutions, sensor LSB).
+TOLERANCE = {
+    "speed_mps": 0.5 / 256 / 3.6, "engine_speed_rpm": 0.0625, "driver_demand_torque_pct": 0.5,
+    "accelerator_pedal_pct": 0.2, "current_gear": 0.0, "brake_switch": 0.0, "fuel_rate_lph": 0.025,
+    "reported_mass_kg": 5.0, "latitude_deg": 0.0, "longitude_deg": 0.0, "gps_altitude_m": 0.0,
+    "gps_h_acc_m": 0.0, "gps_v_acc_m": 0.0, "pressure_pa": 1e-9, "air_temperature_c": 0.0,
+    "relative_humidity_pct": 0.0, "accel_x_mps2": 0.5 * synthetic.ACCEL_SCALE_MPS2_PER_LSB,
+    "accel_y_mps2": 0.5 * synthetic.ACCEL_SCALE_MPS2_PER_LSB, "accel_z_mps2": 0.5 * synthetic.ACCEL_SCALE_MPS2_PER_LSB,
+}
+
+
+@pytest.fixture(scope="module")
+def log(tmp_path_factory):
+    path = tmp_path_factory.mktemp("log") / "truck.mcap"
+    with open(path, "wb") as stream:
+        truth = synthetic.write_log(stream, DURATION_S, seed=4, filler_hz=300.0, chunk_size=32 * 1024)
+    return path, truth
+
+
+@pytest.fixture(scope="module")
+def table(log):
+    return ingest_logs([log[0]])
+
+
+def test_values_within_quantisation(log, table):
+    _, truth = log
+    frame, summary = table
+    assert len(frame) == len(truth.bin_start_mono_ns)
+    assert frame["valid"].all() and summary["warnings"] == []
+    for column, tolerance in TOLERANCE.items():
+        error = np.abs(frame[column].to_numpy() - truth.values[column])
+        assert np.nanmax(error) <= tolerance + 1e-9, column
+        assert not np.isnan(error).any(), column
+
+
+def test_engine_torque_is_percent_times_reference_from_bam(log, table):
+    _, truth = log
+    frame, summary = table
+    assert (frame["engine_reference_torque_nm"] == synthetic.REFERENCE_TORQUE_NM).all()
+    expected = truth.values["actual_engine_torque_pct"] / 100 * synthetic.REFERENCE_TORQUE_NM
+    assert np.max(np.abs(frame["engine_torque_nm"] - expected)) <= 0.005 * synthetic.REFERENCE_TORQUE_NM + 1e-9
+    assert summary["transport_protocol"]["bam"] == int(DURATION_S / 5)
+
+
+def test_time_base_and_wall_clock_from_gps(log, table):
+    _, truth = log
+    frame, _ = table
+    assert frame["time_s"].iloc[0] == 0.0
+    assert np.allclose(np.diff(frame["time_s"]), 0.1)
+    # GPS UTC (0.25 s ahead of the Pi's realtime clock) puts the wall clock on the data
+    expected = truth.bin_start_mono_ns + synthetic.REALTIME_OFFSET_NS + synthetic.GPS_MINUS_REALTIME_NS
+    assert np.array_equal(frame["wall_time_ns"].to_numpy(), expected)
+
+
+def test_sources_are_kept_apart(table):
+    frame, summary = table
+    # a second CCVS1 sender (0x17) reports "not available": it must neither win nor mix in
+    assert summary["sources"]["speed_mps"]["key"] == "wheel_speed_kmh@0"
+    assert frame["speed_mps"].notna().all()
+
+
+def test_distance_and_acceleration_from_wheel_speed(log, table):
+    _, truth = log
+    frame, _ = table
+    expected_km = np.trapezoid(truth.values["speed_mps"], dx=0.1) / 1000
+    assert frame["distance_m"].iloc[-1] / 1000 == pytest.approx(expected_km, rel=1e-4)
+    inner = slice(20, -20)
+    smooth = np.convolve(truth.values["accel_x_mps2"], np.ones(10) / 10, "same")
+    assert np.corrcoef(frame["accel_mps2"].to_numpy()[inner], smooth[inner])[0, 1] > 0.95
+
+
+def test_messages_match_the_mcap_library(log):
+    path, _ = log
+    with open(path, "rb") as stream:
+        theirs = sorted((c.topic, m.sequence, m.log_time, m.publish_time, m.data)
+                        for _, c, m in make_reader(stream).iter_messages())
+    ours = sorted((m.topic, 0, m.log_time_ns, m.t_mono_ns, m.data) for m in iter_log_messages([path]))
+    assert [t[2:] for t in ours] == [t[2:] for t in theirs] and [t[0] for t in ours] == [t[0] for t in theirs]
+
+
+def test_read_frames_gives_contract_arrays(log):
+    path, truth = log
+    arrays = read_frames([path])
+    assert arrays.can.dtype == contract.CAN_FRAME_DTYPE and arrays.imu.dtype == contract.IMU_SAMPLE_DTYPE
+    assert len(arrays.imu) == int(DURATION_S * 952)
+    assert np.all(np.diff(arrays.can["t_mono_ns"].astype(np.int64)) >= 0)
+    assert len(arrays.json[contract.GPS_FIX.name]) == len(truth.bin_start_mono_ns)
+
+
+def _write(path, seconds, seed, t0, realtime_offset):
+    with open(path, "wb") as stream:
+        return synthetic.write_log(stream, seconds, seed=seed, t0_mono_ns=t0, realtime_offset_ns=realtime_offset)
+
+
+def test_rotated_files_in_time_order_with_gap(tmp_path):
+    """Two rotated files given in reverse order, 5 s apart: one table, a 5 s gap of invalid NaN rows."""
+    t0 = synthetic.T0_MONO_NS
+    _write(tmp_path / "b.mcap", 20, 1, t0 + 25 * 10**9, synthetic.REALTIME_OFFSET_NS)
+    _write(tmp_path / "a.mcap", 20, 2, t0, synthetic.REALTIME_OFFSET_NS)
+    frame, summary = ingest_logs([tmp_path])
+    assert len(frame) == 450
+    gap = (frame["time_s"] >= 20.0 - 1e-9) & (frame["time_s"] < 25.0 - 1e-9)
+    assert gap.sum() == 50 and not frame.loc[gap, "valid"].any()
+    assert frame.loc[gap, ["speed_mps", "engine_speed_rpm", "pressure_pa", "accel_x_mps2"]].isna().all().all()
+    assert frame.loc[~gap, "valid"].all() and summary["gaps"] == 1
+
+
+def test_reboot_between_files_keeps_one_time_line(tmp_path):
+    """After a reboot the monotonic clock restarts; the wall clock says the second file is 60 s later."""
+    first = _write(tmp_path / "1.mcap", 10, 1, synthetic.T0_MONO_NS, synthetic.REALTIME_OFFSET_NS)
+    boot = 3 * 10**9
+    shift = synthetic.T0_MONO_NS + 70 * 10**9 - boot
+    _write(tmp_path / "2.mcap", 10, 2, boot, synthetic.REALTIME_OFFSET_NS + shift)
+    frame = read_logs([tmp_path / "2.mcap", tmp_path / "1.mcap"])
+    assert frame["time_s"].iloc[-1] == pytest.approx(79.9)
+    assert frame["valid"].sum() == 200
+    wall = frame["wall_time_ns"].to_numpy()
+    assert wall[0] == first.bin_start_mono_ns[0] + synthetic.REALTIME_OFFSET_NS + synthetic.GPS_MINUS_REALTIME_NS
+
+
+def test_cut_log_is_read_to_its_last_chunk_and_recovered(log, tmp_path):
+    path, _ = log
+    data = path.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 2 // 3])
+    report = ReadReport(str(cut))
+    recovered = list(read_file(cut, report))
+    with open(cut, "rb") as stream:
+        try:
+            seeking = list(make_reader(stream).iter_messages())
+        except Exception:  # noqa: BLE001 - whatever the library raises, it recovers nothing
+            seeking = []
+    assert len(seeking) < len(recovered)
+    assert not report.complete and "cut short" in report.warning()
+    assert 0.5 * report.file_bytes < report.read_bytes <= report.file_bytes
+    warnings = []
+    frame, summary = ingest_logs([cut], say=warnings.append)
+    assert any("cut short" in w for w in warnings) and summary["files"][0]["complete"] is False
+    repaired = tmp_path / "repaired.mcap"
+    recover(cut, repaired)
+    with open(repaired, "rb") as stream:
+        reader = make_reader(stream)
+        assert reader.get_summary().statistics.message_count == len(recovered)
+        again = [(c.topic, m.log_time, m.data) for _, c, m in reader.iter_messages(log_time_order=False)]
+    assert again == [(m.channel.topic, m.log_time_ns, m.data) for m in recovered]
+    assert reader.get_summary() is not None
+
+
+def test_not_a_log_is_a_one_line_error(tmp_path):
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"hello" * 100)
+    with pytest.raises(UserError, match="no data"):
+        read_logs([junk])
+    with pytest.raises(UserError, match="not found"):
+        read_logs([tmp_path / "missing.mcap"])
+    with pytest.raises(UserError, match="no message could be recovered"):
+        recover(junk, tmp_path / "out.mcap")
+
+
+def test_obd_responses_matched_to_requests(tmp_path):
+    """An OBD-II-only vehicle: speed from PID 0x0D, torque from 0x62 × 0x63, unrequested answers dropped."""
+    from logger import obd
+    frames, t = [], synthetic.T0_MONO_NS
+    for k in range(100):  # 10 s, each PID polled once per 100 ms bin
+        for pid, value in ((0x0D, 36 + k % 5), (0x0C, 1200.25), (0x62, 40), (0x63, 1500)):
+            frames.append((t, obd.FUNCTIONAL_REQUEST_ID_11BIT, 0, obd.request_frame(pid)))
+            frames.append((t + 8_000_000, 0x7E8, 0, obd.response_frame(pid, value)))
+            t += 20_000_000
+        t += 20_000_000
+    frames.append((t, 0x7E8, 0, obd.response_frame(0x0D, 200)))  # never requested
+    records = np.zeros(len(frames), contract.CAN_FRAME_DTYPE)
+    for k, (time, ident, flags, data) in enumerate(frames):
+        records[k]["t_mono_ns"], records[k]["arbitration_id"], records[k]["flags"] = time, ident, flags
+        records[k]["dlc"], records[k]["data"] = 8, np.frombuffer(data, np.uint8)
+    path = tmp_path / "obd.mcap"
+    from logger.writer import LogWriter
+    with open(path, "wb") as stream:
+        writer = LogWriter(stream)
+        writer.write(contract.CAN_FRAMES, contract.pack(contract.CAN_FRAMES, records), t, t)
+        writer.close()
+    frame, summary = ingest_logs([path])
+    assert summary["obd"]["matched"] == 400 and summary["obd"]["unrequested"] == 1
+    assert set(np.round(frame["speed_mps"].dropna() * 3.6).astype(int)) == {36, 37, 38, 39, 40}
+    assert np.allclose(frame["engine_torque_nm"].dropna(), 600.0)
+    assert np.allclose(frame["engine_speed_rpm"].dropna(), 1200.25)
+    assert summary["sources"]["speed_mps"]["source"] == "obd"
+
+
+def test_j1939_vw_axle_sum_when_no_cvw(tmp_path):
+    records = []
+    for k, (axle, weight) in enumerate([(0x10, 7000.0), (0x11, 5500.5), (0x20, 9000.0)] * 30):
+        data = j1939.encode_pgn(j1939.PGN_VW, {"axle_location": axle, "axle_weight_kg": weight})
+        records.append((synthetic.T0_MONO_NS + k * 33_000_000, j1939.make_id(j1939.PGN_VW, 0x0B), data))
+    records.append((synthetic.T0_MONO_NS, j1939.make_id(j1939.PGN_CCVS1, 0),
+                    j1939.encode_pgn(j1939.PGN_CCVS1, {"wheel_speed_kmh": 0.0})))
+    array = np.zeros(len(records), contract.CAN_FRAME_DTYPE)
+    for k, (time, ident, data) in enumerate(sorted(records)):
+        array[k]["t_mono_ns"], array[k]["arbitration_id"] = time, ident
+        array[k]["flags"], array[k]["dlc"], array[k]["data"] = contract.CAN_FLAG_EXTENDED, 8, np.frombuffer(data, np.uint8)
+    stream = io.BytesIO()
+    from logger.writer import LogWriter
+    writer = LogWriter(stream)
+    writer.write(contract.CAN_FRAMES, contract.pack(contract.CAN_FRAMES, array), 0, 0)
+    writer.close()
+    path = tmp_path / "vw.mcap"
+    path.write_bytes(stream.getvalue())
+    frame = read_logs([path])
+    assert set(frame["reported_mass_kg"].dropna()) == {21500.5}
