@@ -1,0 +1,54 @@
+"""``haulprofile-logger --config FILE``: run the daemon (or ``--check`` the file and exit)."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import sys
+
+from . import config as config_module
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="haulprofile-logger",
+                                     description="In-truck logger: CAN, I2C sensors and GPS into crash-safe MCAP.")
+    parser.add_argument("--config", required=True, help="TOML configuration file (see docs/logger.md)")
+    parser.add_argument("--check", action="store_true", help="only read and check the configuration")
+    parser.add_argument("--duration", type=float, default=None,
+                        help="stop after this many (emulated) seconds; default: until SIGTERM")
+    parser.add_argument("-v", "--verbose", action="store_true")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="haulprofile-logger: %(message)s")
+    try:
+        config = config_module.load(args.config)
+    except config_module.ConfigError as exc:
+        print(f"haulprofile-logger: error: {exc}", file=sys.stderr)
+        return 2
+    if args.check:
+        print(f"haulprofile-logger: {args.config} is valid")
+        return 0
+    return asyncio.run(_run(config, args.duration))
+
+
+async def _run(config, duration_s: float | None) -> int:
+    from .clock import Clock
+    from .daemon import Daemon
+    clock = Clock(config.logger.time_scale)
+    if config.emulation.enabled:
+        from .emulators.rig import EmulatedDevices, load_signals, run_daemon_for
+        devices = EmulatedDevices(load_signals(config.emulation.signals), clock).start(config)
+        daemon = Daemon(config, devices, clock)
+        return await run_daemon_for(daemon, devices, duration_s if duration_s is not None else float("inf"))
+    daemon = Daemon(config, clock=clock)
+    if duration_s is None:
+        return await daemon.run()
+    task = asyncio.create_task(daemon.run())
+    await asyncio.sleep(duration_s)
+    daemon.stop()
+    return await task
+
+
+if __name__ == "__main__":
+    sys.exit(main())

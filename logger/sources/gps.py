@@ -1,0 +1,251 @@
+"""GPS source: NMEA 0183 from a u-blox receiver on a serial port (pyserial + pynmea2).
+
+The port is read without blocking (``loop.add_reader`` on its file descriptor). Every line is
+kept raw in ``/gps/nmea`` (checksum-valid or not); RMC, GGA, GSA, GST and VTG of one epoch (same
+UTC time of day) are merged into one ``foxglove.LocationFix``-compatible ``/gps/fix``, with the
+horizontal and vertical accuracy from GST. Bad checksums, proprietary sentences, binary UBX
+bytes and truncated lines are counted and skipped, never fatal.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import datetime as dt
+import math
+import struct
+
+import pynmea2
+
+from .. import contract
+from .base import Source
+
+KNOT_MPS = 1852.0 / 3600.0
+MAX_LINE_BYTES = 512
+FIX_TYPES = {"RMC", "GGA", "GSA", "GST", "VTG"}
+
+
+def nmea_checksum_ok(sentence: str) -> bool:
+    """True if ``$...*hh`` carries the XOR checksum of the characters between ``$`` and ``*``."""
+    star = sentence.rfind("*")
+    if not sentence.startswith(("$", "!")) or star < 0 or len(sentence) < star + 3:
+        return False
+    computed = 0
+    for char in sentence[1:star]:
+        computed ^= ord(char)
+    try:
+        return computed == int(sentence[star + 1:star + 3], 16)
+    except ValueError:
+        return False
+
+
+def ubx_message(msg_class: int, msg_id: int, payload: bytes) -> bytes:
+    """A UBX frame with its 8-bit Fletcher checksum (u-blox 7 receiver description, section 31.4)."""
+    body = bytes([msg_class, msg_id]) + struct.pack("<H", len(payload)) + payload
+    ck_a = ck_b = 0
+    for byte in body:
+        ck_a = (ck_a + byte) & 0xFF
+        ck_b = (ck_b + ck_a) & 0xFF
+    return b"\xb5\x62" + body + bytes([ck_a, ck_b])
+
+
+def ubx_cfg_rate(rate_hz: float) -> bytes:
+    """UBX-CFG-RATE: measurement period [ms], one navigation solution per measurement, GPS time."""
+    return ubx_message(0x06, 0x08, struct.pack("<HHH", int(round(1000.0 / rate_hz)), 1, 1))
+
+
+def _float(value) -> float | None:
+    try:
+        return float(value) if value not in (None, "") else None
+    except (TypeError, ValueError):
+        return None
+
+
+class Epoch:
+    """What the sentences of one receiver epoch said."""
+
+    def __init__(self, time_key: str, t_mono_ns: int):
+        self.time_key = time_key
+        self.t_mono_ns = t_mono_ns
+        self.fields: dict = {}
+
+    def add(self, msg) -> None:
+        kind = msg.sentence_type
+        f = self.fields
+        if kind == "GGA":
+            f["fix_quality"] = int(msg.gps_qual or 0)
+            if msg.lat and msg.lon:
+                f["latitude"], f["longitude"] = msg.latitude, msg.longitude
+            f["altitude"] = _float(msg.altitude)
+            f["satellites"] = int(msg.num_sats or 0)
+            f["hdop"] = _float(msg.horizontal_dil)
+            f["time"] = msg.timestamp
+        elif kind == "RMC":
+            if msg.spd_over_grnd not in (None, ""):
+                f["speed_mps"] = float(msg.spd_over_grnd) * KNOT_MPS
+            f["course_deg"] = _float(msg.true_course)
+            if msg.datestamp and msg.timestamp:
+                f["utc"] = dt.datetime.combine(msg.datestamp, msg.timestamp)
+        elif kind == "VTG":
+            if "speed_mps" not in f and _float(msg.spd_over_grnd_kmph) is not None:
+                f["speed_mps"] = float(msg.spd_over_grnd_kmph) / 3.6
+        elif kind == "GST":
+            lat_err, lon_err, alt_err = (_float(msg.std_dev_latitude), _float(msg.std_dev_longitude),
+                                         _float(msg.std_dev_altitude))
+            if lat_err is not None and lon_err is not None:
+                f["h_acc_m"] = math.hypot(lat_err, lon_err)
+            f["v_acc_m"] = alt_err
+        elif kind == "GSA":
+            f["hdop"] = f.get("hdop") or _float(msg.hdop)
+
+    def fix(self, wall_time_ns: int) -> dict | None:
+        f = self.fields
+        if not f.get("fix_quality") or "latitude" not in f or f.get("altitude") is None:
+            return None
+        gps_ns = None
+        if "utc" in f:
+            gps_ns = int(f["utc"].replace(tzinfo=dt.timezone.utc).timestamp()) * 1_000_000_000 + \
+                f["utc"].microsecond * 1000
+        return contract.location_fix(
+            self.t_mono_ns, gps_ns if gps_ns is not None else wall_time_ns, f["latitude"], f["longitude"],
+            f["altitude"], f.get("h_acc_m"), f.get("v_acc_m"), gps_time_utc_ns=gps_ns,
+            speed_mps=f.get("speed_mps"), course_deg=f.get("course_deg"), fix_quality=f["fix_quality"],
+            satellites=f.get("satellites", 0), hdop=f.get("hdop"))
+
+
+class GpsSource(Source):
+    """Reads NMEA lines from a serial port path; one fix per receiver epoch."""
+
+    name = "gps"
+
+    def __init__(self, queue, clock, port: str, baudrate: int = 9600, configure_rate_hz: float | None = None,
+                 say=None):
+        super().__init__(queue, clock, say)
+        self.port_path = port
+        self.baudrate = baudrate
+        self.configure_rate_hz = configure_rate_hz
+        self.serial = None
+        self._buffer = bytearray()
+        self._epoch: Epoch | None = None
+        self._raw: list[str] = []
+        self._raw_t: list[int] = []
+        self.last_gps_time = None
+        for key in ("lines", "fixes", "bad_checksum", "parse_errors", "skipped"):
+            self.stats.extra[key] = 0
+
+    def open(self) -> None:
+        import serial
+        self.serial = serial.Serial(self.port_path, self.baudrate, timeout=0)
+        if self.configure_rate_hz:
+            self.serial.write(ubx_cfg_rate(self.configure_rate_hz))
+
+    def feed(self, data: bytes, t_mono_ns: int) -> None:
+        """Split received bytes into lines and handle each complete one."""
+        self._buffer += data
+        while True:
+            end = self._buffer.find(b"\n")
+            if end < 0:
+                if len(self._buffer) > MAX_LINE_BYTES:
+                    self._buffer.clear()
+                    self.stats.extra["skipped"] += 1
+                return
+            line = bytes(self._buffer[:end]).rstrip(b"\r")
+            del self._buffer[:end + 1]
+            self.handle_line(line, t_mono_ns)
+
+    def handle_line(self, line: bytes, t_mono_ns: int) -> None:
+        start = line.find(b"$")
+        if start < 0:
+            if line.strip():
+                self.stats.extra["skipped"] += 1
+            return
+        text = line[start:].decode("ascii", errors="replace")
+        self.stats.extra["lines"] += 1
+        self._raw.append(text)
+        self._raw_t.append(t_mono_ns)
+        if not nmea_checksum_ok(text):
+            last = text.rfind("$")
+            if last > 0 and nmea_checksum_ok(text[last:]):
+                text = text[last:]
+            else:
+                self.stats.extra["bad_checksum"] += 1
+                return
+        if text[3:6] not in FIX_TYPES or text.startswith("$P"):
+            return
+        try:
+            msg = pynmea2.parse(text, check=True)
+        except (pynmea2.ParseError, ValueError, AttributeError, TypeError):
+            self.stats.extra["parse_errors"] += 1
+            return
+        timestamp = getattr(msg, "timestamp", None)
+        if msg.sentence_type in ("RMC", "GGA", "GST"):
+            key = timestamp.isoformat() if timestamp else ""
+            if self._epoch is None or key != self._epoch.time_key:
+                self.flush_epoch()
+                self._epoch = Epoch(key, t_mono_ns)
+        if self._epoch is not None:
+            try:
+                self._epoch.add(msg)
+            except (ValueError, TypeError, AttributeError):
+                self.stats.extra["parse_errors"] += 1
+
+    def flush_epoch(self) -> None:
+        if self._epoch is None:
+            return
+        epoch, self._epoch = self._epoch, None
+        try:
+            fix = epoch.fix(epoch.t_mono_ns + self.clock.mono_offset_ns())
+        except (ValueError, TypeError, OverflowError):
+            self.stats.extra["parse_errors"] += 1
+            return
+        if fix is not None:
+            self.emit_json(contract.GPS_FIX, fix, epoch.t_mono_ns)
+            self.stats.extra["fixes"] += 1
+            if fix["gps_time_utc_ns"] is not None:
+                self.last_gps_time = (epoch.t_mono_ns, fix["gps_time_utc_ns"])
+
+    def flush_raw(self) -> None:
+        if self._raw:
+            record = {"t_mono_ns": self._raw_t[0], "sentences": self._raw, "t_mono_ns_each": self._raw_t}
+            self.emit_json(contract.GPS_NMEA, record, self._raw_t[0])
+            self._raw, self._raw_t = [], []
+
+    def gps_time_now_ns(self) -> int | None:
+        """GPS UTC [ns] extrapolated to now from the last fix, if that fix is under 2 s old."""
+        if self.last_gps_time is None:
+            return None
+        t_fix, utc = self.last_gps_time
+        age = self.clock.monotonic_ns() - t_fix
+        return utc + age if age < 2_000_000_000 else None
+
+    def _on_readable(self) -> None:
+        try:
+            data = self.serial.read(4096)
+        except OSError as exc:
+            self.stats.errors += 1
+            self.say(f"serial read error: {exc}")
+            return
+        if data:
+            self.feed(data, self.clock.monotonic_ns())
+
+    async def run(self) -> None:
+        loop = asyncio.get_running_loop()
+        if self.serial is None:
+            self.open()
+        loop.add_reader(self.serial.fileno(), self._on_readable)
+        self.stats.state = "running"
+        try:
+            while True:
+                await self.clock.sleep(1.0)
+                self.flush_raw()
+        finally:
+            loop.remove_reader(self.serial.fileno())
+
+    async def close(self) -> None:
+        if self.serial is not None and self.serial.is_open:
+            data = self.serial.read(65536)
+            if data:
+                self.feed(data, self.clock.monotonic_ns())
+        self.flush_epoch()
+        self.flush_raw()
+        if self.serial is not None:
+            self.serial.close()
