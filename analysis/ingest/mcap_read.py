@@ -134,10 +134,14 @@ class _Channels:
 
     def add_schema(self, body) -> None:
         schema_id, name, encoding, data = _parse_schema(body)
-        self.schemas[schema_id] = (name, encoding, data)
+        self.schemas.setdefault(schema_id, (name, encoding, data))
 
     def add_channel(self, body) -> None:
+        """Register a channel; the first definition wins (chunked ones are CRC-checked, the
+        summary's copies are not)."""
         channel_id, schema_id, topic, encoding, metadata = _parse_channel(body)
+        if channel_id in self.channels:
+            return
         name, schema_encoding, data = self.schemas.get(schema_id, ("", "", b""))
         self.channels[channel_id] = Channel(channel_id, topic, encoding, name, schema_encoding, data, metadata)
 
@@ -189,30 +193,46 @@ def _chunk_payload(body) -> bytes:
     return data
 
 
-def _valid_chunk_at(buf, pos: int) -> bool:
-    if pos < 0 or pos + 9 > len(buf) or buf[pos] != OP_CHUNK:
-        return False
-    (length,) = _U64.unpack_from(buf, pos + 1)
-    if pos + 9 + length > len(buf):
-        return False
-    try:
-        _inner_records(_chunk_payload(buf[pos + 9:pos + 9 + length]))
-    except (DamagedRecord, struct.error, MemoryError):
-        return False
-    return True
+class _Scanner:
+    """Finds and validates chunk records; remembers the last one so no chunk is decompressed twice."""
 
+    def __init__(self, buf):
+        self.buf = buf
+        self.size = len(buf)
+        self._cached: tuple[int, list | None] = (-1, None)
+        self._nothing_from: int | None = None
 
-def _resync(buf, start: int) -> int:
-    """Offset of the next compressed chunk record after ``start`` that validates, or len(buf)."""
-    best = len(buf)
-    for mark in (_ZSTD_MARK, _LZ4_MARK):
-        at = buf.find(mark, start + 1 + 37)
-        while 0 <= at and at - 37 < best:
-            if _valid_chunk_at(buf, at - 37):
-                best = at - 37
-                break
-            at = buf.find(mark, at + 1)
-    return best
+    def records(self, pos: int) -> list | None:
+        """Records of the chunk record at ``pos`` if it validates (CRC, sizes), else None."""
+        if self._cached[0] == pos:
+            return self._cached[1]
+        result = None
+        buf = self.buf
+        if 0 <= pos and pos + 9 <= self.size and buf[pos] == OP_CHUNK:
+            (length,) = _U64.unpack_from(buf, pos + 1)
+            if pos + 9 + length <= self.size:
+                try:
+                    result = _inner_records(_chunk_payload(buf[pos + 9:pos + 9 + length]))
+                except (DamagedRecord, struct.error, MemoryError):
+                    result = None
+        self._cached = (pos, result)
+        return result
+
+    def next_chunk(self, start: int) -> int:
+        """Offset of the first compressed chunk at or after ``start`` that validates, or the size."""
+        if self._nothing_from is not None and start >= self._nothing_from:
+            return self.size
+        best = self.size
+        for mark in (_ZSTD_MARK, _LZ4_MARK):
+            at = self.buf.find(mark, start + 37)
+            while 0 <= at and at - 37 < best:
+                if self.records(at - 37) is not None:
+                    best = at - 37
+                    break
+                at = self.buf.find(mark, at + 1)
+        if best == self.size:
+            self._nothing_from = start
+        return best
 
 
 def read_file(path: str | Path, report: ReadReport | None = None) -> Iterator[RawMessage]:
@@ -230,45 +250,64 @@ def read_file(path: str | Path, report: ReadReport | None = None) -> Iterator[Ra
             yield from _walk(buf, report)
 
 
+def read_buffer(buf, report: ReadReport | None = None) -> Iterator[RawMessage]:
+    """Like `read_file` for bytes already in memory."""
+    report = report if report is not None else ReadReport("<buffer>")
+    report.file_bytes = len(buf)
+    yield from _walk(buf, report)
+
+
 def _walk(buf, report: ReadReport) -> Iterator[RawMessage]:
+    """Record by record; a record that would step over the next valid chunk is not trusted."""
     size = len(buf)
     channels = _Channels()
+    scanner = _Scanner(buf)
     pos = len(MAGIC)
     if buf[:len(MAGIC)] != MAGIC:
         report.header_ok = False
         report.problems.append("no MCAP magic at the start")
-        pos = _resync(buf, 0)
+        pos = 0
+    guard = scanner.next_chunk(pos)
     while pos + 9 <= size:
+        if pos > guard:
+            guard = scanner.next_chunk(pos)
         opcode, length = _RECORD_HEAD.unpack_from(buf, pos)
         end = pos + 9 + length
-        if opcode not in _VALID_OPS or end > size:
-            nxt = _resync(buf, pos)
-            report.skipped_bytes += nxt - pos if nxt < size else 0
-            pos = nxt
-            continue
-        body = buf[pos + 9:end]
         if opcode == OP_CHUNK:
+            if end > size and guard == size:
+                break  # the chunk the power cut interrupted
             report.chunks += 1
-            try:
-                messages = _messages(_inner_records(_chunk_payload(body)), channels, report)
-            except (DamagedRecord, struct.error, UnicodeDecodeError):
+            records = scanner.records(pos)
+            messages = None
+            if records is not None:
+                try:
+                    messages = _messages(records, channels, report)
+                except (DamagedRecord, struct.error, UnicodeDecodeError):
+                    messages = None
+            if messages is None:
                 report.bad_chunks += 1
-                nxt = _resync(buf, pos)
-                report.read_bytes = max(report.read_bytes, min(end, nxt))
-                report.skipped_bytes += max(0, nxt - end) if nxt < size else 0
-                pos = nxt
+                guard = scanner.next_chunk(pos + 1)
+                report.read_bytes = max(report.read_bytes, min(end, guard, size))
+                report.skipped_bytes += max(0, guard - end) if guard < size else 0
+                pos = guard
                 continue
             yield from messages
+        elif opcode not in _VALID_OPS or end > size or end > guard:
+            if guard >= size:
+                break
+            report.skipped_bytes += guard - pos
+            pos = guard
+            continue
         elif opcode in (OP_SCHEMA, OP_CHANNEL, OP_MESSAGE):
             try:
-                messages = _messages([(opcode, body)], channels, report)
+                messages = _messages([(opcode, buf[pos + 9:end])], channels, report)
             except (DamagedRecord, struct.error, UnicodeDecodeError):
                 messages = []
                 report.skipped_bytes += end - pos
             yield from messages
         elif opcode == OP_HEADER:
             try:
-                report.profile, _ = _string(body, 0)
+                report.profile, _ = _string(buf[pos + 9:end], 0)
             except (DamagedRecord, struct.error, UnicodeDecodeError):
                 pass
         elif opcode == OP_FOOTER:

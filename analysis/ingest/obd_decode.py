@@ -1,8 +1,8 @@
 """OBD-II mode 01 (SAE J1979) responses matched to their requests, vectorised.
 
-A response counts only when a request for the same PID was sent (and not yet answered by that ECU) (functional 0x7DF / 0x18DB33F1,
-or physical 0x7E0-0x7E7 / 0x18DA..F1) at most `MAX_RESPONSE_DELAY_NS` before it; unanswered
-requests and unrequested responses are counted. Single-frame ISO-TP payloads only (mode 01 PIDs
+A response counts only when a request for the same PID was sent (functional 0x7DF / 0x18DB33F1,
+or physical 0x7E0-0x7E7 / 0x18DA..F1) at most `MAX_RESPONSE_DELAY_NS` before it and that ECU has
+not answered it yet; unrequested responses are counted. Single-frame ISO-TP payloads only (mode 01 PIDs
 fit in one frame).
 """
 
