@@ -1,0 +1,72 @@
+"""Other loggers' files into the same pipeline: candump, Vector ASC and BLF (python-can), signals tables;
+and the ``analyze info/signals/recover`` commands."""
+
+import json
+
+import can
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis import cli
+from analysis.ingest import ingest_logs, synthetic
+from analysis.ingest.synthetic import BIN_NS, can_frames, make_truth
+
+EPOCH_NS = 1_700_000_000_000_000_000
+
+
+@pytest.fixture(scope="module")
+def truth_and_messages():
+    rng = np.random.default_rng(8)
+    truth = make_truth(200, rng, t0_ns=EPOCH_NS)
+    frames = can_frames(truth, filler_hz=50.0, rng=rng)
+    messages = [can.Message(timestamp=int(f["t_mono_ns"]) / 1e9, arbitration_id=int(f["arbitration_id"]),
+                            is_extended_id=True, dlc=8, data=f["data"].tobytes(), channel=0) for f in frames]
+    return truth, messages
+
+
+@pytest.mark.parametrize("suffix,writer", [(".log", can.CanutilsLogWriter), (".asc", can.ASCWriter),
+                                           (".blf", can.BLFWriter)])
+def test_python_can_formats(tmp_path, truth_and_messages, suffix, writer):
+    truth, messages = truth_and_messages
+    path = tmp_path / f"foreign{suffix}"
+    with writer(str(path)) as out:
+        for message in messages:
+            out.on_message_received(message)
+    frame, summary = ingest_logs([path])
+    assert summary["can_frames"] == len(messages)
+    # ASC keeps relative times only; the others carry the epoch wall clock
+    n = min(len(frame), 200)
+    speed = frame["speed_mps"].to_numpy()[:n]
+    assert np.nanmax(np.abs(speed - truth.values["speed_mps"][:n])) <= 0.5 / 256 / 3.6 + 1e-4
+    assert (frame["engine_reference_torque_nm"].dropna() == synthetic.REFERENCE_TORQUE_NM).all()
+    if suffix != ".asc":
+        assert abs(int(frame["wall_time_ns"].iloc[0]) - EPOCH_NS) < BIN_NS
+
+
+def test_signals_table_input_passes_through(tmp_path):
+    table = pd.DataFrame({"time_s": np.arange(5) * 0.1, "speed_mps": [0, 1, 2, 3, 4.0], "own_column": list("abcde")})
+    path = tmp_path / "other-logger.csv"
+    table.to_csv(path, index=False)
+    frame, summary = ingest_logs([path])
+    assert frame["own_column"].tolist() == list("abcde") and summary["source"] == "signals table"
+
+
+def test_commands(tmp_path, capsys):
+    log = tmp_path / "log.mcap"
+    with open(log, "wb") as stream:
+        synthetic.write_log(stream, 12, seed=2, chunk_size=16 * 1024)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(log.read_bytes()[:-3000])
+    assert cli.main(["signals", str(log), "-o", str(tmp_path / "s.parquet"), "--quiet"]) == 0
+    assert len(pd.read_parquet(tmp_path / "s.parquet")) == 120
+    assert cli.main(["info", str(cut), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["files"][0]["complete"] is False and summary["warnings"]
+    assert cli.main(["info", str(log)]) == 0
+    text = capsys.readouterr().out
+    assert "/can/frames" in text and "speed_mps" in text and "complete" in text
+    assert cli.main(["recover", str(cut), "-o", str(tmp_path / "fixed.mcap")]) == 0
+    assert "wrote" in capsys.readouterr().out
+    assert cli.main(["signals", str(tmp_path / "nope.mcap"), "-o", str(tmp_path / "x.parquet")]) == 2
+    assert "not found" in capsys.readouterr().err
