@@ -20,7 +20,7 @@ TUNNEL_M = (9_000.0, 10_500.0)
 
 
 def road_height_m(s):
-    return 500 + 40 * np.sin(s / 1500) + 15 * np.sin(s / 400 + 1) + 4 * np.sin(s / 170)
+    return 500 + 40 * np.sin(s / 1500) + 15 * np.sin(s / 600 + 1) + 2 * np.sin(s / 300)
 
 
 def terrain_height_m(s):

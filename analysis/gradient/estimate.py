@@ -19,13 +19,16 @@ class GradientSettings:
     (see ``docs/estimation.md``)."""
 
     spacing_m: float = 10.0
-    map_sigma_m: float = 60.0
+    map_sigma_m: float = 150.0
     baro_sigma_m: float = 40.0
     imu_sigma_m: float = 40.0
-    anchor_sigma_m: float = 3000.0
+    anchor_sigma_m: float = 1500.0
     gps_jump_tolerance_m: float = 25.0
     gps_reacquire_s: float = 30.0
     stuck_sensor_s: float = 5.0
+    use_air_temperature: bool = False
+    """Scale barometric height steps by T_air / T_standard; off by default because a logger's
+    temperature sensor sits in a warm box (measured: it made the virtual truck's gradient worse)."""
 
 
 @dataclass
@@ -114,10 +117,10 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     pressure = _column(frame, "pressure_pa")
     if pressure is not None:
         pressure = sources.stuck_to_nan(pressure, max(3, int(settings.stuck_sensor_s * rate_hz)))
-        baro = sources.barometric_height_m(pressure)
+        baro = sources.freeze_at_standstill(sources.barometric_height_m(pressure), speed, time_s)
         bin_baro = distance_grid.bin_mean(index, baro, n_bins)
         temperature = _column(frame, "air_temperature_c")
-        if temperature is not None:
+        if temperature is not None and settings.use_air_temperature:
             bin_baro = _temperature_corrected(bin_baro, distance_grid.bin_mean(index, temperature, n_bins))
         if map_level is not None and np.any(weight_map > 0):
             offset, _, _ = distance_grid.local_linear(map_level - bin_baro, weight_map, spacing, settings.anchor_sigma_m)

@@ -50,6 +50,37 @@ def stuck_to_nan(values, run_samples: int):
     return values
 
 
+def freeze_at_standstill(height_m, speed_mps, time_s, stop_speed_mps: float = 0.3, window_s: float = 2.0):
+    """Barometric height [m] with whatever it did while the truck stood removed.
+
+    The road cannot rise under a standing truck, but weather drift (about 1 hPa/h, 8 m/h) and
+    door/ventilation pressure steps accumulate there into a single distance bin, which would
+    become a gradient spike. Each standstill's change of the ``window_s`` moving mean is
+    subtracted from everything after it; samples at standstill become NaN.
+    """
+    height = np.asarray(height_m, dtype=float)
+    stopped = ~(np.nan_to_num(np.asarray(speed_mps, dtype=float), nan=np.inf) > stop_speed_mps)
+    if not stopped.any() or stopped.all():
+        return np.where(stopped, np.nan, height)
+    steps = np.diff(time_s)
+    dt = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0
+    window = max(1, int(round(window_s / dt)))
+    kernel = np.ones(window)
+    finite = np.isfinite(height)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        smooth = (np.convolve(np.where(finite & ~stopped, height, 0.0), kernel, "same")
+                  / np.convolve((finite & ~stopped).astype(float), kernel, "same"))
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], stopped.astype(np.int8), [0]])))
+    jumps = np.zeros(len(height))
+    for start, end in zip(edges[::2], edges[1::2]):
+        if start == 0 or end >= len(height):
+            continue
+        before, after = smooth[start - 1], smooth[end]
+        if np.isfinite(before) and np.isfinite(after):
+            jumps[end] = after - before
+    return np.where(stopped, np.nan, height - np.cumsum(jumps))
+
+
 def _gps_outliers_reference(east_m, north_m, distance_m, time_s, tolerance_m, reacquire_s):
     bad = np.zeros(len(east_m), dtype=np.bool_)
     last = -1
