@@ -26,7 +26,7 @@ def test_positive_wheel_energy_agrees_with_fastsim_on_udds(monkeypatch):
                              machine_max_torque_nm=50_000.0, max_recuperation_power_w=2e6)
     udds = fastsim.Cycle.from_resource("udds.csv")
     sd = fastsim.SimDrive(_fastsim_vehicle(fastsim, rigid), udds)
-    sd.walk()
+    sd.run()
     history = sd.to_dict()["veh"]["history"]
     power, time = np.asarray(history["pwr_tractive_watts"]), np.asarray(history["time_seconds"])
     fastsim_kwh = np.sum(np.clip(power, 0, None)[1:] * np.diff(time)) / 3.6e6

@@ -79,7 +79,7 @@ def bench_simulate_vs_fastsim(quick: bool):
 
     def run_fastsim():
         sd = fastsim.SimDrive(fs_vehicle, fs_cycle)
-        sd.walk()
+        sd.run()
         holder["fs"] = sd
 
     lines = []
@@ -96,7 +96,7 @@ def bench_simulate_vs_fastsim(quick: bool):
         t_ours = _best_of(repeats, lambda: simulate(cycle, ours_vehicle, settings=settings))
         ours_kwh = holder["ours"].summary["wheel_positive_energy_kwh"]
         lines.append(result(f"simulate_{hours:g}h_trace_dt{dt:g}s_run_time", t_ours, "s (ratio>1: ours faster)",
-                            "FASTSim 3 SimDrive.walk (1 s steps)", t_fastsim))
+                            "FASTSim 3 SimDrive.run (1 s steps)", t_fastsim))
         lines.append(result(f"simulate_{hours:g}h_trace_dt{dt:g}s_positive_wheel_energy", ours_kwh,
                             "kWh (ratio = FASTSim/ours)", "FASTSim 3 pwr_tractive_watts > 0", fs_positive_kwh))
     return lines

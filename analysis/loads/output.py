@@ -1,0 +1,96 @@
+"""CSV files and figures of the load collectives."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.colors import LogNorm  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from .collectives import QUANTITIES  # noqa: E402
+from .summary import Collectives  # noqa: E402
+
+
+def _bin_labels(edges) -> list[str]:
+    return [f"{a:.6g}..{b:.6g}" for a, b in zip(edges[:-1], edges[1:])]
+
+
+def write_csvs(c: Collectives, out_dir: Path) -> list[Path]:
+    """One drive's collectives as CSV files named ``<drive>_<collective>.csv``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    prefix = c.name.replace(" ", "_")
+    written = []
+
+    def save(frame: pd.DataFrame, what: str, index=False):
+        path = out_dir / f"{prefix}_{what}.csv"
+        frame.to_csv(path, index=index)
+        written.append(path)
+
+    for quantity in QUANTITIES:
+        edges = c.edges[quantity]
+        save(pd.DataFrame({"level_low": edges[:-1], "level_high": edges[1:], "time_s": c.time_at_level[quantity]}),
+             f"time_at_level_{quantity}")
+    save(pd.DataFrame(c.residence_s, index=pd.Index(_bin_labels(c.edges["residence_speed_rpm"]), name="wheel_speed_rpm"),
+                      columns=_bin_labels(c.edges["residence_torque_nm"])), "residence_speed_torque_s", index=True)
+    save(pd.DataFrame(c.rainflow_counts, index=pd.Index(_bin_labels(c.edges["rainflow_range_nm"]), name="range_nm"),
+                      columns=_bin_labels(c.edges["rainflow_mean_nm"])), "rainflow_range_mean_counts", index=True)
+    save(pd.DataFrame({"level_nm": c.crossing_levels_nm, "upward_crossings": c.crossings}), "level_crossings_torque")
+    save(pd.DataFrame({"woehler_exponent": list(c.damage_equivalent_torque_nm),
+                       "damage_equivalent_torque_range_nm": list(c.damage_equivalent_torque_nm.values()),
+                       "equivalent_cycles": c.duration_s}), "damage_equivalent_torque")
+    return written
+
+
+def write_figures(drives: list[Collectives], comparison: pd.DataFrame | None, out_dir: Path) -> list[Path]:
+    """Histograms, residence and rainflow matrices, level crossings and damage-equivalent torques."""
+    written = []
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7))
+    for ax, (quantity, label) in zip(axes.ravel(), QUANTITIES.items()):
+        for c in drives:
+            edges = c.edges[quantity]
+            share = c.time_at_level[quantity] / max(c.duration_s, 1e-12) * 100
+            ax.stairs(share, edges, label=c.name)
+        ax.set_xlabel(label)
+        ax.set_ylabel("time share [%]")
+    axes[0, 0].legend()
+    fig.suptitle("time at level at the wheel")
+    fig.tight_layout()
+    written.append(_save(fig, out_dir / "time_at_level.png"))
+
+    fig, axes = plt.subplots(2, len(drives), figsize=(6 * len(drives), 9), squeeze=False)
+    for col, c in enumerate(drives):
+        hours = np.where(c.residence_s > 0, c.residence_s / 3600, np.nan)
+        mesh = axes[0, col].pcolormesh(c.edges["residence_speed_rpm"], c.edges["residence_torque_nm"], hours.T, norm=LogNorm())
+        fig.colorbar(mesh, ax=axes[0, col], label="residence [h]")
+        axes[0, col].set(xlabel="wheel speed [rpm]", ylabel="wheel torque [Nm]", title=f"{c.name}: speed x torque")
+        counts = np.where(c.rainflow_counts > 0, c.rainflow_counts, np.nan)
+        mesh = axes[1, col].pcolormesh(c.edges["rainflow_range_nm"], c.edges["rainflow_mean_nm"], counts.T, norm=LogNorm())
+        fig.colorbar(mesh, ax=axes[1, col], label="cycles")
+        axes[1, col].set(xlabel="torque range [Nm]", ylabel="torque mean [Nm]", title=f"{c.name}: rainflow")
+    fig.tight_layout()
+    written.append(_save(fig, out_dir / "matrices.png"))
+
+    fig, (ax_cross, ax_det) = plt.subplots(1, 2, figsize=(11, 4))
+    for c in drives:
+        per_hour = c.crossings / max(c.duration_s, 1e-12) * 3600
+        ax_cross.semilogx(np.where(per_hour > 0, per_hour, np.nan), c.crossing_levels_nm, label=c.name)
+        ax_det.plot(list(c.damage_equivalent_torque_nm), list(c.damage_equivalent_torque_nm.values()), "o-",
+                    label=c.name)
+    ax_cross.set(xlabel="upward crossings per hour", ylabel="wheel torque [Nm]", title="level crossings")
+    ax_det.set(xlabel="Wöhler exponent k", ylabel="damage-equivalent torque range [Nm]",
+               title="1 cycle per second of operation")
+    ax_det.legend()
+    fig.tight_layout()
+    written.append(_save(fig, out_dir / "crossings_damage.png"))
+    return written
+
+
+def _save(fig, path: Path) -> Path:
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

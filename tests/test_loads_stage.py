@@ -1,0 +1,72 @@
+"""The loads stage, ``analyze loads`` and the measured vs generated comparison."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.cli import main
+from analysis.loads import collectives_of, compare, stage
+from analysis.pipeline import RunContext
+from analysis.vehicle import load_vehicle
+
+
+def drive(seconds: float, seed: int, mass_kg: float = 20_000.0) -> pd.DataFrame:
+    rng = np.random.default_rng(seed)
+    time = np.arange(0.0, seconds, 0.5)
+    speed = np.clip(15 + 6 * np.sin(time / 25) + np.cumsum(rng.normal(0, 0.05, len(time))), 0, None)
+    return pd.DataFrame({"time_s": time, "speed_mps": speed, "accel_mps2": np.gradient(speed, time),
+                         "gradient_pct": 3 * np.sin(time / 80), "mass_kg": mass_kg})
+
+
+@pytest.fixture(scope="module")
+def rigid():
+    return load_vehicle("rigid-18t")
+
+
+def test_identical_drives_compare_as_identical(rigid):
+    measured = drive(1200, 1)
+    collectives = collectives_of({"measured": measured, "generated": measured.copy()}, rigid)
+    comparison = compare(collectives["measured"], collectives["generated"])
+    np.testing.assert_allclose(comparison["relative_deviation"].to_numpy(), 0.0, atol=1e-12)
+
+
+def test_heavier_cycle_shows_higher_damage_equivalent_torque(rigid):
+    collectives = collectives_of({"measured": drive(1200, 1), "generated": drive(1200, 1, 30_000.0)}, rigid)
+    comparison = compare(collectives["measured"], collectives["generated"]).set_index("criterion")
+    for k in range(3, 11):
+        assert comparison.loc[f"damage-equivalent torque range, k={k} [Nm]", "relative_deviation"] > 0.2
+
+
+def test_stage_writes_measured_and_generated(tmp_path, rigid):
+    drive(600, 2).to_csv(tmp_path / "cycle.csv", index=False)
+    messages = []
+    ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=rigid, signals=drive(1800, 1), say=messages.append)
+    stage(ctx)
+    summary = ctx.summary["loads"]
+    assert {"measured", "generated", "comparison"} <= set(summary)
+    assert summary["measured"]["duration_s"] == pytest.approx(1799.5)
+    for name in ("comparison.csv", "measured_rainflow_range_mean_counts.csv", "generated_time_at_level_wheel_power_w.csv",
+                 "time_at_level.png", "matrices.png", "crossings_damage.png"):
+        assert (tmp_path / "loads" / name).stat().st_size > 0
+    hist = pd.read_csv(tmp_path / "loads" / "measured_time_at_level_wheel_torque_nm.csv")
+    assert hist["time_s"].sum() == pytest.approx(1799.5)
+
+
+def test_stage_says_what_is_missing(tmp_path, rigid):
+    messages = []
+    ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=rigid, say=messages.append,
+                     signals=drive(100, 1).drop(columns=["mass_kg"]))
+    stage(ctx)
+    assert "loads" not in ctx.summary and "mass_kg" in messages[0]
+
+
+def test_cli_loads(tmp_path, capsys):
+    drive(900, 1).to_parquet(tmp_path / "signals.parquet")
+    drive(300, 5).to_csv(tmp_path / "cycle.csv", index=False)
+    assert main(["loads", str(tmp_path / "signals.parquet"), "--vehicle", "tractor-40t", "--cycle",
+                 str(tmp_path / "cycle.csv"), "--out", str(tmp_path / "o")]) == 0
+    assert "damage-equivalent torque range, k=5" in capsys.readouterr().out
+    drive(100, 1).drop(columns=["gradient_pct"]).to_csv(tmp_path / "bad.csv", index=False)
+    assert main(["loads", str(tmp_path / "bad.csv"), "--vehicle", "rigid-18t"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "gradient_pct" in err
