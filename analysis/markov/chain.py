@@ -27,8 +27,10 @@ class Chain:
     """CSR form of the counts over the kept states.
 
     ``row_ptr[s]:row_ptr[s+1]`` are the transitions out of state ``s`` to ``dest`` with ``count``
-    and per-row cumulative counts ``cum_count``; ``start_state``/``start_cum`` the standstill
-    states to start from, weighted by how often the data left them. Class centres per state in
+    and per-row cumulative counts ``cum_count``; ``start_state``/``start_cum`` the states a cycle
+    starts in: **[choice]** the first second of a stop, weighted by how often the data arrived
+    there, so a cycle opens with a whole stop of typical length (starting anywhere in a stop
+    would favour long stops); without stops, any standstill (or any state) by its occupancy. Class centres per state in
     ``speed_mps`` [m/s], ``gradient_pct`` [%], ``mass_kg`` [kg].
     """
 
@@ -84,10 +86,14 @@ def build_chain(counts: TransitionCounts) -> Chain:
     cum_count = cum - np.repeat(np.concatenate([[0], cum[row_ptr[1:-1] - 1]]), np.diff(row_ptr))
     keys = states[keep_state]
     speed, gradient, mass = cls.centres(keys, counts.widths)
-    totals = np.add.reduceat(c, row_ptr[:-1])
-    start = np.flatnonzero(speed == 0)
-    if start.size == 0:
-        start = np.arange(n)
+    arrivals = np.bincount(d, weights=c * ((speed[s] > 0) & (speed[d] == 0)), minlength=n)
+    if arrivals.any():
+        start = np.flatnonzero(arrivals)
+        weight = arrivals[start]
+    else:
+        occupancy = np.add.reduceat(c, row_ptr[:-1])
+        start = np.flatnonzero(speed == 0) if np.any(speed == 0) else np.arange(n)
+        weight = occupancy[start]
     return Chain(counts.widths, keys, row_ptr, d.astype(np.int64), c, cum_count.astype(np.int64),
-                 start.astype(np.int64), np.cumsum(totals[start]).astype(np.int64),
+                 start.astype(np.int64), np.cumsum(weight).astype(np.int64),
                  speed, gradient, mass, len(states), int(counts.count[~keep].sum()))

@@ -60,7 +60,7 @@ def vdri_to_time_cycle(vdri: pd.DataFrame) -> pd.DataFrame:
     are those in force at the middle of its second.
 
     Row i's target speed holds from its distance to the next row's; a stop row (v = 0) stands for
-    ``stop_time_s`` and then drives on at the next row's speed; the last row is the end. Speeds
+    ``stop_time_s`` and then drives on at the next moving row's speed; the last row is the end. Speeds
     change in steps, as targets do (a driver model, as in the simulation, smooths them).
     """
     s = vdri["distance_m"].to_numpy(float)
@@ -76,7 +76,8 @@ def vdri_to_time_cycle(vdri: pd.DataFrame) -> pd.DataFrame:
             if stop[i] > 0:
                 pieces.append((clock, stop[i], s[i], 0.0, grad[i]))
                 clock += stop[i]
-            speed = v[i + 1]
+            ahead = np.flatnonzero(v[i + 1:] > 0)
+            speed = v[i + 1 + ahead[0]] if ahead.size else 0.0
         else:
             speed = v[i]
         length = s[i + 1] - s[i]

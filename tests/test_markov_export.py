@@ -1,0 +1,130 @@
+"""Outputs: CSV/Parquet/VECTO cycle, the VECTO round trip, real VECTO cycles as input, the stage
+and ``analyze cycle``."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis import cli
+from analysis.markov import (ClassWidths, count_transitions, cycle_to_vdri, select_cycle, stage,
+                             vdri_to_time_cycle, write_cycle)
+from analysis.markov.synthetic import synthetic_drive
+from analysis.pipeline import RunContext
+from analysis.vecto import read_vdri
+
+VALID_VECTO_ROUTES = ["Construction", "HeavyUrban", "Suburban", "UrbanDelivery"]
+
+
+@pytest.fixture(scope="module")
+def drive():
+    return synthetic_drive(2 * 3600, seed=41, kind="urban", rate_hz=10.0)
+
+
+@pytest.fixture(scope="module")
+def selection(drive):
+    return select_cycle(count_transitions(drive), 1800, 1000, seed=2)
+
+
+def test_cycle_to_vdri_and_back_is_exact(selection):
+    cycle = selection.cycle
+    vdri = cycle_to_vdri(cycle)
+    assert np.all(np.diff(vdri["distance_m"]) >= 0)
+    stops = vdri["target_speed_mps"] == 0
+    assert np.all(vdri.loc[stops.to_numpy()[:-1].nonzero()[0], "stop_time_s"] > 0)
+    assert vdri["stop_time_s"].sum() == pytest.approx((cycle["speed_mps"].to_numpy()[:-1] == 0).sum())
+    back = vdri_to_time_cycle(vdri)
+    assert len(back) == len(cycle)
+    np.testing.assert_allclose(back["speed_mps"], cycle["speed_mps"], atol=1e-12)
+    np.testing.assert_allclose(back["gradient_pct"], cycle["gradient_pct"], atol=1e-12)
+    np.testing.assert_allclose(back["distance_m"], cycle["distance_m"], atol=1e-6)
+
+
+def test_written_files_round_trip(selection, tmp_path):
+    paths = write_cycle(selection.cycle, tmp_path)
+    csv = pd.read_csv(paths["csv"])
+    assert list(csv.columns) == ["time_s", "speed_mps", "accel_mps2", "gradient_pct", "mass_kg", "distance_m"]
+    pd.testing.assert_frame_equal(pd.read_parquet(paths["parquet"]), selection.cycle)
+    assert paths["vdri"].read_text().splitlines()[0] == "<s>,<v>,<grad>,<stop>"
+    back = vdri_to_time_cycle(read_vdri(paths["vdri"]))
+    np.testing.assert_allclose(back["speed_mps"], selection.cycle["speed_mps"], atol=1e-3)
+    np.testing.assert_allclose(back["distance_m"], selection.cycle["distance_m"], atol=1.0)
+
+
+@pytest.mark.parametrize("name", ["LongHaul", "Urban", "Construction"])
+def test_real_vecto_cycle_as_time_trace(shared_data, name):
+    vdri = read_vdri(shared_data / "vecto-cycles" / f"{name}.vdri")
+    trace = vdri_to_time_cycle(vdri)
+    s, v, stop = (vdri[c].to_numpy() for c in ("distance_m", "target_speed_mps", "stop_time_s"))
+    moving_speed = np.where(v > 0, v, [v[i + 1:][v[i + 1:] > 0][0] if np.any(v[i + 1:] > 0) else 1.0
+                                        for i in range(len(v))])
+    duration = np.sum(np.diff(s) / moving_speed[:-1]) + stop.sum()    # independent closed form
+    assert trace["time_s"].iloc[-1] == pytest.approx(round(duration), abs=1)
+    assert trace["distance_m"].iloc[-1] == pytest.approx(s[-1], abs=0.5)
+    assert (trace["speed_mps"] == 0).sum() == pytest.approx(stop.sum(), abs=int((v == 0).sum()) + 1)
+
+
+def _driven(trace, accel_mps2=0.6, decel_mps2=0.8):
+    """A VECTO target trace as a truck would drive it: limited acceleration and braking."""
+    v = trace["speed_mps"].to_numpy().copy()
+    for k in range(1, len(v)):
+        v[k] = min(v[k], v[k - 1] + accel_mps2)
+    for k in range(len(v) - 2, -1, -1):
+        v[k] = min(v[k], v[k + 1] + decel_mps2)
+    rng = np.random.default_rng(0)
+    mass = np.empty(len(v))
+    mass[0] = 20_000.0
+    for k in range(1, len(v)):
+        arrived = v[k] == 0 and v[k - 1] > 0
+        mass[k] = round(rng.uniform(14_000, 26_000), -1) if arrived and rng.random() < 0.5 else mass[k - 1]
+    return trace.assign(speed_mps=v, mass_kg=mass)
+
+
+@pytest.mark.parametrize("name", VALID_VECTO_ROUTES)
+def test_real_vecto_routes_as_measured_input_give_valid_cycles(shared_data, name):
+    measured = _driven(vdri_to_time_cycle(read_vdri(shared_data / "vecto-cycles" / f"{name}.vdri")))
+    assert measured["mass_kg"].nunique() > 1
+    selection = select_cycle(count_transitions(measured), 1800, 10_000, seed=1)
+    assert selection.criteria.valid, selection.criteria.statement()
+    assert selection.criteria.score <= 0.5
+
+
+def test_stage_writes_the_cycle_and_its_summary(drive, tmp_path):
+    messages = []
+    ctx = RunContext(inputs=[], out_dir=tmp_path, signals=drive.copy(), say=messages.append,
+                     options={"cycle": {"n_candidates": 500, "seed": 3, "widths": {"mass_kg": 200.0}}})
+    stage(ctx)
+    for name in ("cycle.csv", "cycle.vdri", "cycle.parquet", "cycle.png"):
+        assert (tmp_path / name).stat().st_size > 0
+    summary = ctx.summary["cycle"]
+    assert summary["seed"] == 3 and summary["class_widths"]["mass_kg"] == 200.0
+    assert set(summary) >= {"score", "valid", "criteria", "failed", "n_valid"}
+    assert all({"deviation", "allowance"} <= set(c) for c in summary["criteria"].values())
+    json.dumps(summary)
+    assert "cycle:" in messages[-1]
+
+
+def test_stage_without_mass_says_so_and_writes_nothing(drive, tmp_path):
+    messages = []
+    ctx = RunContext(inputs=[], out_dir=tmp_path, signals=drive.drop(columns=["mass_kg"]), say=messages.append)
+    stage(ctx)
+    assert "cycle" not in ctx.summary and "mass_kg" in messages[0]
+    assert not (tmp_path / "cycle.csv").exists()
+
+
+def test_analyze_cycle_command(drive, tmp_path, capsys):
+    table = tmp_path / "signals.csv"
+    drive.iloc[::10].to_csv(table, index=False)
+    out = tmp_path / "out"
+    argv = ["cycle", str(table), "--out", str(out), "--candidates", "400", "--seed", "5", "--duration", "900",
+            "--mass-class-kg", "100", "--quiet"]
+    code = cli.main(argv)
+    summary = json.loads((out / "cycle.json").read_text())
+    assert code == (0 if summary["valid"] else 1)
+    first = pd.read_csv(out / "cycle.csv")
+    assert len(first) == 901
+    cli.main(argv)
+    pd.testing.assert_frame_equal(pd.read_csv(out / "cycle.csv"), first)
+    assert cli.main(["cycle", str(table), "--out", str(out), "--speed-class-kmh", "-1"]) == 2
+    assert "speed_kmh" in capsys.readouterr().err
