@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from ..signals import missing_for
@@ -28,8 +29,34 @@ def loads_of(frame: pd.DataFrame, vehicle: Vehicle) -> pd.DataFrame:
                        frame["mass_kg"], vehicle, valid=valid)
 
 
-def collectives_of(drives: dict[str, pd.DataFrame], vehicle: Vehicle) -> dict[str, Collectives]:
-    """Collectives of each named drive, on bins shared by all of them."""
+def median_step_s(frame: pd.DataFrame) -> float:
+    """Median sample interval of a drive [s]."""
+    steps = np.diff(frame["time_s"].to_numpy(float))
+    return float(np.median(steps)) if len(steps) else 0.0
+
+
+def resample_mean(frame: pd.DataFrame, period_s: float) -> pd.DataFrame:
+    """A drive as means over consecutive windows of ``period_s`` [s] (a window with any invalid
+    sample is invalid), so drives logged at different rates count cycles on the same time base."""
+    columns = [c for c in NEEDED if c in frame.columns]
+    window = np.floor((frame["time_s"].to_numpy(float) - float(frame["time_s"].iloc[0])) / period_s + 1e-9)
+    grouped = frame[columns].groupby(window)
+    out = grouped.mean()
+    if "valid" in frame.columns:
+        out["valid"] = frame["valid"].astype(bool).groupby(window).all()
+    out["time_s"] = float(frame["time_s"].iloc[0]) + out.index.to_numpy(float) * period_s
+    return out.reset_index(drop=True)
+
+
+def collectives_of(drives: dict[str, pd.DataFrame], vehicle: Vehicle,
+                   common_rate: bool = True) -> dict[str, Collectives]:
+    """Collectives of each named drive, on bins shared by all of them; with ``common_rate`` every
+    drive is first averaged onto the coarsest drive's sample interval [choice: rainflow and level
+    crossings depend on the sampling rate, so only equal rates compare]."""
+    if common_rate and len(drives) > 1:
+        period = max(median_step_s(frame) for frame in drives.values())
+        drives = {name: (resample_mean(frame, period) if median_step_s(frame) < 0.99 * period else frame)
+                  for name, frame in drives.items()}
     loads = {name: loads_of(frame, vehicle) for name, frame in drives.items()}
     edges = shared_edges(*loads.values())
     return {name: compute(load, name, edges) for name, load in loads.items()}

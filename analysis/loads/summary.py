@@ -96,7 +96,7 @@ def compare(measured: Collectives, generated: Collectives) -> pd.DataFrame:
     and generated value and the relative deviation (generated / measured - 1)."""
     rows = []
     for k, value in measured.damage_equivalent_torque_nm.items():
-        rows.append((f"damage-equivalent torque range, k={k} [Nm]", value, generated.damage_equivalent_torque_nm[k]))
+        rows.append((f"damage-equivalent torque range k={k} [Nm]", value, generated.damage_equivalent_torque_nm[k]))
     for quantity, label in QUANTITIES.items():
         for q in (0.05, 0.5, 0.95):
             rows.append((f"{label} at {q:.0%} of time", _quantile(measured, quantity, q), _quantile(generated, quantity, q)))

@@ -55,8 +55,11 @@ def _cycle_mass(ctx, vdri_frame, fallback_kg: float):
     if csv.is_file():
         frame = pd.read_csv(csv)
         if {"time_s", "speed_mps", "mass_kg"} <= set(frame.columns) and frame["mass_kg"].notna().any():
-            time, speed = frame["time_s"].to_numpy(float), frame["speed_mps"].to_numpy(float)
-            distance = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(time))])
+            if "distance_m" in frame.columns:
+                distance = frame["distance_m"].to_numpy(float)
+            else:
+                time, speed = frame["time_s"].to_numpy(float), frame["speed_mps"].to_numpy(float)
+                distance = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(time))])
             mass = frame["mass_kg"].ffill().bfill().to_numpy(float)
             return np.interp(vdri_frame["distance_m"].to_numpy(float), distance, mass)
     return fallback_kg
