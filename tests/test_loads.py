@@ -106,3 +106,12 @@ def test_damage_equivalent_torque_of_a_sine_is_closed_form():
     for k, value in dets.items():
         assert value == pytest.approx(2 * amplitude * (frequency * duration / duration) ** (1 / k), rel=1e-9)
     assert n_cycles == pytest.approx(frequency * duration)
+
+
+def test_time_quantile_weights_samples_by_their_time():
+    from analysis.loads.summary import time_quantile
+    values = np.array([5.0, 1.0, 3.0, 2.0])
+    durations = np.array([1.0, 1.0, 1.0, 7.0])
+    assert time_quantile(values, durations, 0.5) == 2.0
+    assert time_quantile(values, durations, 0.95) == 5.0
+    assert time_quantile(values, durations, 0.05) == 1.0

@@ -74,7 +74,8 @@ def write_all(collectives: dict[str, Collectives], out_dir: Path) -> tuple[dict,
     if {"measured", "generated"} <= set(collectives):
         comparison = compare(collectives["measured"], collectives["generated"])
         comparison.to_csv(out_dir / "comparison.csv", index=False)
-        result["comparison"] = {row.criterion: row.relative_deviation for row in comparison.itertuples()}
+        result["comparison"] = {row.criterion: (float(row.relative_deviation) if np.isfinite(row.relative_deviation)
+                                                else None) for row in comparison.itertuples()}
     write_figures(list(collectives.values()), comparison, out_dir)
     return result, comparison
 

@@ -13,6 +13,7 @@ from .collectives import (EQUIVALENT_FREQUENCY_HZ, QUANTITIES, damage_equivalent
 
 N_LEVEL_BINS = 40
 N_MATRIX_BINS = 20
+TIME_SHARES = (0.05, 0.5, 0.95)
 
 
 @dataclass
@@ -31,6 +32,7 @@ class Collectives:
     crossings: np.ndarray
     damage_equivalent_torque_nm: dict
     positive_wheel_energy_kwh: float
+    time_quantiles: dict
 
 
 def shared_edges(*drives: pd.DataFrame) -> dict:
@@ -63,7 +65,9 @@ def compute(loads: pd.DataFrame, name: str, edges: dict) -> Collectives:
         rainflow_counts=rainflow_matrix(cycles, edges["rainflow_range_nm"], edges["rainflow_mean_nm"]),
         crossing_levels_nm=levels, crossings=level_crossings(torque, levels),
         damage_equivalent_torque_nm=dets,
-        positive_wheel_energy_kwh=float(np.sum(np.clip(power, 0, None) * durations)) / 3.6e6)
+        positive_wheel_energy_kwh=float(np.sum(np.clip(power, 0, None) * durations)) / 3.6e6,
+        time_quantiles={q: {share: time_quantile(loads[q].to_numpy(), durations, share) for share in TIME_SHARES}
+                        for q in QUANTITIES})
 
 
 def summary(c: Collectives) -> dict:
@@ -82,13 +86,13 @@ def _share(matrix: np.ndarray) -> np.ndarray:
     return matrix / total if total > 0 else matrix
 
 
-def _quantile(c: Collectives, quantity: str, q: float) -> float:
-    """Level below which the drive spends the share ``q`` of its time (from the histogram)."""
-    edges, hist = c.edges[quantity], c.time_at_level[quantity]
-    cumulative = np.concatenate([[0.0], np.cumsum(hist)])
-    if cumulative[-1] <= 0:
+def time_quantile(values: np.ndarray, durations_s: np.ndarray, share: float) -> float:
+    """Level below which a drive spends the time ``share`` (time-weighted quantile)."""
+    order = np.argsort(values, kind="stable")
+    cumulative = np.cumsum(durations_s[order])
+    if len(cumulative) == 0 or cumulative[-1] <= 0:
         return float("nan")
-    return float(np.interp(q * cumulative[-1], cumulative, edges))
+    return float(values[order][min(np.searchsorted(cumulative, share * cumulative[-1]), len(values) - 1)])
 
 
 def compare(measured: Collectives, generated: Collectives) -> pd.DataFrame:
@@ -98,8 +102,9 @@ def compare(measured: Collectives, generated: Collectives) -> pd.DataFrame:
     for k, value in measured.damage_equivalent_torque_nm.items():
         rows.append((f"damage-equivalent torque range k={k} [Nm]", value, generated.damage_equivalent_torque_nm[k]))
     for quantity, label in QUANTITIES.items():
-        for q in (0.05, 0.5, 0.95):
-            rows.append((f"{label} at {q:.0%} of time", _quantile(measured, quantity, q), _quantile(generated, quantity, q)))
+        for share in TIME_SHARES:
+            rows.append((f"{label} exceeded {1 - share:.0%} of the time", measured.time_quantiles[quantity][share],
+                         generated.time_quantiles[quantity][share]))
     rows.append(("positive wheel energy [kWh/km]",
                  measured.positive_wheel_energy_kwh / measured.distance_km if measured.distance_km else np.nan,
                  generated.positive_wheel_energy_kwh / generated.distance_km if generated.distance_km else np.nan))
