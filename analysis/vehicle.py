@@ -8,7 +8,7 @@ names the file, table and key.
 from __future__ import annotations
 
 import tomllib
-from dataclasses import MISSING, dataclass, fields
+from dataclasses import MISSING, dataclass, fields, replace
 from importlib import resources
 from pathlib import Path
 
@@ -199,4 +199,10 @@ def load_vehicle(path_or_name: str | Path) -> Vehicle:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise VehicleFileError(f"{source}: not valid TOML: {exc}") from None
-    return vehicle_from_dict(data, source)
+    vehicle = vehicle_from_dict(data, source)
+    ep = vehicle.electric_powertrain
+    if name not in EXAMPLES and ep is not None and ep.efficiency_map_csv and not Path(ep.efficiency_map_csv).is_absolute():
+        # efficiency_map_csv is relative to the vehicle file (docs/vehicle-file.md)
+        ep = replace(ep, efficiency_map_csv=str(Path(path_or_name).parent / ep.efficiency_map_csv))
+        vehicle = replace(vehicle, electric_powertrain=ep)
+    return vehicle

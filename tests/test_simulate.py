@@ -169,3 +169,37 @@ def test_bad_inputs_are_one_line_user_errors(rigid, tmp_path):
     no_ep = dataclasses.replace(rigid, electric_powertrain=None)
     with pytest.raises(SimulationInputError, match="electric_powertrain"):
         simulate(distance_cycle(HILLY_WITH_STOPS, 16_000.0), no_ep)
+
+
+def test_map_path_is_relative_to_vehicle_file_and_axle_ratio_defaults_to_vehicle(tmp_path, rigid):
+    from analysis.vehicle import load_vehicle as load
+    (tmp_path / "maps").mkdir()
+    grid = [(n, t, 0.9) for n in (0, 4000) for t in (0, 2400)]
+    pd.DataFrame(grid, columns=["speed_rpm", "torque_nm", "efficiency"]).to_csv(tmp_path / "maps" / "em.csv", index=False)
+    text = f"""[vehicle]
+name = "test"
+curb_mass_kg = 9000
+drag_coefficient = 0.6
+frontal_area_m2 = 8.9
+rolling_resistance_coefficient = 0.0065
+wheel_radius_m = 0.492
+driveline_efficiency = 0.93
+gear_ratios = [1.0]
+axle_ratio = 3.07
+
+[electric_powertrain]
+machine_max_torque_nm = 2400
+machine_max_power_w = 350000
+machine_max_speed_rpm = 4000
+battery_capacity_kwh = 350
+battery_voltage_v = 650
+efficiency_map_csv = "maps/em.csv"
+gear_ratios = [3.2, 1.0]
+"""
+    (tmp_path / "truck.toml").write_text(text)
+    mapped = load(tmp_path / "truck.toml")
+    explicit = dataclasses.replace(mapped, electric_powertrain=dataclasses.replace(
+        mapped.electric_powertrain, efficiency_map_csv=None, machine_efficiency=0.9, axle_ratio=3.07))
+    cycle = distance_cycle(HILLY_WITH_STOPS, 16_000.0)
+    a, b = simulate(cycle, mapped), simulate(cycle, explicit)
+    assert a.summary["battery_terminal_energy_kwh"] == pytest.approx(b.summary["battery_terminal_energy_kwh"], rel=1e-9)

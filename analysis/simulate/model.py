@@ -114,7 +114,7 @@ def kernel_arguments(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, ept
     """The arguments of `kernel.run_kernel` for one run, ``out`` included."""
     p = pack_parameters(vehicle, settings, t_end_s=_time_budget_s(cycle))
     ep = vehicle.electric_powertrain
-    ratios = np.asarray(ep.gear_ratios, float) * (ep.axle_ratio or 1.0)
+    ratios = np.asarray(ep.gear_ratios, float) * (ep.axle_ratio or vehicle.axle_ratio or 1.0)
     if ep.efficiency_map_csv:
         map_speed, map_torque, map_eff = efficiency_map(ep.efficiency_map_csv)
     else:
