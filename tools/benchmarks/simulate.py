@@ -123,16 +123,21 @@ def bench_energy_per_km(quick: bool):
 
 
 def _virtual_truck_cycles(vehicle, quick: bool) -> list:
+    """Each scenario driven by its own vehicle (speed, gradient, payload over time); another vehicle
+    carries the same payload, clipped to its own maximum payload."""
     try:
-        from analysis.virtual_truck import SCENARIOS, drive, load_scenario
+        from analysis.virtual_truck import SCENARIOS, drive, load_scenario, scenario_vehicle
     except ImportError as exc:
         print(f"virtual-truck scenarios skipped: {exc}")
         return []
     cycles = []
     for name in list(SCENARIOS)[: 1 if quick else None]:
-        truth = drive(load_scenario(name), vehicle, seed=0).truth
-        cycles.append(time_cycle(truth[["time_s", "speed_mps", "gradient_pct", "mass_kg"]], vehicle.curb_mass_kg,
-                                 f"virtual-{name}"))
+        scenario = load_scenario(name)
+        own = scenario_vehicle(scenario)
+        truth = drive(scenario, own, seed=0).truth[["time_s", "speed_mps", "gradient_pct", "mass_kg"]].copy()
+        payload = truth["mass_kg"] - own.curb_mass_kg
+        truth["mass_kg"] = vehicle.curb_mass_kg + payload.clip(0.0, vehicle.max_payload_kg or np.inf)
+        cycles.append(time_cycle(truth, vehicle.curb_mass_kg, f"virtual-{name}"))
     return cycles
 
 
