@@ -22,7 +22,8 @@ from ..errors import UserError
 from . import dbc as dbc_module
 from . import foreign
 from .columns import build_table
-from .logs import LogArrays, LogError, LogMessage, Timeline, expand, is_mcap, iter_log_messages, read_frames
+from .logs import (LogArrays, LogError, LogMessage, Timeline, expand, is_mcap, iter_log_batches, iter_log_messages,
+                   read_frames)
 from .table import BLOCK_FRAMES, Ingest
 
 __all__ = ["read_logs", "ingest_logs", "iter_log_messages", "read_frames", "stage", "LogArrays",
@@ -82,13 +83,12 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
 
 def _feed_mcap(ingest: Ingest, files: list[Path], timeline: Timeline, bar) -> None:
     done = 0
-    for message in iter_log_messages(files, timeline):
-        report = timeline.reports[message.file_index]
-        ingest.feed(message, timeline.offsets_ns[report.path])
-        if ingest.messages % 4096 == 0:
-            position = sum(r.file_bytes for r in timeline.reports[:-1]) + report.read_bytes
-            bar.update(max(0, position - done))
-            done = max(done, position)
+    for index, offset, batch in iter_log_batches(files, timeline):
+        ingest.feed_batch(batch, offset)
+        position = sum(r.file_bytes for r in timeline.reports[:-1]) + timeline.reports[index].read_bytes
+        if position - done > 1 << 24:
+            bar.update(position - done)
+            done = position
 
 
 def _feed_foreign(ingest: Ingest, path: Path, bar) -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
+from typing import Iterator, NamedTuple
 
 import numpy as np
 
@@ -19,7 +19,7 @@ from logger import contract
 
 from ..errors import UserError
 from . import foreign
-from .mcap_read import Channel, ReadReport, read_file
+from .mcap_read import Channel, RawMessage, ReadReport, read_file, read_file_batches
 
 MCAP_SUFFIXES = {".mcap"}
 
@@ -57,8 +57,7 @@ def is_mcap(path: Path) -> bool:
         return handle.read(8) == b"\x89MCAP0\r\n"
 
 
-@dataclass(frozen=True)
-class LogMessage:
+class LogMessage(NamedTuple):
     """One message: topic, continuous monotonic time [ns], wall clock [ns], payload, channel."""
 
     topic: str
@@ -96,8 +95,8 @@ def order_mcap(files: list[Path]) -> list[tuple[Path, int, int]]:
     return sorted(entries, key=lambda e: (e[1], str(e[0])))
 
 
-def iter_log_messages(paths, timeline: Timeline | None = None) -> Iterator[LogMessage]:
-    """Every recoverable message of the MCAP logs in ``paths``, file after file in time order.
+def iter_log_batches(paths, timeline: Timeline | None = None) -> Iterator[tuple[int, int, list[RawMessage]]]:
+    """(file index, time shift [ns], messages of one chunk) of the MCAP logs in ``paths``, in time order.
 
     ``timeline`` (optional) receives each file's ReadReport and time shift. Foreign CAN logs
     in ``paths`` are skipped here (see `read_frames`).
@@ -112,11 +111,24 @@ def iter_log_messages(paths, timeline: Timeline | None = None) -> Iterator[LogMe
         timeline.offsets_ns[str(path)] = offset
         report = ReadReport(str(path))
         timeline.reports.append(report)
-        for raw in read_file(path, report):
-            mono = raw.publish_time_ns + offset
-            if last_mono is None or mono > last_mono:
-                last_mono, last_wall = mono, raw.log_time_ns
-            yield LogMessage(raw.channel.topic, mono, raw.log_time_ns, raw.data, raw.channel, index)
+        for batch in read_file_batches(path, report):
+            latest = max(batch, key=_publish_time)
+            if last_mono is None or latest.publish_time_ns + offset > last_mono:
+                last_mono, last_wall = latest.publish_time_ns + offset, latest.log_time_ns
+            yield index, offset, batch
+
+
+def _publish_time(message: RawMessage) -> int:
+    return message.publish_time_ns
+
+
+def iter_log_messages(paths, timeline: Timeline | None = None) -> Iterator[LogMessage]:
+    """Every recoverable message of the MCAP logs in ``paths``, file after file in time order,
+    with ``t_mono_ns`` on the continuous time line (see `iter_log_batches`)."""
+    for index, offset, batch in iter_log_batches(paths, timeline):
+        for raw in batch:
+            yield LogMessage(raw.channel.topic, raw.publish_time_ns + offset, raw.log_time_ns, raw.data,
+                             raw.channel, index)
 
 
 @dataclass

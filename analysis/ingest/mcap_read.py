@@ -14,7 +14,7 @@ import struct
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
+from typing import Iterator, NamedTuple
 
 import zstandard
 
@@ -80,8 +80,7 @@ class ReadReport:
         return f"{self.path}: " + "; ".join(parts) + f"; {self.messages} messages read"
 
 
-@dataclass(frozen=True)
-class RawMessage:
+class RawMessage(NamedTuple):
     channel: Channel
     sequence: int
     log_time_ns: int
@@ -146,19 +145,17 @@ class _Channels:
         self.channels[channel_id] = Channel(channel_id, topic, encoding, name, schema_encoding, data, metadata)
 
 
-def _inner_records(data: bytes) -> list[tuple[int, memoryview]]:
-    """The records of a decompressed chunk; raises DamagedRecord if they do not tile it exactly."""
-    view = memoryview(data)
-    records, pos, size = [], 0, len(data)
+def _check_tiling(data: bytes) -> bytes:
+    """``data`` if its records tile it exactly (opcodes known, lengths in range), else DamagedRecord."""
+    pos, size, head, valid = 0, len(data), _RECORD_HEAD.unpack_from, _VALID_OPS
     while pos < size:
         if pos + 9 > size:
             raise DamagedRecord("record header beyond chunk")
-        opcode, length = _RECORD_HEAD.unpack_from(view, pos)
-        if opcode not in _VALID_OPS or pos + 9 + length > size:
-            raise DamagedRecord("record beyond chunk")
-        records.append((opcode, view[pos + 9:pos + 9 + length]))
+        opcode, length = head(data, pos)
         pos += 9 + length
-    return records
+        if opcode not in valid or pos > size:
+            raise DamagedRecord("record beyond chunk")
+    return data
 
 
 def _chunk_payload(body) -> bytes:
@@ -199,11 +196,21 @@ class _Scanner:
     def __init__(self, buf):
         self.buf = buf
         self.size = len(buf)
-        self._cached: tuple[int, list | None] = (-1, None)
+        self._cached: tuple[int, bytes | None] = (-1, None)
         self._nothing_from: int | None = None
+        self._found: dict[bytes, tuple[int, int]] = {}
 
-    def records(self, pos: int) -> list | None:
-        """Records of the chunk record at ``pos`` if it validates (CRC, sizes), else None."""
+    def _find(self, mark: bytes, start: int) -> int:
+        """``buf.find(mark, start)``, reusing the previous search (files are walked forwards)."""
+        searched_from, at = self._found.get(mark, (None, -1))
+        if searched_from is not None and searched_from <= start and (at == -1 or at >= start):
+            return at
+        at = self.buf.find(mark, start)
+        self._found[mark] = (start, at)
+        return at
+
+    def records(self, pos: int) -> bytes | None:
+        """Decompressed records of the chunk record at ``pos`` if it validates (CRC, sizes), else None."""
         if self._cached[0] == pos:
             return self._cached[1]
         result = None
@@ -212,7 +219,7 @@ class _Scanner:
             (length,) = _U64.unpack_from(buf, pos + 1)
             if pos + 9 + length <= self.size:
                 try:
-                    result = _inner_records(_chunk_payload(buf[pos + 9:pos + 9 + length]))
+                    result = _check_tiling(_chunk_payload(buf[pos + 9:pos + 9 + length]))
                 except (DamagedRecord, struct.error, MemoryError):
                     result = None
         self._cached = (pos, result)
@@ -224,12 +231,12 @@ class _Scanner:
             return self.size
         best = self.size
         for mark in (_ZSTD_MARK, _LZ4_MARK):
-            at = self.buf.find(mark, start + 37)
+            at = self._find(mark, start + 37)
             while 0 <= at and at - 37 < best:
                 if self.records(at - 37) is not None:
                     best = at - 37
                     break
-                at = self.buf.find(mark, at + 1)
+                at = self._find(mark, at + 1)
         if best == self.size:
             self._nothing_from = start
         return best
@@ -237,6 +244,12 @@ class _Scanner:
 
 def read_file(path: str | Path, report: ReadReport | None = None) -> Iterator[RawMessage]:
     """Yield every recoverable message of one MCAP file in file order; fill ``report``."""
+    for batch in read_file_batches(path, report):
+        yield from batch
+
+
+def read_file_batches(path: str | Path, report: ReadReport | None = None) -> Iterator[list[RawMessage]]:
+    """The messages of `read_file`, one list per chunk (fewer Python steps per message)."""
     path = Path(path)
     report = report if report is not None else ReadReport(str(path))
     report.path = str(path)
@@ -254,10 +267,11 @@ def read_buffer(buf, report: ReadReport | None = None) -> Iterator[RawMessage]:
     """Like `read_file` for bytes already in memory."""
     report = report if report is not None else ReadReport("<buffer>")
     report.file_bytes = len(buf)
-    yield from _walk(buf, report)
+    for batch in _walk(buf, report):
+        yield from batch
 
 
-def _walk(buf, report: ReadReport) -> Iterator[RawMessage]:
+def _walk(buf, report: ReadReport) -> Iterator[list[RawMessage]]:
     """Record by record; a record that would step over the next valid chunk is not trusted."""
     size = len(buf)
     channels = _Channels()
@@ -291,7 +305,7 @@ def _walk(buf, report: ReadReport) -> Iterator[RawMessage]:
                 report.skipped_bytes += max(0, guard - end) if guard < size else 0
                 pos = guard
                 continue
-            yield from messages
+            yield messages
         elif opcode not in _VALID_OPS or end > size or end > guard:
             if guard >= size:
                 break
@@ -300,11 +314,12 @@ def _walk(buf, report: ReadReport) -> Iterator[RawMessage]:
             continue
         elif opcode in (OP_SCHEMA, OP_CHANNEL, OP_MESSAGE):
             try:
-                messages = _messages([(opcode, buf[pos + 9:end])], channels, report)
+                messages = _messages(buf[pos:end], channels, report)
             except (DamagedRecord, struct.error, UnicodeDecodeError):
                 messages = []
                 report.skipped_bytes += end - pos
-            yield from messages
+            if messages:
+                yield messages
         elif opcode == OP_HEADER:
             try:
                 report.profile, _ = _string(buf[pos + 9:end], 0)
@@ -321,25 +336,39 @@ def _walk(buf, report: ReadReport) -> Iterator[RawMessage]:
     channels.pending.clear()
 
 
-def _messages(records, channels: _Channels, report: ReadReport) -> list[RawMessage]:
-    # Channel records of one chunk are checked before its messages are handed out, so a damaged
-    # record inside a CRC-valid chunk cannot stop the loop half-way through a chunk.
+def _messages(data: bytes, channels: _Channels, report: ReadReport) -> list[RawMessage]:
+    """Messages of a run of records (a chunk's content, or one top-level record).
+
+    The whole run is parsed before any message is handed out, so a damaged record inside a
+    CRC-valid chunk cannot stop the loop half-way through a chunk."""
     out = []
-    for opcode, body in records:
+    append = out.append
+    pos, size = 0, len(data)
+    head, message_head = _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
+    known = channels.channels
+    last_id, last_channel = -1, None
+    while pos < size:
+        opcode, length = head(data, pos)
+        start, end = pos + 9, pos + 9 + length
+        pos = end
         if opcode == OP_MESSAGE:
-            channel_id, sequence, log_time, publish_time = _MESSAGE_HEAD.unpack_from(body, 0)
-            data = bytes(body[_MESSAGE_HEAD.size:])
-            channel = channels.channels.get(channel_id)
-            if channel is None:
-                channels.pending.setdefault(channel_id, []).append((sequence, log_time, publish_time, data))
+            channel_id, sequence, log_time, publish_time = message_head(data, start)
+            if channel_id != last_id:
+                last_id, last_channel = channel_id, known.get(channel_id)
+            payload = data[start + 22:end]
+            if last_channel is None:
+                channels.pending.setdefault(channel_id, []).append((sequence, log_time, publish_time, payload))
+                last_id = -1
                 continue
-            out.append(RawMessage(channel, sequence, log_time, publish_time, data))
+            append(RawMessage(last_channel, sequence, log_time, publish_time, payload))
         elif opcode == OP_SCHEMA:
-            channels.add_schema(body)
+            channels.add_schema(data[start:end])
         elif opcode == OP_CHANNEL:
+            body = data[start:end]
             channels.add_channel(body)
-            channel = channels.channels[struct.unpack_from("<H", body, 0)[0]]
-            for sequence, log_time, publish_time, data in channels.pending.pop(channel.id, []):
-                out.append(RawMessage(channel, sequence, log_time, publish_time, data))
+            channel = known[struct.unpack_from("<H", body, 0)[0]]
+            last_id = -1
+            for sequence, log_time, publish_time, payload in channels.pending.pop(channel.id, []):
+                append(RawMessage(channel, sequence, log_time, publish_time, payload))
     report.messages += len(out)
     return out

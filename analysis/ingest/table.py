@@ -8,6 +8,7 @@ output bins at once, so memory grows with the output, not with the log.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,7 +19,6 @@ from logger import contract, j1939
 from .. import kinematics
 from . import align, j1939_decode, obd_decode
 from . import dbc as dbc_module
-from .logs import LogError, Timeline, decode_json, expand, foreign, is_mcap, iter_log_messages
 
 BLOCK_FRAMES = 1 << 20
 """CAN records decoded at once (24 MiB)."""
@@ -27,24 +27,52 @@ LAST_KIND = {"current_gear", "selected_gear", "brake_switch", "clutch_switch", "
 ACCEL_SCALE_KEY = "accel_scale_mps2_per_lsb"
 
 
+JSON_BATCH = 20_000
+"""JSON messages of a topic parsed in one ``json.loads`` (of a JSON array of them)."""
+
+
+def _number(value) -> float:
+    return float(value) if value.__class__ in (int, float) else np.nan
+
+
+def _clock(value) -> int:
+    return value if value.__class__ is int and value >= 0 else -1
+
+
 @dataclass
 class _Json:
+    """Fields of one JSON topic; clock readings (``*_ns``) stay exact integers, -1 when absent."""
+
     time_ns: list = field(default_factory=list)
     fields: dict = field(default_factory=dict)
+    pending: list = field(default_factory=list)
+    offsets: list = field(default_factory=list)
 
-    def add(self, t: int, record: dict, names: tuple[str, ...]) -> None:
-        self.time_ns.append(t)
+    def flush(self, names: tuple[str, ...]) -> None:
+        if not self.pending:
+            return
+        try:
+            records = json.loads(b"[" + b",".join(self.pending) + b"]")
+        except (ValueError, UnicodeDecodeError):
+            records = [_loads(p) for p in self.pending]
+        offsets = self.offsets
+        self.pending, self.offsets = [], []
+        keep = [k for k, r in enumerate(records) if r.__class__ is dict and r.get("t_mono_ns").__class__ is int]
+        self.time_ns.extend(records[k]["t_mono_ns"] + offsets[k] for k in keep)
         for name in names:
-            value = record.get(name)
-            if name.endswith("_ns"):  # clock readings stay exact integers; -1 marks absent
-                value = value if isinstance(value, int) and value >= 0 else -1
-            else:
-                value = float(value) if isinstance(value, (int, float)) else np.nan
-            self.fields.setdefault(name, []).append(value)
+            convert = _clock if name.endswith("_ns") else _number
+            self.fields.setdefault(name, []).extend(convert(records[k].get(name)) for k in keep)
 
     def arrays(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         dtype = np.int64 if name.endswith("_ns") else np.float64
         return np.array(self.time_ns, dtype=np.int64), np.array(self.fields.get(name, []), dtype=dtype)
+
+
+def _loads(payload: bytes):
+    try:
+        return json.loads(payload)
+    except (ValueError, UnicodeDecodeError):
+        return None
 
 
 JSON_FIELDS = {
@@ -69,6 +97,7 @@ class Ingest:
         self.can_pending: list[bytes] = []
         self.can_pending_records = 0
         self.imu_pending: dict[float, list[bytes]] = {}
+        self.imu_pending_bytes = 0
         self.json: dict[str, _Json] = {}
         self.log_pairs: tuple[list, list] = ([], [])
         self.topic_counts: dict[str, int] = {}
@@ -81,22 +110,29 @@ class Ingest:
         self.obd_stats = obd_decode.ObdStats()
 
     # -- feeding -----------------------------------------------------------------------------
-    def feed(self, message, offset_ns: int) -> None:
-        """One MCAP message whose times are shifted by ``offset_ns`` onto the continuous line."""
-        topic = message.topic
-        self.topic_counts[topic] = self.topic_counts.get(topic, 0) + 1
-        self.messages += 1
-        if self.messages % 256 == 1:
-            self.log_pairs[0].append(message.t_mono_ns)
-            self.log_pairs[1].append(message.log_time_ns)
-        if topic == contract.CAN_FRAMES.name:
-            self._pend_can(message.data, offset_ns)
-        elif topic == contract.IMU.name:
-            self._pend_imu(message, offset_ns)
-        elif topic in JSON_FIELDS:
-            record = decode_json(message)
-            if record is not None and isinstance(record.get("t_mono_ns"), int):
-                self.json.setdefault(topic, _Json()).add(record["t_mono_ns"] + offset_ns, record, JSON_FIELDS[topic])
+    def feed_batch(self, batch, offset_ns: int) -> None:
+        """MCAP messages (`mcap_read.RawMessage`) whose times shift by ``offset_ns`` onto the continuous line."""
+        first = batch[0]
+        self.log_pairs[0].append(first.publish_time_ns + offset_ns)
+        self.log_pairs[1].append(first.log_time_ns)
+        self.messages += len(batch)
+        counts = self.topic_counts
+        can_topic, imu_topic = contract.CAN_FRAMES.name, contract.IMU.name
+        for message in batch:
+            topic = message.channel.topic
+            counts[topic] = counts.get(topic, 0) + 1
+            if topic == can_topic:
+                self._pend_can(message.data, offset_ns)
+            elif topic == imu_topic:
+                self._pend_imu(message, offset_ns)
+            elif topic in JSON_FIELDS:
+                stream = self.json.get(topic)
+                if stream is None:
+                    stream = self.json[topic] = _Json()
+                stream.pending.append(message.data)
+                stream.offsets.append(offset_ns)
+                if len(stream.pending) >= JSON_BATCH:
+                    stream.flush(JSON_FIELDS[topic])
 
     def _pend_can(self, payload: bytes, offset_ns: int) -> None:
         size = contract.CAN_FRAME_DTYPE.itemsize
@@ -130,12 +166,13 @@ class Ingest:
             records = np.frombuffer(payload, contract.IMU_SAMPLE_DTYPE).copy()
             records["t_mono_ns"] += np.uint64(offset_ns)
             payload = records.tobytes()
-        pending = self.imu_pending.setdefault(scale, [])
-        pending.append(payload)
-        if sum(map(len, pending)) >= BLOCK_IMU * size:
+        self.imu_pending.setdefault(scale, []).append(payload)
+        self.imu_pending_bytes += len(payload)
+        if self.imu_pending_bytes >= BLOCK_IMU * size:
             self.flush_imu()
 
     def flush_imu(self) -> None:
+        self.imu_pending_bytes = 0
         for scale, pending in self.imu_pending.items():
             if not pending:
                 continue
@@ -182,6 +219,8 @@ class Ingest:
         """Flush pending blocks; reassemble TP sessions; match OBD-II; bin the JSON topics."""
         self.flush_can()
         self.flush_imu()
+        for topic, stream in self.json.items():
+            stream.flush(JSON_FIELDS[topic])
         tp = np.concatenate(self.tp_parts) if self.tp_parts else np.zeros(0, contract.CAN_FRAME_DTYPE)
         tp_messages, self.tp_stats = j1939_decode.reassemble(tp)
         self.tp_messages = tp_messages
