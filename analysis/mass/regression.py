@@ -15,14 +15,27 @@ from ..errors import UserError
 
 @dataclass(frozen=True)
 class FilterSettings:
-    """Thresholds of the data filter [SI units] and the force smoothing window [s]."""
+    """Thresholds of the data filter [SI units] and the force smoothing window [s].
+
+    The defaults were measured on the virtual truck (``docs/estimation.md``): the paper's filter
+    (`paper`, a > 0.1 m/s², T > 500 Nm) keeps only the few seconds of each acceleration and left
+    regional and urban drives with no usable sample; requiring excitation of the regression itself
+    (phi > 0.2 m/s², from acceleration or climbing) keeps steady uphill driving too.
+    """
 
     min_speed_mps: float = 5.5
-    min_accel_mps2: float = 0.1
-    min_engine_torque_nm: float = 500.0
-    shift_margin_s: float = 1.0
+    min_accel_mps2: float = -0.1
+    min_engine_torque_nm: float = 200.0
+    min_regressor_mps2: float = 0.2
+    """Lower limit of phi = a + g (c_r cos a + sin a) [m/s²] (excitation of the regression)."""
+    shift_margin_s: float = 0.5
     ratio_tolerance: float = 0.04
     smoothing_window_s: float = 1.0
+
+    @classmethod
+    def paper(cls) -> "FilterSettings":
+        """The filter of paper §2.2.2: v > 5.5 m/s, a > 0.1 m/s², engine torque > 500 Nm."""
+        return cls(min_accel_mps2=0.1, min_engine_torque_nm=500.0, min_regressor_mps2=-np.inf, shift_margin_s=1.0)
 
 
 @dataclass
@@ -104,6 +117,8 @@ def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = Fi
         "gear shift or open clutch": _widen(shifting, margin + window // 2),
         "braking": _widen(braking, margin + window // 2),
     }
+    if np.isfinite(settings.min_regressor_mps2):
+        rules[f"regressor phi <= {settings.min_regressor_mps2} m/s²"] = ~(phi > settings.min_regressor_mps2)
     usable = np.ones(len(frame), bool)
     for rejected in rules.values():
         usable &= ~rejected

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..road_load import G_MPS2
 from . import kernels
 
 
@@ -22,9 +23,12 @@ class SegmentSettings:
     """P_0 of the RLS [kg² s⁴/m²... per (m/s²)²]: large, so theta_0 is forgotten within seconds."""
     damping: float = 0.1
     """mu of (14) [s⁴/m²]; about 2 samples' worth of phi² at a = 0.3 m/s²."""
-    min_samples: int = 300
+    min_samples: int = 150
     jackknife_blocks: int = 10
     max_relative_uncertainty: float = 0.05
+    gradient_bias_pct: float = 0.1
+    """Systematic gradient error assumed over a segment [%-points] (the fused gradient's error
+    measured on the virtual truck averages to about this over a few km); enters the uncertainty."""
 
 
 def segment_bounds(time_s: np.ndarray, speed_mps: np.ndarray, settings: SegmentSettings) -> list[tuple[int, int]]:
@@ -56,6 +60,12 @@ def jackknife_uncertainty_kg(phi: np.ndarray, y: np.ndarray, blocks: int) -> flo
     return float(np.sqrt((blocks - 1) / blocks * np.sum((leave_out - leave_out.mean()) ** 2)))
 
 
+def gradient_bias_uncertainty_kg(mass_kg: float, phi: np.ndarray, gradient_bias_pct: float) -> float:
+    """Mass error [kg] of (9) when every phi_k carries the same error g * sin(bias):
+    dm = m g dsin(alpha) sum(phi) / sum(phi^2)."""
+    return float(abs(mass_kg) * G_MPS2 * np.sin(np.arctan(gradient_bias_pct / 100)) * np.sum(phi) / np.sum(phi * phi))
+
+
 def estimate_segment(phi: np.ndarray, y: np.ndarray, curb_mass_kg: float, max_mass_kg: float,
                      settings: SegmentSettings) -> dict:
     """Masses [kg] of one segment by all three methods, the LS uncertainty [kg], a status
@@ -74,7 +84,8 @@ def estimate_segment(phi: np.ndarray, y: np.ndarray, curb_mass_kg: float, max_ma
         return {**result, "status": "no_excitation",
                 "reason": f"only {n} samples pass the data filter (need {settings.min_samples})"}
     mass = float(kernels.least_squares(phi2, y)[0])
-    uncertainty = jackknife_uncertainty_kg(phi[used], y[used], settings.jackknife_blocks)
+    statistical = jackknife_uncertainty_kg(phi[used], y[used], settings.jackknife_blocks)
+    uncertainty = float(np.hypot(statistical, gradient_bias_uncertainty_kg(mass, phi[used], settings.gradient_bias_pct)))
     result.update(mass_ls_kg=mass, mass_rls_kg=float(rls_path[-1]), mass_lm_kg=float(lm_path[-1]),
                   uncertainty_kg=uncertainty)
     if not (0.5 * curb_mass_kg < mass < max_mass_kg):
