@@ -77,3 +77,18 @@ def test_run_pipeline_without_dem_says_barometric_only(table_and_dem, tmp_path, 
     pipeline.run(pipeline.RunContext(inputs=[table], out_dir=tmp_path, say=said.append))
     assert any("barometric height only" in s for s in said)
     assert "gradient_pct" in pd.read_parquet(tmp_path / "signals.parquet")
+
+
+def test_run_pipeline_on_a_drive_without_valid_samples_says_so_and_gives_no_number(table_and_dem, tmp_path,
+                                                                                   monkeypatch):
+    table, dem = table_and_dem
+    broken = pd.read_parquet(table).assign(valid=False)
+    broken.to_parquet(tmp_path / "invalid.parquet")
+    monkeypatch.setattr(pipeline, "STAGES", [s for s in pipeline.STAGES if s[0] in ("kinematics", "gradient", "mass")])
+    said = []
+    pipeline.run(pipeline.RunContext(inputs=[tmp_path / "invalid.parquet"], out_dir=tmp_path / "out",
+                                     vehicle=load_vehicle("rigid-18t"), dem_dir=dem, say=said.append))
+    assert any("gradient: skipped" in s and "no valid samples" in s for s in said)
+    assert any(s.startswith("mass: skipped") and "gradient_pct" in s for s in said)
+    signals = pd.read_parquet(tmp_path / "out" / "signals.parquet")
+    assert "mass_kg" not in signals or signals["mass_kg"].isna().all()
