@@ -135,8 +135,8 @@ def _messages(drive):
             satellites=int(row.satellites), hdop=None))
 
     fix_times = gps.loc[gps["fix_quality"] > 0, "time_s"].to_numpy()
-    for second in range(int(drive.duration_s) + 1):
-        elapsed_ns = second * 1_000_000_000 + 500_000_000
+    end_ns = int(round(float(drive.states["time_s"].iloc[-1]) * 1e9))
+    for elapsed_ns in range(500_000_000, end_ns + 1, 1_000_000_000):
         recent = fix_times.size and np.any(np.abs(fix_times - elapsed_ns / 1e9) <= 1.0)
         t = BOOT_OFFSET_NS + elapsed_ns
         yield t, 5, contract.TIME_SYNC, contract.encode_json({

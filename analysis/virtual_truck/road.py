@@ -177,11 +177,29 @@ def _height_profile(scenario: Scenario, distance: np.ndarray, rng: np.random.Gen
     return height, gradient
 
 
-def _allowed_speed(distance: np.ndarray, breaks: np.ndarray, decel_mps2: float) -> np.ndarray:
+def traffic_factor(distance: np.ndarray, traffic: float, rng: np.random.Generator) -> np.ndarray:
+    """Share of the speed limit the traffic allows [-]: seeded dips (a slower vehicle ahead, a
+    junction) about every 1.5 km of 10-45 % over 60-250 m, on a +-3 % wander; 1 where traffic = 0."""
+    length = distance[-1]
+    n_dips = rng.poisson(length / 1500.0)
+    centres = rng.uniform(0, length, n_dips)
+    depths = rng.uniform(0.10, 0.45, n_dips)
+    widths = rng.uniform(60.0, 250.0, n_dips)
+    wavelength, phase = rng.uniform(400.0, 1200.0), rng.uniform(0, 2 * np.pi)
+    dips = np.zeros_like(distance)
+    for centre, depth, width in zip(centres, depths, widths):
+        near = np.abs(distance - centre) < 5 * width
+        dips[near] = np.maximum(dips[near], depth * np.exp(-0.5 * ((distance[near] - centre) / width) ** 2))
+    wander = 0.03 * (np.sin(2 * np.pi * distance / wavelength + phase) - 1.0) / 2.0
+    return np.clip(1.0 - traffic * (dips - wander), 0.3, 1.0)
+
+
+def _allowed_speed(distance: np.ndarray, breaks: np.ndarray, decel_mps2: float,
+                   factor: np.ndarray | float = 1.0) -> np.ndarray:
     """Target speed [m/s] with look-ahead: never above what braking at ``decel`` allows before a
     lower limit further on (a backward pass, v_i = min(v_i, sqrt(v_{i+1}^2 + 2 b ds)))."""
     index = np.searchsorted(breaks[:, 0], distance, side="right") - 1
-    limit = breaks[np.clip(index, 0, len(breaks) - 1), 1]
+    limit = breaks[np.clip(index, 0, len(breaks) - 1), 1] * factor
     allowed = limit.copy()
     for i in range(len(allowed) - 2, -1, -1):
         allowed[i] = min(allowed[i], np.sqrt(allowed[i + 1] ** 2 + 2.0 * decel_mps2 * GRID_STEP_M))
@@ -194,7 +212,9 @@ def build_road(scenario: Scenario, seed: int = 0) -> Road:
     breaks, stops = _sections(scenario)
     length = breaks[-1, 0]
     distance = np.arange(0.0, np.floor(length / GRID_STEP_M) * GRID_STEP_M + GRID_STEP_M, GRID_STEP_M)
-    target = _allowed_speed(distance, breaks, 0.8 * scenario.driver.comfort_decel_mps2)
+    traffic_rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x7AFF]))
+    factor = traffic_factor(distance, scenario.driver.traffic, traffic_rng)
+    target = _allowed_speed(distance, breaks, 0.8 * scenario.driver.comfort_decel_mps2, factor)
     height, gradient = _height_profile(scenario, distance, rng)
 
     cut_wavelengths = np.array([350.0, 800.0, 1700.0])

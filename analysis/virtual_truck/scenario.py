@@ -76,6 +76,8 @@ class Driver:
     comfort_decel_mps2: float = 1.0
     max_decel_mps2: float = 2.0
     speed_gain_per_s: float = 0.5
+    traffic: float = 1.0
+    """Scale of the traffic's slow-downs below the speed limit (0 = free road)."""
 
 
 @dataclass(frozen=True)
@@ -152,6 +154,7 @@ _RANGES = {
     "comfort_decel_mps2": (0.1, 3.0),
     "max_decel_mps2": (0.2, 8.0),
     "speed_gain_per_s": (0.01, 10.0),
+    "traffic": (0.0, 2.0),
     "imu_rate_hz": (10.0, 952.0),
     "gps_rate_hz": (0.1, 10.0),
     "weight_bias_pct": (0.0, 50.0),

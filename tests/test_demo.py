@@ -1,0 +1,78 @@
+"""``analyze demo``: virtual truck → DEM tiles + MCAP log → the pipeline, with one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from mcap.reader import make_reader
+
+from analysis.cli import main
+from analysis.dem.srtm import SrtmDem
+
+SCENARIO = """
+[scenario]
+name = "demo-short"
+vehicle = "rigid-18t"
+start_latitude_deg = 47.42
+start_longitude_deg = 8.47
+start_heading_deg = 70.0
+start_time = 2025-05-14T06:30:00Z
+
+[route]
+[[route.section]]
+length_m = 2000
+speed_kmh = 60
+stop_s = 60
+
+[[route.section]]
+length_m = 2500
+speed_kmh = 70
+
+[[tunnel]]
+start_m = 2600.0
+length_m = 900.0
+
+[payload]
+initial_kg = 6000.0
+after_stop_kg = [2000.0]
+"""
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    root = tmp_path_factory.mktemp("demo")
+    (root / "short.toml").write_text(SCENARIO)
+    code = main(["demo", "--out", str(root / "out"), "--scenario", str(root / "short.toml"), "--seed", "5",
+                 "--quiet"])
+    return code, root / "out"
+
+
+def test_demo_writes_log_dem_truth_and_analysis(demo):
+    code, out = demo
+    assert code == 0
+    logs = sorted((out / "logs").glob("*.mcap"))
+    assert [p.name for p in logs] == ["demo-short-seed5.mcap"]
+    with open(logs[0], "rb") as stream:
+        topics = {channel.topic for channel in make_reader(stream).get_summary().channels.values()}
+    assert {"/can/frames", "/imu", "/gps/fix", "/barometer", "/time/sync"} <= topics
+    truth = pd.read_parquet(out / "truth.parquet")
+    dem = SrtmDem(out / "dem").height_m(truth["latitude_deg"], truth["longitude_deg"])
+    assert np.max(np.abs(dem - truth["terrain_height_m"])) < 2.0
+    assert (out / "summary.json").is_file() and (out / "signals.parquet").is_file()
+    summary = json.loads((out / "summary.json").read_text())
+    assert "ingest" in summary["stages"]
+    signals = pd.read_parquet(out / "signals.parquet")
+    speed = np.interp(signals["time_s"], truth["time_s"], truth["speed_mps"])
+    assert np.nanmedian(np.abs(signals["speed_mps"] - speed)) < 0.1
+
+
+def test_demo_prints_one_line_for_a_bad_scenario(tmp_path, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text(SCENARIO.replace("speed_kmh = 60", "speed_kmh = 60\nlanes = 2"))
+    code = main(["demo", "--out", str(tmp_path / "out"), "--scenario", str(path)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert len(err.splitlines()) == 1 and "unknown key 'lanes'" in err
