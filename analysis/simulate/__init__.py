@@ -16,7 +16,8 @@ __all__ = ["DriverSettings", "SimCycle", "SimulationInputError", "SimulationResu
 
 def stage(ctx) -> None:
     """Pipeline stage: simulate on ``cycle.vdri`` in the output directory if the cycle stage wrote
-    one, else on the measured drive as a time-based cycle; outputs into ``simulation/``."""
+    one, else on the measured drive as a time-based cycle; outputs into ``simulation/``.
+    ``ctx.options`` may set ``payload_kg``, ``aux_power_w``, ``epto_power_w``, ``obc_power_w``."""
     from .output import write_outputs
 
     vehicle = ctx.vehicle
@@ -36,9 +37,13 @@ def stage(ctx) -> None:
     else:
         ctx.say("simulate: skipped, no cycle.vdri and no time_s/speed_mps signals")
         return
-    result = simulate(cycle, vehicle, aux_power_w=ctx.options.get("aux_power_w"),
-                      epto_power_w=ctx.options.get("epto_power_w", 0.0),
-                      obc_power_w=ctx.options.get("obc_power_w", 0.0))
+    try:
+        result = simulate(cycle, vehicle, aux_power_w=ctx.options.get("aux_power_w"),
+                          epto_power_w=ctx.options.get("epto_power_w", 0.0),
+                          obc_power_w=ctx.options.get("obc_power_w", 0.0))
+    except SimulationInputError as exc:
+        ctx.say(f"simulate: skipped, {exc}")
+        return
     write_outputs(result, ctx.out_dir / "simulation")
     ctx.summary["simulation"] = result.summary
     ctx.say(f"simulate: {result.summary['cycle']}, {result.summary['battery_kwh_per_km']:.3f} kWh/km at the "

@@ -191,7 +191,6 @@ def run_kernel(time_based, row_pos, row_target, row_gradient, row_f_roll, row_f_
         t = row_pos[0]
         v = row_target[0]
     k, next_stop, state, timer = 0, 0, DRIVE, 0.0
-    horizon = 0.0
     n = 0
     while True:
         if time_based:
