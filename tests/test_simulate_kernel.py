@@ -1,7 +1,5 @@
 """The numba kernels against their Python run (``.py_func``) and closed forms."""
 
-import math
-
 import numpy as np
 import pandas as pd
 import pytest
@@ -109,7 +107,9 @@ def test_run_kernel_python_and_numba_agree(rigid, time_based):
         assert standstill.sum() * 0.5 == pytest.approx(2 + 6.5 + 1.0)
 
 
-def test_full_out_array_is_reported(rigid):
+def test_full_out_array_and_time_budget_are_reported(rigid):
     args = kernel_arguments(distance_cycle(HILLY, 16_000.0), rigid)
     assert K.run_kernel(*args[:-1], np.empty((10, K.N_COLUMNS))) == -1
-    assert math.isfinite(args[13][K.P_T_END])
+    short = args[13].copy()
+    short[K.P_T_END] = 5.0
+    assert K.run_kernel(*args[:13], short, *args[14:]) == -2
