@@ -19,7 +19,12 @@ class GradientSettings:
     (see ``docs/estimation.md``)."""
 
     spacing_m: float = 10.0
-    map_sigma_m: float = 150.0
+    map_sigma_m: float | None = None
+    """Gaussian sigma of the map-matching fit [m]; None: chosen per drive among
+    ``map_sigma_candidates_m`` as the one whose map gradient agrees best with the barometric one
+    (``default_map_sigma_m`` without a barometer)."""
+    map_sigma_candidates_m: tuple[float, ...] = (75.0, 100.0, 150.0, 200.0, 300.0, 400.0, 600.0)
+    default_map_sigma_m: float = 150.0
     baro_sigma_m: float = 40.0
     imu_sigma_m: float = 40.0
     anchor_sigma_m: float = 1500.0
@@ -38,6 +43,8 @@ class GradientResult:
     samples: dict[str, np.ndarray]
     """Columns for the signals table (height_m, gradient_pct and each source's)."""
     notes: list[str] = field(default_factory=list)
+    map_sigma_m: float | None = None
+    """The map-matching smoothing used [m] (None without map-matching)."""
 
 
 def _column(frame: pd.DataFrame, name: str) -> np.ndarray | None:
@@ -102,11 +109,8 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
         accuracy_weight = np.where(np.isfinite(terrain), accuracy_weight, np.nan)
         bin_terrain = distance_grid.bin_mean(index, terrain, n_bins)
         bin_weight = np.nan_to_num(distance_grid.bin_mean(index, accuracy_weight, n_bins))
-        map_level, map_slope, support = distance_grid.local_linear(bin_terrain, bin_weight, spacing, settings.map_sigma_m)
-        kernel_weight, _, _ = distance_grid.local_linear(bin_weight, np.isfinite(bin_terrain), spacing, settings.map_sigma_m)
-        weight_map = np.clip(np.nan_to_num(kernel_weight), 0, 1) * np.isfinite(map_slope)
-        out["height_map_m"] = map_level
-        out["gradient_map_pct"] = 100 * map_slope
+        map_sigma = settings.map_sigma_m or settings.default_map_sigma_m
+        map_level, map_slope, weight_map = _map_fit(bin_terrain, bin_weight, spacing, map_sigma)
     elif dem is None:
         notes.append("no DEM: map-matching off")
     else:
@@ -134,6 +138,11 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
         anchored = bin_baro + offset
         baro_level, baro_slope, baro_support = distance_grid.local_linear(
             anchored, np.isfinite(anchored).astype(float), spacing, settings.baro_sigma_m)
+        if map_level is not None and settings.map_sigma_m is None:
+            map_sigma = _best_map_sigma(bin_terrain, bin_weight, spacing, baro_slope, weight_map,
+                                        settings.map_sigma_candidates_m)
+            map_level, map_slope, weight_map = _map_fit(bin_terrain, bin_weight, spacing, map_sigma)
+            notes.append(f"map-matching smoothed with sigma {map_sigma:g} m (best agreement with the barometer)")
         if np.isnan(bin_baro).mean() > 0.01 and np.isfinite(bin_baro).any():
             notes.append(f"barometer missing on {100 * np.isnan(bin_baro).mean():.0f} % of the distance")
         out["height_baro_m"] = baro_level
@@ -147,6 +156,10 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
         level, _, _ = distance_grid.local_linear(sin_angle, np.ones(n_bins), spacing, settings.imu_sigma_m)
         out["gradient_imu_pct"] = 100 * np.tan(np.arcsin(np.clip(level, -1, 1)))
 
+    if map_level is not None:
+        out["height_map_m"] = map_level
+        out["gradient_map_pct"] = 100 * map_slope
+        out["weight_map"] = weight_map
     if map_slope is None and baro_slope is None:
         raise UserError("gradient: needs a DEM (--dem DIR) with GPS positions, or a barometer (pressure_pa); "
                         "this input has neither")
@@ -172,7 +185,33 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
             samples[name] = np.interp(distance, s_grid, out[name].to_numpy(), left=np.nan, right=np.nan)
     for name in ("height_m", "gradient_pct"):
         samples[name] = np.where(np.isfinite(distance), samples[name], np.nan)
-    return GradientResult(grid=out, samples=samples, notes=notes)
+    return GradientResult(grid=out, samples=samples, notes=notes, map_sigma_m=map_sigma if map_level is not None else None)
+
+
+def _map_fit(bin_terrain, bin_weight, spacing_m, sigma_m):
+    """Map-matching height [m], slope [-] and w_map of (8) on the grid, for one smoothing sigma [m]:
+    a fit weighted by GPS accuracy, and w_map as the accuracy weight the kernel saw."""
+    level, slope, _ = distance_grid.local_linear(bin_terrain, bin_weight, spacing_m, sigma_m)
+    kernel_weight, _, _ = distance_grid.local_linear(bin_weight, np.isfinite(bin_terrain), spacing_m, sigma_m)
+    return level, slope, np.clip(np.nan_to_num(kernel_weight), 0, 1) * np.isfinite(slope)
+
+
+def _best_map_sigma(bin_terrain, bin_weight, spacing_m, baro_slope, weight_map, candidates_m):
+    """The candidate sigma [m] whose map gradient has the smallest w_map-weighted RMS difference
+    to the barometric gradient. The DEM holds terrain, not road: cuttings and embankments of a few
+    metres every few hundred metres are map-gradient errors the barometer does not have, while
+    the road's own hills are in both; the best agreement marks where that trade-off lies."""
+    best, best_rms = candidates_m[0], np.inf
+    trusted = weight_map * np.isfinite(baro_slope)
+    if trusted.sum() == 0:
+        return candidates_m[len(candidates_m) // 2]
+    for sigma in candidates_m:
+        _, slope, _ = distance_grid.local_linear(bin_terrain, bin_weight, spacing_m, sigma)
+        difference = np.nan_to_num(slope - baro_slope)
+        rms = np.sum(trusted * np.isfinite(slope) * difference ** 2) / trusted.sum()
+        if rms < best_rms:
+            best, best_rms = sigma, rms
+    return float(best)
 
 
 def _temperature_corrected(height_m, temperature_c):
