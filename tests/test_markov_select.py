@@ -26,17 +26,23 @@ def test_deviation_and_score_by_hand():
     measured = np.array([[10.0, 5.0, 0.0, 20.0], [0.1, 2.0, -4.0, 4.0], [0.0, 0.4, -1.0, 1.0],
                          [20_000.0, 2_000.0, 15_000.0, 25_000.0]])
     candidate = measured.copy()
-    candidate[0, 0] = 11.0        # 10 % off
-    candidate[1, 0] = 0.2         # 0.1 % off a mean near zero: floor 0.5 % → 20 %
-    candidate[2, 0] = 0.05        # floor of acceleration = 1 m/s / 1 s → 5 %
-    candidate[3, 1] = 2_300.0     # 15 % off
+    candidate[0, 0] = 11.0        # 10 % of the mean speed
+    candidate[1, 0] = 0.5         # mean gradient near zero: relative to its std 2 % → 20 %
+    candidate[2, 0] = 0.05        # mean acceleration: std 0.4 below one class (1 m/s per s) → 5 %
+    candidate[3, 1] = 2_300.0     # 15 % of the mass std
+    candidate[1, 2] = -4.4        # 10 % of the minimum gradient
     d = deviations(candidate, measured, widths)
     expected = np.zeros(15)
-    expected[[0, 3, 7, 12]] = [0.10, 0.20, 0.05, 0.15]
+    expected[[0, 3, 5, 7, 12]] = [0.10, 0.20, 0.10, 0.05, 0.15]
     np.testing.assert_allclose(d, expected, atol=1e-12)
     ratio = expected / ALLOWANCE
     assert scores(d) == pytest.approx(ratio.mean())
     assert scores(d, with_mass=False) == pytest.approx(ratio[~IS_MASS].mean())
+    constant_mass = measured.copy()
+    constant_mass[3] = [20_000.0, 0.0, 20_000.0, 20_000.0]
+    shifted = constant_mass.copy()
+    shifted[3, 1] = 10.0          # std of a constant mass: one mass class (100 kg) is the scale
+    assert deviations(shifted, constant_mass, widths)[12] == pytest.approx(0.1)
 
 
 def test_the_measured_data_judged_against_itself_is_perfect():

@@ -1,8 +1,11 @@
 """The chain ready to draw from: observed states, rows of outgoing transitions (CSR), start states.
 
-Only the largest strongly connected part of the transition graph that contains a standstill is
-kept, so a walk can never run into a state without a way out (the last sample of a log) or into a
-closed trap (a state the data never left again). States outside it are reported, not drawn.
+Two kinds of states carry no information about how driving goes on, and are pruned with the
+transitions into them, repeatedly, until none is left: a state the data never left (the last
+sample of a log cut while driving), and a stop the data never left (the parking at the end of a
+one-way drive; the log ends, so how long the truck stood there is censored, and keeping it would
+make a stop that lasts for ever, which every walk that finds a shortcut to the route's end falls
+into). What remains lets a walk go on for any duration.
 """
 
 from __future__ import annotations
@@ -29,9 +32,9 @@ class Chain:
     ``row_ptr[s]:row_ptr[s+1]`` are the transitions out of state ``s`` to ``dest`` with ``count``
     and per-row cumulative counts ``cum_count``; ``start_state``/``start_cum`` the states a cycle
     starts in: **[choice]** the first second of a stop, weighted by how often the data arrived
-    there, so a cycle opens with a whole stop of typical length (starting anywhere in a stop
-    would favour long stops); without stops, any standstill (or any state) by its occupancy. Class centres per state in
-    ``speed_mps`` [m/s], ``gradient_pct`` [%], ``mass_kg`` [kg].
+    there or began a drive there, so a cycle opens with a whole stop of typical length (starting
+    anywhere in a stop would favour long stops); without stops, any state by its occupancy. Class centres per state in ``speed_mps`` [m/s], ``gradient_pct``
+    [%], ``mass_kg`` [kg].
     """
 
     widths: cls.ClassWidths
@@ -58,42 +61,64 @@ class Chain:
         return self.count / np.repeat(totals, np.diff(self.row_ptr))
 
 
+def _parking(src: np.ndarray, dst: np.ndarray, n: int, standstill: np.ndarray) -> np.ndarray:
+    """States in a closed set of standstill states only (a stop the data never left)."""
+    graph = coo_matrix((np.ones(len(src)), (src, dst)), shape=(n, n)).tocsr()
+    n_parts, label = connected_components(graph, directed=True, connection="strong")
+    leaves = np.ones(n_parts, bool)
+    leaves[label[src[label[src] != label[dst]]]] = False
+    moving_part = np.zeros(n_parts, bool)
+    moving_part[label[~standstill]] = True
+    used = np.zeros(n_parts, bool)
+    used[label[src]] = True
+    return leaves[label] & ~moving_part[label] & used[label]
+
+
+def _prune(src: np.ndarray, dst: np.ndarray, n: int, standstill: np.ndarray) -> np.ndarray:
+    """Mask of transitions kept after removing, repeatedly, those into states without a way on
+    (no transition out, or a stop never left)."""
+    keep = np.ones(len(src), bool)
+    while True:
+        has_exit = np.bincount(src[keep], minlength=n) > 0
+        stuck = ~has_exit
+        if keep.any():
+            stuck |= _parking(src[keep], dst[keep], n, standstill)
+        drop = keep & stuck[dst]
+        if not drop.any():
+            return keep
+        keep &= ~drop
+
+
 def build_chain(counts: TransitionCounts) -> Chain:
-    """Keep the largest strongly connected part with a standstill; lay it out as CSR rows."""
+    """Prune dead ends, choose start states, lay the rows out as CSR."""
     if len(counts) == 0:
         raise ChainError("no transitions counted: the data has fewer than two usable 1 Hz samples in a row")
     states = np.unique(np.concatenate([counts.from_key, counts.to_key]))
-    src = np.searchsorted(states, counts.from_key)
-    dst = np.searchsorted(states, counts.to_key)
-    graph = coo_matrix((np.ones(len(src)), (src, dst)), shape=(len(states), len(states))).tocsr()
-    _, label = connected_components(graph, directed=True, connection="strong")
-    standstill = cls.decode(states)[0] == 0
-    weight = np.bincount(label[src], weights=counts.count, minlength=label.max() + 1)
-    eligible = np.unique(label[standstill]) if standstill.any() else np.arange(label.max() + 1)
-    best = eligible[np.argmax(weight[eligible])]
-    keep_state = label == best
-    keep = keep_state[src] & keep_state[dst]
+    src_all = np.searchsorted(states, counts.from_key)
+    dst_all = np.searchsorted(states, counts.to_key)
+    keep = _prune(src_all, dst_all, len(states), cls.decode(states)[0] == 0)
     if not keep.any():
         raise ChainError("the data never returns to any state it visited: too few samples for a chain "
                          "at these class widths (use wider classes or more data)")
-    new_id = np.cumsum(keep_state) - 1
-    s, d, c = new_id[src[keep]], new_id[dst[keep]], counts.count[keep]
+    kept_state = np.zeros(len(states), bool)
+    kept_state[src_all[keep]] = True
+    new_id = np.cumsum(kept_state) - 1
+    s, d, c = new_id[src_all[keep]], new_id[dst_all[keep]], counts.count[keep]
     order = np.lexsort((d, s))
     s, d, c = s[order], d[order], c[order].astype(np.int64)
-    n = int(keep_state.sum())
+    n = int(kept_state.sum())
+    keys = states[kept_state]
     row_ptr = np.concatenate([[0], np.cumsum(np.bincount(s, minlength=n))]).astype(np.int64)
     cum = np.cumsum(c)
     cum_count = cum - np.repeat(np.concatenate([[0], cum[row_ptr[1:-1] - 1]]), np.diff(row_ptr))
-    keys = states[keep_state]
     speed, gradient, mass = cls.centres(keys, counts.widths)
-    arrivals = np.bincount(d, weights=c * ((speed[s] > 0) & (speed[d] == 0)), minlength=n)
-    if arrivals.any():
-        start = np.flatnonzero(arrivals)
-        weight = arrivals[start]
-    else:
-        occupancy = np.add.reduceat(c, row_ptr[:-1])
-        start = np.flatnonzero(speed == 0) if np.any(speed == 0) else np.arange(n)
-        weight = occupancy[start]
+    standstill = speed == 0
+    weight = np.bincount(d, weights=c * (~standstill[s] & standstill[d]), minlength=n)
+    known = np.isin(counts.start_key, keys)
+    weight[np.searchsorted(keys, counts.start_key[known])] += counts.start_count[known]
+    if not weight.any():
+        weight = np.bincount(s, weights=c, minlength=n)
+    start = np.flatnonzero(weight)
     return Chain(counts.widths, keys, row_ptr, d.astype(np.int64), c, cum_count.astype(np.int64),
-                 start.astype(np.int64), np.cumsum(weight).astype(np.int64),
+                 start.astype(np.int64), np.cumsum(weight[start]).astype(np.int64),
                  speed, gradient, mass, len(states), int(counts.count[~keep].sum()))

@@ -134,7 +134,8 @@ def statistics_of(moments: np.ndarray) -> np.ndarray:
 class TransitionCounts:
     """Observed transitions of the chain: ``count[i]`` times ``from_key[i]`` → ``to_key[i]``.
 
-    Sorted by (from_key, to_key), one entry per pair. ``moments`` holds additive moments
+    Sorted by (from_key, to_key), one entry per pair; ``start_key``/``start_count`` the states
+    the data's segments begin in at standstill (a drive's initial stop). ``moments`` holds additive moments
     (`moments_of`) of the class-centre samples per quantity of `QUANTITIES` (acceleration from
     1 Hz differences of class-centre speeds), the measured side of the criteria.
     """
@@ -147,6 +148,8 @@ class TransitionCounts:
     n_samples: int = 0
     n_dropped: int = 0
     n_closed: int = 0
+    start_key: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    start_count: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     def __len__(self) -> int:
         return len(self.count)
@@ -162,7 +165,9 @@ class TransitionCounts:
                                          np.concatenate([self.count, other.count]))
         return TransitionCounts(self.widths, from_key, to_key, count, add_moments(self.moments, other.moments),
                                 self.n_samples + other.n_samples, self.n_dropped + other.n_dropped,
-                                self.n_closed + other.n_closed)
+                                self.n_closed + other.n_closed,
+                                *_merge_starts(np.concatenate([self.start_key, other.start_key]),
+                                               np.concatenate([self.start_count, other.start_count])))
 
     def __radd__(self, other):
         return self if other == 0 else self.__add__(other)
@@ -177,6 +182,12 @@ class TransitionCounts:
         return self.from_key.nbytes + self.to_key.nbytes + self.count.nbytes
 
 
+def _merge_starts(keys, count):
+    """Sum the counts of equal start keys."""
+    unique, where = np.unique(keys.astype(np.int64), return_inverse=True)
+    return unique, np.bincount(where, weights=count, minlength=len(unique)).astype(np.int64)
+
+
 def _merge(from_key, to_key, count):
     """Sum the counts of equal (from, to) pairs; return them sorted."""
     if len(count) == 0:
@@ -189,39 +200,52 @@ def _merge(from_key, to_key, count):
     return states[pairs // len(states)], states[pairs % len(states)], summed
 
 
-def _first_standstill(segments, standstill, gradient, order, skip=None):
-    """(segment, index) of the first standstill with gradient class ``gradient`` along ``order``."""
+def _stops(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First and last sample index of each standstill run of a segment."""
+    standstill = cls.decode(keys)[0] == 0
+    starts, ends = _runs(standstill)
+    stop = standstill[starts]
+    return starts[stop], ends[stop] - 1
+
+
+def _find_stop(segments, stops, gradient, order, own, excluded_run, use_end):
+    """Key of the first stop (its first sample, or its last if ``use_end``) with gradient class
+    ``gradient`` along segments ``order``, skipping run ``excluded_run`` of segment ``own``."""
     for t in order:
-        candidates = standstill[t] if skip is None or t != skip[0] else standstill[t][standstill[t] != skip[1]]
-        same = candidates[cls.decode(segments[t][candidates])[1] == gradient]
-        if same.size:
-            return t, same[0]
+        starts, ends = stops[t]
+        samples = ends if use_end else starts
+        runs = np.arange(len(samples))
+        if use_end:
+            samples, runs = samples[::-1], runs[::-1]
+        for index, run in zip(samples, runs):
+            if (t, run) != (own, excluded_run) and cls.decode(segments[t][index])[1] == gradient:
+                return segments[t][index]
     return None
 
 
 def _closures(segments: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Closing transitions, standstill to standstill at the same gradient class: each segment's last
-    standstill → the first like it in the following segments (cyclically, then its own), and the
-    last standstill like a segment's first standstill in the preceding segments → that first one."""
+    """Closing transitions, standstill to standstill at the same gradient class: each segment's
+    final stop → the first other stop like it in the following segments (cyclically, then its
+    own), and the last other stop like a segment's initial stop in the preceding segments → that
+    initial stop. Never within one stop, never across a gradient class."""
     from_keys, to_keys = [], []
-    standstill = [np.flatnonzero(cls.decode(keys)[0] == 0) for keys in segments]
+    stops = [_stops(keys) for keys in segments]
     n = len(segments)
     for i, keys in enumerate(segments):
-        if standstill[i].size == 0:
+        starts, ends = stops[i]
+        if starts.size == 0:
             continue
-        first, last = standstill[i][0], standstill[i][-1]
+        final_key, initial_key = keys[ends[-1]], keys[starts[0]]
         forward = [(i + step) % n for step in range(1, n)] + [i]
-        found = _first_standstill(segments, standstill, cls.decode(keys[last])[1], forward, skip=(i, last))
-        if found is not None:
-            from_keys.append(keys[last])
-            to_keys.append(segments[found[0]][found[1]])
+        target = _find_stop(segments, stops, cls.decode(final_key)[1], forward, i, len(starts) - 1, False)
+        if target is not None:
+            from_keys.append(final_key)
+            to_keys.append(target)
         backward = [(i - step) % n for step in range(1, n)] + [i]
-        reversed_standstill = [s[::-1] for s in standstill]
-        found = _first_standstill(segments, reversed_standstill, cls.decode(keys[first])[1], backward,
-                                  skip=(i, first))
-        if found is not None:
-            from_keys.append(segments[found[0]][found[1]])
-            to_keys.append(keys[first])
+        source = _find_stop(segments, stops, cls.decode(initial_key)[1], backward, i, 0, True)
+        if source is not None:
+            from_keys.append(source)
+            to_keys.append(initial_key)
     return np.array(from_keys, dtype=np.int64), np.array(to_keys, dtype=np.int64)
 
 
@@ -270,4 +294,7 @@ def count_transitions(signals, widths: cls.ClassWidths | None = None, close_loop
         moments = add_moments(moments, part)
     from_all, to_all = np.concatenate(from_parts), np.concatenate(to_parts)
     from_key, to_key, count = _merge(from_all, to_all, np.ones(len(from_all), dtype=np.int64))
-    return TransitionCounts(widths, from_key, to_key, count, moments, n_samples, n_dropped, n_closed)
+    starts = [keys[0] for keys in segments if cls.decode(keys[:1])[0][0] == 0]
+    start_key, start_count = _merge_starts(np.array(starts, dtype=np.int64), np.ones(len(starts), np.int64))
+    return TransitionCounts(widths, from_key, to_key, count, moments, n_samples, n_dropped, n_closed,
+                            start_key, start_count)

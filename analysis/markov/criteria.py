@@ -1,12 +1,16 @@
 """Criteria and score of a candidate against the measured data (physics.md; paper eq. (15)).
 
-Relative deviation per criterion: d = |x_candidate − x_measured| / max(|x_measured|, floor).
-**[choice]** The floor is one class width of the quantity (speed class [m/s], gradient class [%],
-speed class per second for acceleration [m/s²], mass class [kg]): a chain at that resolution cannot
-tell smaller differences apart, and a mean near zero (gradient of a round trip, acceleration of
-any drive) would otherwise make any deviation infinite. The measured side is the data at class
-resolution (`TransitionCounts.statistics`), so acceleration is compared like for like: both are
-1 Hz differences of class-centre speeds (docs/cycles.md says why that matters).
+Relative deviation per criterion: d = |x_candidate − x_measured| / max(|x_measured|, σ_measured,
+w). **[choice]** The paper divides by |x_measured|, which is ill-defined where a measured value is
+near zero: the mean gradient of a round trip, the mean acceleration of any drive, a minimum
+gradient of −0.2 %. The denominator is therefore at least the quantity's own measured standard
+deviation σ (its scale, as in a standardised mean difference) and at least one class width w of
+the quantity (speed class [m/s], gradient class [%], speed class per second for acceleration
+[m/s²], mass class [kg]): a chain at that resolution cannot tell smaller differences apart.
+Where |x_measured| is the larger (mean speed, mass, extremes), this is the paper's relative
+deviation. The measured side is the data at class resolution (`TransitionCounts.statistics`), so
+acceleration is compared like for like: both are 1 Hz differences of class-centre speeds
+(docs/cycles.md says why that matters).
 """
 
 from __future__ import annotations
@@ -34,17 +38,17 @@ _Q = np.array([q for q, _, _ in CRITERIA])
 _S = np.array([s for _, s, _ in CRITERIA])
 
 
-def floors(widths: ClassWidths) -> np.ndarray:
-    """Smallest denominator of the relative deviation per criterion (module docstring)."""
-    per_quantity = np.array([widths.speed_mps, widths.gradient_pct, widths.speed_mps, widths.mass_kg])
-    return per_quantity[_Q]
+def scales(measured_stats: np.ndarray, widths: ClassWidths) -> np.ndarray:
+    """Denominator of the relative deviation per criterion (module docstring)."""
+    per_quantity = np.maximum(measured_stats[:, 1],
+                              [widths.speed_mps, widths.gradient_pct, widths.speed_mps, widths.mass_kg])
+    return np.maximum(np.abs(measured_stats[_Q, _S]), per_quantity[_Q])
 
 
 def deviations(candidate_stats: np.ndarray, measured_stats: np.ndarray, widths: ClassWidths) -> np.ndarray:
     """Relative deviations (…, 15) of candidate statistics (…, 4, 4) from measured ones (4, 4)."""
     candidate = candidate_stats[..., _Q, _S]
-    measured = measured_stats[_Q, _S]
-    return np.abs(candidate - measured) / np.maximum(np.abs(measured), floors(widths))
+    return np.abs(candidate - measured_stats[_Q, _S]) / scales(measured_stats, widths)
 
 
 def scores(deviation: np.ndarray, with_mass: bool = True) -> np.ndarray:
