@@ -95,8 +95,13 @@ class Daemon:
 
     async def _housekeeping(self) -> None:
         tick = 0
+        next_ns = self.clock.monotonic_ns()
         while True:
-            await self.clock.sleep(0.25)
+            next_ns += 250_000_000
+            now_ns = self.clock.monotonic_ns()
+            if next_ns < now_ns - 1_000_000_000:
+                next_ns = now_ns
+            await self.clock.sleep_until_ns(next_ns)
             tick += 1
             writer = self.storage.writer
             if writer is not None:

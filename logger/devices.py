@@ -8,7 +8,6 @@ libraries are imported only when a source needs them.
 from __future__ import annotations
 
 import logging
-from concurrent.futures import ThreadPoolExecutor
 
 from .config import Config
 from .sources.base import Source
@@ -61,21 +60,23 @@ class Devices:
             except Exception as exc:  # python-can raises CanError subclasses and others per backend
                 say(f"can: cannot open {config.can.interface} {config.can.channel}: {exc!r}; logging without CAN")
         if config.i2c.enabled:
-            from .sources.i2c.base import I2cSensorSource, SensorMissing
+            from .sources.i2c.base import I2cBusSource, SensorMissing
             try:
                 bus = self.smbus(config)
             except (OSError, ImportError) as exc:
                 say(f"i2c: cannot open bus {config.i2c.bus}: {exc}; logging without I2C sensors")
                 bus = None
             if bus is not None:
-                executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="i2c")
+                present = []
                 for driver in self.i2c_drivers(config, bus, clock):
                     try:
                         driver.probe()
                     except (SensorMissing, OSError) as exc:
                         say(f"{driver.name}: {exc}; the other sources keep logging")
                         continue
-                    sources.append(I2cSensorSource(queue, clock, driver, executor, say))
+                    present.append(driver)
+                if present:
+                    sources.append(I2cBusSource(queue, clock, present, say))
         if config.gps.enabled:
             from .sources.gps import GpsSource
             gps = GpsSource(queue, clock, self.gps_port(config), config.gps.baudrate,
@@ -92,8 +93,7 @@ class Devices:
     def channel_metadata(self, sources: list[Source]) -> dict[str, dict[str, str]]:
         metadata: dict[str, dict[str, str]] = {}
         for source in sources:
-            driver = getattr(source, "driver", None)
-            if driver is not None:
+            for driver in getattr(source, "drivers", ()):
                 metadata.update(driver.channel_metadata())
         return metadata
 

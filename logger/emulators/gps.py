@@ -43,6 +43,12 @@ def epoch_sentences(utc: dt.datetime, values: dict) -> list[str]:
     """The NMEA sentences of one epoch from ``latitude_deg, longitude_deg, altitude_m, speed_mps,
     course_deg, h_acc_m, v_acc_m`` [deg, m, m/s]."""
     hms = utc.strftime("%H%M%S") + f".{utc.microsecond // 10000:02d}"
+    date = utc.strftime("%d%m%y")
+    if not values.get("fix_quality", 1) or not math.isfinite(values.get("latitude_deg", math.nan)):
+        return [with_checksum(f"GPRMC,{hms},V,,,,,,,{date},,,N"), with_checksum("GPVTG,,T,,M,,N,,K,N"),
+                with_checksum(f"GPGGA,{hms},,,,,0,00,99.99,,,,,,"),
+                with_checksum("GPGSA,A,1,,,,,,,,,,,,,99.99,99.99,99.99"),
+                with_checksum(f"GPGST,{hms},,,,,,,")]
     lat, ns = _lat(values["latitude_deg"])
     lon, ew = _lon(values["longitude_deg"])
     knots = values.get("speed_mps", 0.0) / KNOT_MPS
@@ -50,7 +56,6 @@ def epoch_sentences(utc: dt.datetime, values: dict) -> list[str]:
     h_acc, v_acc = values.get("h_acc_m", 2.5), values.get("v_acc_m", 4.0)
     hdop = max(h_acc / 2.5, 0.5)
     axis_err = h_acc / math.sqrt(2.0)
-    date = utc.strftime("%d%m%y")
     return [
         with_checksum(f"GPRMC,{hms},A,{lat},{ns},{lon},{ew},{knots:.3f},{course:.2f},{date},,,A"),
         with_checksum(f"GPVTG,{course:.2f},T,,M,{knots:.3f},N,{knots * 1.852:.3f},K,A"),
@@ -84,7 +89,8 @@ class GpsEmulator:
         return self
 
     def values(self, t_s: float) -> dict:
-        names = ("latitude_deg", "longitude_deg", "altitude_m", "speed_mps", "course_deg", "h_acc_m", "v_acc_m")
+        names = ("latitude_deg", "longitude_deg", "altitude_m", "speed_mps", "course_deg", "h_acc_m", "v_acc_m",
+                 "fix_quality")
         values = {"latitude_deg": 48.137, "longitude_deg": 11.575, "altitude_m": 520.0}
         values.update(self.signals.values(names, t_s))
         return values

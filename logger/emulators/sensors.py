@@ -85,7 +85,22 @@ class RegisterDevice:
 
 
 class Lps25hbModel(RegisterDevice):
+    """Pressure/temperature with data-ready bits, or the 32-slot FIFO (stream mode) when enabled.
+
+    Model of the FIFO: a slot holds one pressure and temperature pair; reading TEMP_OUT_H (0x2C),
+    the last byte of a 5-byte PRESS_OUT/TEMP_OUT block read, frees the slot. When the FIFO is full
+    the oldest slot is overwritten (stream mode) and FULL_FIFO is set.
+    """
+
     who_am_i = lps.WHO_AM_I_VALUE
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.fifo: collections.deque = collections.deque()
+
+    def fifo_on(self) -> bool:
+        return bool(self.regs[lps.CTRL_REG2] & lps.CTRL_REG2_FIFO_EN) and \
+            (self.regs[lps.FIFO_CTRL] >> 5) == lps.FIFO_MODE_STREAM
 
     def write(self, register: int, value: int) -> None:
         super().write(register, value)
@@ -94,22 +109,46 @@ class Lps25hbModel(RegisterDevice):
             if value & lps.CTRL_REG1_PD and odr:
                 self.power_on(odr)
 
+    def _raw(self, t_s: float) -> tuple[int, int]:
+        p_raw = int(round(self.signals.value("pressure_pa", t_s, 101325.0) / 100.0 * 4096.0))
+        t_raw = int(round((self.signals.value("temperature_c", t_s, 20.0) - 42.5) * 480.0))
+        return p_raw, t_raw
+
+    def _show(self, p_raw: int, t_raw: int) -> None:
+        self.regs[0x28:0x2B] = bytes(_le(p_raw, 3))
+        self.regs[0x2B:0x2D] = bytes(_le(t_raw, 2))
+
     def new_samples(self, first: int, end: int) -> None:
+        if self.fifo_on():
+            for k in range(max(first, end - lps.FIFO_DEPTH), end):
+                if len(self.fifo) >= lps.FIFO_DEPTH:
+                    self.fifo.popleft()
+                    self.overwritten += 1
+                self.fifo.append(self._raw(float(self.sample_time_s(k))))
+            self.overwritten += max(0, (end - first) - lps.FIFO_DEPTH)
+            self._show(*self.fifo[0])
+            return
         unread = bool(self.regs[lps.STATUS_REG] & lps.STATUS_P_DA)
         lost = (end - first - 1) + (1 if unread else 0)
         if lost:
             self.overwritten += lost
             self.regs[lps.STATUS_REG] |= lps.STATUS_P_OR | 0x10
-        t_s = float(self.sample_time_s(end - 1))
-        p_raw = int(round(self.signals.value("pressure_pa", t_s, 101325.0) / 100.0 * 4096.0))
-        t_raw = int(round((self.signals.value("temperature_c", t_s, 20.0) - 42.5) * 480.0))
-        self.regs[0x28:0x2B] = bytes(_le(p_raw, 3))
-        self.regs[0x2B:0x2D] = bytes(_le(t_raw, 2))
+        self._current = self._raw(float(self.sample_time_s(end - 1)))
+        self._show(*self._current)
         self.regs[lps.STATUS_REG] |= lps.STATUS_P_DA | 0x01
-        self._current = (p_raw, t_raw)
 
     def read(self, register: int) -> int:
+        if register == lps.FIFO_STATUS:
+            n = len(self.fifo)
+            return (lps.FIFO_STATUS_FULL if n >= lps.FIFO_DEPTH else 0) | \
+                (lps.FIFO_STATUS_EMPTY if n == 0 else 0) | (n & lps.FIFO_STATUS_FSS)
         value = self.regs[register]
+        if self.fifo_on():
+            if register == 0x2C and self.fifo:
+                self.served.append(self.fifo.popleft())
+                if self.fifo:
+                    self._show(*self.fifo[0])
+            return value
         if register == 0x2A and self.regs[lps.STATUS_REG] & lps.STATUS_P_DA:
             self.regs[lps.STATUS_REG] &= ~(lps.STATUS_P_DA | lps.STATUS_P_OR) & 0xFF
             self.served.append(self._current)

@@ -69,6 +69,24 @@ def merge(frames: Mapping[str, Mapping[str, np.ndarray]], step_s: float = 0.01) 
     return out
 
 
+def from_streams(streams: Mapping[str, object], step_s: float = 0.01) -> dict[str, np.ndarray]:
+    """Emulator columns from sensor streams (tables with ``time_s``, e.g. a virtual drive's
+    ``sensors`` DataFrames) and constants (scalars, e.g. ``engine_reference_torque_nm``)."""
+    tables = {k: v for k, v in streams.items() if hasattr(v, "__getitem__") and _has_time(v)}
+    columns = merge({k: {c: np.asarray(v[c]) for c in v.keys()} for k, v in tables.items()}, step_s)
+    for name, value in streams.items():
+        if name not in tables and np.isscalar(value):
+            columns.setdefault(name, np.full(columns["time_s"].size, float(value)))
+    return columns
+
+
+def _has_time(table) -> bool:
+    try:
+        return "time_s" in table.keys()
+    except AttributeError:
+        return False
+
+
 def synthetic_drive(duration_s: float = 600.0, seed: int = 7) -> dict[str, np.ndarray]:
     """A plausible truck drive (speed, engine, weather, position) without the analysis package."""
     rng = np.random.default_rng(seed)

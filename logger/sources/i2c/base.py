@@ -2,14 +2,14 @@
 
 A bus object is SMBus-shaped: ``read_byte_data(addr, reg)``, ``write_byte_data(addr, reg,
 value)``, ``read_i2c_block_data(addr, reg, length)`` (smbus2.SMBus on the Pi, an emulator in
-tests). All transactions of one bus run in one single-thread executor, so they never interleave
-and never block the event loop.
+tests). All transactions of one bus run in one thread, so they never interleave and never block the
+event loop.
 """
 
 from __future__ import annotations
 
 import asyncio
-from concurrent.futures import ThreadPoolExecutor
+import threading
 from typing import Protocol
 
 from ...clock import Clock
@@ -69,49 +69,87 @@ def s16(lo: int, hi: int) -> int:
     return value - 0x10000 if value & 0x8000 else value
 
 
-class I2cSensorSource(Source):
-    """Polls one `Driver` every ``driver.poll_interval_s`` in the bus executor."""
+class I2cBusSource(Source):
+    """All sensors of one I2C bus, polled by one thread (transactions never interleave).
 
-    def __init__(self, queue, clock, driver: Driver, executor: ThreadPoolExecutor, say=None):
+    Each driver is polled every ``driver.poll_interval_s``; results reach the event loop in one
+    hand-over per poll round that produced data. Stats per sensor are in ``stats.extra``.
+    """
+
+    name = "i2c"
+
+    def __init__(self, queue, clock, drivers: list[Driver], say=None):
         super().__init__(queue, clock, say)
-        self.driver = driver
-        self.name = driver.name
-        self.executor = executor
+        self.drivers = drivers
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        for driver in drivers:
+            self.stats.extra[driver.name] = {"records": 0, "overruns": 0, "errors": 0}
 
-    def _emit_all(self, out: list) -> None:
-        for topic, payload, t_mono_ns, records in out:
-            self.emit(topic, payload, t_mono_ns, records)
-        self.stats.drops += self.driver.overruns
-        self.stats.extra["sensor_overruns"] = self.stats.extra.get("sensor_overruns", 0) + self.driver.overruns
-        self.driver.overruns = 0
+    def _poll_round(self, due: dict, now_ns: int) -> list:
+        results = []
+        for driver in self.drivers:
+            if now_ns < due[driver.name]:
+                continue
+            due[driver.name] = max(due[driver.name] + int(driver.poll_interval_s * 1e9), now_ns)
+            try:
+                out, error = driver.poll(), None
+            except OSError as exc:
+                out, error = [], exc
+            overruns, driver.overruns = driver.overruns, 0
+            if out or overruns or error:
+                results.append((driver.name, out, overruns, error))
+        return results
+
+    def _bus_thread(self) -> None:
+        clock = self.clock
+        for driver in self.drivers:
+            driver.configure()
+        now = clock.monotonic_ns()
+        due = {d.name: now for d in self.drivers}
+        tick_s = min(d.poll_interval_s for d in self.drivers)
+        while not self._stop.is_set():
+            results = self._poll_round(due, clock.monotonic_ns())
+            if results:
+                self._loop.call_soon_threadsafe(self._emit_all, results)
+            wait_ns = min(due.values()) - clock.monotonic_ns()
+            if wait_ns > 0:
+                clock.thread_sleep(min(wait_ns * 1e-9, tick_s))
+        final = self._poll_round({d.name: 0 for d in self.drivers}, clock.monotonic_ns())
+        if final:
+            self._loop.call_soon_threadsafe(self._emit_all, final)
+
+    def _emit_all(self, results: list) -> None:
+        for name, out, overruns, error in results:
+            sensor = self.stats.extra[name]
+            for topic, payload, t_mono_ns, records in out:
+                self.emit(topic, payload, t_mono_ns, records)
+                sensor["records"] += records
+            self.stats.drops += overruns
+            sensor["overruns"] += overruns
+            if error is not None:
+                self.stats.errors += 1
+                sensor["errors"] += 1
+                if sensor["errors"] in (1, 100, 10000):
+                    self.say(f"{name}: I2C error {error} ({sensor['errors']} so far)")
+
+    def alive(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
 
     async def run(self) -> None:
-        loop = asyncio.get_running_loop()
-        await loop.run_in_executor(self.executor, self.driver.configure)
-        period_ns = int(self.driver.poll_interval_s * 1e9)
-        next_ns = self.clock.monotonic_ns()
+        self._loop = asyncio.get_running_loop()
+        self._thread = threading.Thread(target=self._bus_thread, name="i2c-bus", daemon=True)
+        self._thread.start()
         self.stats.state = "running"
-        consecutive_errors = 0
         while True:
-            poll = loop.run_in_executor(self.executor, self.driver.poll)
-            try:
-                out = await asyncio.shield(poll)
-                consecutive_errors = 0
-            except asyncio.CancelledError:
-                try:
-                    self._emit_all(await poll)  # a read in flight has already emptied the FIFO: log it
-                except OSError:
-                    pass
-                raise
-            except OSError as exc:
-                self.stats.errors += 1
-                consecutive_errors += 1
-                if consecutive_errors in (1, 100):
-                    self.say(f"I2C error: {exc}")
-                out = []
-            self._emit_all(out)
-            next_ns += period_ns
-            now = self.clock.monotonic_ns()
-            if next_ns < now:
-                next_ns = now
-            await self.clock.sleep_until_ns(next_ns)
+            await self.clock.sleep(1.0)
+            if not self._thread.is_alive():
+                self.stats.state = "bus thread stopped"
+                raise RuntimeError("I2C bus thread stopped")
+
+    async def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            await asyncio.get_running_loop().run_in_executor(None, self._thread.join, 5.0)
+        await asyncio.sleep(0)

@@ -60,7 +60,7 @@ class Hts221(Driver):
     def __init__(self, bus, address: int, clock, odr_hz: float = 12.5):
         super().__init__(bus, address, clock)
         self.odr_hz = odr_hz
-        self.poll_interval_s = 0.5 / odr_hz
+        self.poll_interval_s = 0.25 / odr_hz
         self.calibration: Calibration | None = None
 
     def configure(self) -> None:

@@ -1,4 +1,8 @@
-"""ST LPS25HB barometer (datasheet DocID023722 rev 6): pressure 4096 LSB/hPa, temperature 42.5 + raw/480 degC."""
+"""ST LPS25HB barometer (datasheet DocID023722 rev 6): pressure 4096 LSB/hPa, temperature 42.5 + raw/480 degC.
+
+Read through its 32-slot FIFO in stream mode: each poll reads FIFO_STATUS for the number of
+unread samples and then that many PRESS_OUT/TEMP_OUT blocks, so a late poll loses nothing.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +11,16 @@ from .base import AUTO_INCREMENT, Driver
 
 WHO_AM_I_VALUE = 0xBD
 CTRL_REG1 = 0x20
+CTRL_REG2 = 0x21
+CTRL_REG2_FIFO_EN = 0x40
 STATUS_REG = 0x27
+FIFO_CTRL = 0x2E
+FIFO_STATUS = 0x2F
+FIFO_MODE_STREAM = 0b010
+FIFO_STATUS_FULL = 0x40
+FIFO_STATUS_EMPTY = 0x20
+FIFO_STATUS_FSS = 0x1F
+FIFO_DEPTH = 32
 PRESS_OUT_XL = 0x28
 STATUS_P_DA = 0x02
 STATUS_P_OR = 0x20
@@ -34,26 +47,34 @@ class Lps25hb(Driver):
     def __init__(self, bus, address: int, clock, odr_hz: float = 25.0):
         super().__init__(bus, address, clock)
         self.odr_hz = odr_hz
-        self.poll_interval_s = 0.5 / odr_hz
+        self.poll_interval_s = 8.0 / odr_hz
+        self._period_ns = int(1e9 / odr_hz)
 
     def configure(self) -> None:
-        self.bus.write_byte_data(self.address, CTRL_REG1,
-                                 CTRL_REG1_PD | (ODR_CODE[self.odr_hz] << 4) | CTRL_REG1_BDU)
+        w = self.bus.write_byte_data
+        w(self.address, CTRL_REG1, CTRL_REG1_PD | (ODR_CODE[self.odr_hz] << 4) | CTRL_REG1_BDU)
+        w(self.address, CTRL_REG2, CTRL_REG2_FIFO_EN)
+        w(self.address, FIFO_CTRL, FIFO_MODE_STREAM << 5)
 
     def poll(self) -> list:
-        status = self.bus.read_byte_data(self.address, STATUS_REG)
-        if status & STATUS_P_OR:
+        status = self.bus.read_byte_data(self.address, FIFO_STATUS)
+        t_read_ns = self.clock.monotonic_ns()
+        if status & FIFO_STATUS_FULL:
             self.overruns += 1
-        if not status & STATUS_P_DA:
-            return []
-        t_mono_ns = self.clock.monotonic_ns()
-        b = self.bus.read_i2c_block_data(self.address, PRESS_OUT_XL | AUTO_INCREMENT, 5)
-        p_raw = b[0] | (b[1] << 8) | (b[2] << 16)
-        if p_raw & 0x800000:
-            p_raw -= 1 << 24
-        t_raw = b[3] | (b[4] << 8)
-        if t_raw & 0x8000:
-            t_raw -= 1 << 16
-        record = {"t_mono_ns": t_mono_ns, "pressure_pa": pressure_pa(p_raw), "temperature_c": temperature_c(t_raw),
-                  "pressure_raw": p_raw, "temperature_raw": t_raw}
-        return [(contract.BAROMETER, contract.encode_json(record), t_mono_ns, 1)]
+            n = FIFO_DEPTH
+        else:
+            n = status & FIFO_STATUS_FSS
+        out = []
+        for i in range(n):
+            b = self.bus.read_i2c_block_data(self.address, PRESS_OUT_XL | AUTO_INCREMENT, 5)
+            p_raw = b[0] | (b[1] << 8) | (b[2] << 16)
+            if p_raw & 0x800000:
+                p_raw -= 1 << 24
+            t_raw = b[3] | (b[4] << 8)
+            if t_raw & 0x8000:
+                t_raw -= 1 << 16
+            t_mono_ns = t_read_ns - (n - 1 - i) * self._period_ns
+            record = {"t_mono_ns": t_mono_ns, "pressure_pa": pressure_pa(p_raw),
+                      "temperature_c": temperature_c(t_raw), "pressure_raw": p_raw, "temperature_raw": t_raw}
+            out.append((contract.BAROMETER, contract.encode_json(record), t_mono_ns, 1))
+        return out

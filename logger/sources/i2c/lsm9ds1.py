@@ -70,7 +70,7 @@ class Lsm9ds1(Driver):
         self.odr_hz = odr_hz
         self.accel_range_g = accel_range_g
         self.gyro_range_dps = gyro_range_dps
-        self.poll_interval_s = max(8.0 / odr_hz, 0.005)
+        self.poll_interval_s = max(4.0 / odr_hz, 0.004)
         self._period_ns = int(1e9 / odr_hz)
 
     def configure(self) -> None:
@@ -117,7 +117,7 @@ class Lsm9ds1Magnetometer(Driver):
     def __init__(self, bus, address: int, clock, odr_hz: float = 10.0):
         super().__init__(bus, address, clock)
         self.odr_hz = odr_hz
-        self.poll_interval_s = 0.5 / odr_hz
+        self.poll_interval_s = 0.25 / odr_hz
 
     def configure(self) -> None:
         w = self.bus.write_byte_data
