@@ -233,3 +233,26 @@ def test_a_vecto_cycle_becomes_a_route(shared_data, tmp_path):
     states = simulate(scenario, scenario_vehicle(scenario), road)
     limit = np.interp(states["distance_m"], road.distance_m, road.target_speed_mps)
     assert np.all(states["speed_mps"] <= limit + 0.3)
+
+
+@pytest.mark.parametrize("stream, rate_hz", [("wheel_speed", 10), ("engine", 100), ("transmission", 10),
+                                             ("pedals", 20), ("fuel", 1), ("weight", 1), ("barometer", 25),
+                                             ("humidity", 12.5), ("imu", 238), ("gps", 1)])
+def test_sensor_streams_have_their_rates(short_drive, stream, rate_hz):
+    time = short_drive.sensors[stream]["time_s"].to_numpy()
+    assert np.allclose(np.diff(time), 1 / rate_hz)
+    assert time[-1] == pytest.approx(short_drive.states["time_s"].iloc[-1], abs=1 / rate_hz + 1e-9)
+
+
+def test_sensor_values_have_can_resolution_and_bounded_errors(short_drive):
+    sensors, states = short_drive.sensors, short_drive.states
+    engine = sensors["engine"]
+    assert np.allclose(engine["engine_speed_rpm"] / 0.125, np.round(engine["engine_speed_rpm"] / 0.125))
+    assert np.array_equal(engine["actual_engine_torque_pct"], np.round(engine["actual_engine_torque_pct"]))
+    kmh = sensors["wheel_speed"]["wheel_speed_kmh"]
+    assert np.allclose(kmh * 256, np.round(kmh * 256))
+    weight = sensors["weight"]
+    mass = np.interp(weight["time_s"], states["time_s"], states["mass_kg"])
+    assert np.max(np.abs(weight["gross_combination_weight_kg"] / mass - 1)) < 0.05 + 0.01
+    assert np.allclose(weight["gross_combination_weight_kg"] % 10, 0)
+    assert sensors["engine_reference_torque_nm"] == short_drive.vehicle.engine_reference_torque_nm

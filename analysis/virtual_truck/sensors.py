@@ -105,7 +105,8 @@ def can_streams(states, vehicle, sensors, rng) -> dict:
     out["fuel"] = pd.DataFrame({"time_s": t, "fuel_rate_lph": _quantise(fuel, spn["fuel_rate_lph"].resolution)})
     t = _times(duration, 1.0, 0.7)
     mass = _held(states, "mass_kg", t)
-    segment = np.concatenate([[0], np.cumsum(np.diff(mass) != 0)])
+    standing = _held(states, "stop", t).astype(int)
+    segment = np.concatenate([[0], np.cumsum(np.diff(standing) == 1)])
     bias = rng.uniform(-1, 1, segment.max() + 1) * sensors.weight_bias_pct / 100
     weight = mass * (1 + bias[segment]) + rng.normal(0, 30.0, t.size)
     out["weight"] = pd.DataFrame({"time_s": t, "gross_combination_weight_kg": _quantise(
