@@ -191,6 +191,9 @@ def test_kernel_matches_its_python_reference(short_scenario):
     compiled = simulate(short_scenario, vehicle, road)
     reference = simulate(short_scenario, vehicle, road, kernel=simulate_kernel.py_func)
     assert compiled.shape == reference.shape
+    recomputed = road_load.wheel_force_n(reference["speed_mps"], reference["accel_mps2"], reference["gradient_pct"],
+                                         reference["mass_kg"], vehicle)
+    assert np.allclose(recomputed, reference["wheel_force_n"], rtol=1e-9, atol=1e-6)
     for column in compiled.columns:
         assert np.allclose(compiled[column].to_numpy(float), reference[column].to_numpy(float),
                            rtol=1e-9, atol=1e-6), column

@@ -68,3 +68,14 @@ def test_bad_files_give_one_line_naming_the_problem(tmp_path, change, words):
 def test_missing_file_names_the_shipped_scenarios(tmp_path):
     with pytest.raises(ScenarioFileError, match="urban-delivery"):
         load_scenario(tmp_path / "none.toml")
+
+
+def test_a_vehicle_file_beside_the_scenario(tmp_path):
+    from importlib import resources
+
+    from analysis.virtual_truck import scenario_vehicle
+    text = resources.files("analysis.data.vehicles").joinpath("tractor-40t.toml").read_text()
+    (tmp_path / "my-truck.toml").write_text(text.replace('name = "Tractor-semitrailer 40 t"', 'name = "mine"'))
+    path = tmp_path / "mine.toml"
+    path.write_text(GOOD.replace('vehicle = "rigid-18t"', 'vehicle = "my-truck.toml"'))
+    assert scenario_vehicle(load_scenario(path)).name == "mine"
