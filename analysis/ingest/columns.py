@@ -147,6 +147,7 @@ def _summary(ingest, c: _Columns, frame: pd.DataFrame) -> dict:
                 for col in frame.columns if col not in ("time_s", "valid", "wall_time_ns")}
     return {
         "rate_hz": ingest.rate_hz,
+        "t0_mono_ns": int(c.first_bin * ingest.acc.period_ns),
         "rows": int(len(frame)),
         "duration_s": float(frame["time_s"].iloc[-1]) + 1.0 / ingest.rate_hz,
         "valid_fraction": float(valid.mean()),

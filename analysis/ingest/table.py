@@ -238,28 +238,43 @@ class Ingest:
             self.acc.mark_recorded(np.sort(t))
             prefix = {contract.BAROMETER.name: "baro", contract.HUMIDITY.name: "hum",
                       contract.GPS_FIX.name: "gps", contract.TIME_SYNC.name: "sync"}[topic]
+            valid = np.ones(len(t), dtype=bool)
             if topic == contract.GPS_FIX.name:
-                fix = stream.arrays("fix_quality")[1]
-                has_fix = ~(fix == 0)
+                valid = stream.arrays("fix_quality")[1] != 0
+                t = self._fix_times(t, stream.arrays("gps_time_utc_ns")[1])
             for name in JSON_FIELDS[topic]:
                 if name in ("gps_time_utc_ns", "t_realtime_ns", "fix_quality"):
                     continue
-                t_field, values = stream.arrays(name)
-                if topic == contract.GPS_FIX.name:
-                    values = np.where(has_fix, values, np.nan)
-                self.acc.add(f"{prefix}:{name}", t_field, values)
+                values = stream.arrays(name)[1]
+                self.acc.add(f"{prefix}:{name}", t, np.where(valid, values, np.nan))
+
+    def _sync_gps_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """(monotonic, GPS UTC) pairs of /time/sync [ns]."""
+        if contract.TIME_SYNC.name not in self.json:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        t, utc = self.json[contract.TIME_SYNC.name].arrays("gps_time_utc_ns")
+        return t[utc >= 0], utc[utc >= 0]
+
+    def _fix_times(self, received_ns: np.ndarray, utc_ns: np.ndarray) -> np.ndarray:
+        """Monotonic time of each fix's epoch (its GPS UTC through /time/sync), not of its arrival;
+        the arrival time where the fix or the sync lacks GPS time."""
+        mono, utc = self._sync_gps_pairs()
+        if len(mono) == 0:
+            return received_ns
+        order = np.argsort(utc)
+        offset = (utc - mono)[order]
+        known = utc_ns >= 0
+        out = received_ns.copy()
+        relative = np.interp(utc_ns[known], utc[order], (offset - offset[0]).astype(np.float64))
+        out[known] = utc_ns[known] - offset[0] - np.round(relative).astype(np.int64)
+        return out
 
     def clock_pairs(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        """(mono, wall) pairs, best first: GPS UTC from time sync and fixes, realtime, log_time."""
-        pairs = []
-        gps_mono, gps_wall = [], []
-        for topic in (contract.TIME_SYNC.name, contract.GPS_FIX.name):
-            if topic in self.json:
-                t, utc = self.json[topic].arrays("gps_time_utc_ns")
-                gps_mono.append(t[utc >= 0])
-                gps_wall.append(utc[utc >= 0])
-        if gps_mono:
-            pairs.append((np.concatenate(gps_mono), np.concatenate(gps_wall)))
+        """(mono, wall) pairs, best first: GPS UTC of /time/sync, of fixes (arrival time), realtime, log_time."""
+        pairs = [self._sync_gps_pairs()]
+        if contract.GPS_FIX.name in self.json:
+            t, utc = self.json[contract.GPS_FIX.name].arrays("gps_time_utc_ns")
+            pairs.append((t[utc >= 0], utc[utc >= 0]))
         if contract.TIME_SYNC.name in self.json:
             t, real = self.json[contract.TIME_SYNC.name].arrays("t_realtime_ns")
             pairs.append((t[real >= 0], real[real >= 0]))
