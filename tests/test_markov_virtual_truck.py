@@ -1,0 +1,69 @@
+"""Done-when of issue 6 on the virtual truck's three scenarios and their concatenation.
+
+Input is the virtual truck's 10 Hz ground truth (speed, and the *true* gradient and mass, not the
+estimation stages' results, so this judges the cycle method alone); 1800 s cycles at the default
+classes 1 km/h × 0.5 % × 100 kg, 50 000 candidates, seed 0.
+"""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+virtual_truck = pytest.importorskip("analysis.virtual_truck")
+
+from analysis.markov import build_chain, count_transitions, generate, select_cycle  # noqa: E402
+
+NAMES = ("urban-delivery", "regional-tunnel", "long-haul")
+CANDIDATES = 50_000
+
+
+@pytest.fixture(scope="module")
+def truths():
+    frames = {name: virtual_truck.drive(virtual_truck.load_scenario(name), seed=0).truth for name in NAMES}
+    parts, offset = [], 0.0
+    for name in NAMES:
+        part = frames[name][["time_s", "speed_mps", "gradient_pct", "mass_kg"]].copy()
+        part["time_s"] += offset
+        offset = part["time_s"].iloc[-1] + 0.1
+        parts.append(part)
+    frames["concatenation"] = pd.concat(parts, ignore_index=True)   # one log, one drive after the other
+    return frames
+
+
+@pytest.fixture(scope="module")
+def selections(truths):
+    return {name: select_cycle(count_transitions(frame), 1800, CANDIDATES, seed=0) for name, frame in truths.items()}
+
+
+@pytest.mark.parametrize("name", NAMES + ("concatenation",))
+def test_best_cycle_is_valid_on_all_criteria_with_score_at_most_half(selections, name):
+    selection = selections[name]
+    assert selection.criteria.valid, selection.criteria.statement()
+    assert selection.criteria.score <= 0.5
+    assert len(selection.cycle) == 1801
+
+
+def test_the_scenarios_payload_changes_are_in_the_cycles(truths, selections):
+    assert truths["urban-delivery"]["mass_kg"].nunique() > 3
+    assert selections["urban-delivery"].cycle["mass_kg"].nunique() > 1
+    assert selections["concatenation"].cycle["mass_kg"].nunique() > 1
+
+
+def test_same_seed_same_cycle(truths):
+    counts = count_transitions(truths["regional-tunnel"])
+    first = select_cycle(counts, 1800, 2000, seed=4)
+    second = select_cycle(counts, 1800, 2000, seed=4)
+    pd.testing.assert_frame_equal(first.cycle, second.cycle)
+    assert first.index == second.index
+
+
+def test_statistics_of_many_candidates_converge_towards_the_input(truths):
+    counts = count_transitions(truths["urban-delivery"])
+    chain = build_chain(counts)
+    measured = counts.statistics
+    error = {}
+    for duration in (900, 14_400):
+        stats = generate(chain, duration, 300, seed=1).statistics
+        error[duration] = np.abs(np.median(stats[:, :, :2], axis=0) / measured[:, :2] - 1)[[0, 3]]
+    assert np.all(error[14_400] < 0.05), error[14_400]
+    assert error[14_400].sum() < error[900].sum()
