@@ -70,3 +70,39 @@ def test_commands(tmp_path, capsys):
     assert "wrote" in capsys.readouterr().out
     assert cli.main(["signals", str(tmp_path / "nope.mcap"), "-o", str(tmp_path / "x.parquet")]) == 2
     assert "not found" in capsys.readouterr().err
+
+
+def test_pipeline_stage(tmp_path):
+    from analysis.ingest import stage
+    from analysis.pipeline import RunContext
+
+    log = tmp_path / "log.mcap"
+    with open(log, "wb") as stream:
+        synthetic.write_log(stream, 5, seed=6)
+    said = []
+    ctx = RunContext(inputs=[log], out_dir=tmp_path, options={"rate_hz": 5.0}, say=said.append)
+    stage(ctx)
+    assert len(ctx.signals) == 25 and ctx.summary["ingest"]["rate_hz"] == 5.0
+    assert {"speed_mps", "engine_torque_nm", "pressure_pa", "wall_time_ns"} <= set(ctx.signals.columns)
+    assert said and "25 rows" in said[-1]
+
+
+def test_stage_without_speed_says_so(tmp_path):
+    """A log without any speed source: a one-line error naming what is missing, not a KeyError later."""
+    from analysis.errors import UserError
+    from analysis.ingest import stage
+    from analysis.pipeline import RunContext
+    from logger import contract
+    from logger.writer import LogWriter
+
+    log = tmp_path / "baro-only.mcap"
+    with open(log, "wb") as stream:
+        writer = LogWriter(stream)
+        for k in range(20):
+            t = 10**9 + k * 40_000_000
+            writer.write_json(contract.BAROMETER, {"t_mono_ns": t, "pressure_pa": 98000.0, "temperature_c": 20.0,
+                                                   "pressure_raw": 0, "temperature_raw": 0}, t, t)
+        writer.close()
+    ctx = RunContext(inputs=[log], out_dir=tmp_path)
+    with pytest.raises(UserError, match="no vehicle speed"):
+        stage(ctx)

@@ -153,21 +153,22 @@ def read_frames(paths) -> LogArrays:
     json_records: dict[str, list[dict]] = {}
     metadata: dict[str, dict] = {}
     mono_pairs, wall_pairs = [], []
-    for message in iter_log_messages(paths, timeline):
-        metadata.setdefault(message.topic, dict(message.channel.metadata))
-        shift = message.t_mono_ns - _published(message, timeline)
-        if message.topic == contract.CAN_FRAMES.name:
-            can_parts.append(_shifted(decode_packed(contract.CAN_FRAMES, message), shift))
-        elif message.topic == contract.IMU.name:
-            imu_parts.append(_shifted(decode_packed(contract.IMU, message), shift))
-        elif message.channel.message_encoding == contract.JSON_ENCODING:
-            record = decode_json(message)
-            if record is not None:
-                if "t_mono_ns" in record and isinstance(record["t_mono_ns"], int):
-                    record["t_mono_ns"] += shift
-                json_records.setdefault(message.topic, []).append(record)
-        mono_pairs.append(message.t_mono_ns)
-        wall_pairs.append(message.log_time_ns)
+    for _, offset, batch in iter_log_batches(paths, timeline):
+        mono_pairs.append(batch[0].publish_time_ns + offset)
+        wall_pairs.append(batch[0].log_time_ns)
+        for message in batch:
+            topic = message.channel.topic
+            metadata.setdefault(topic, dict(message.channel.metadata))
+            if topic == contract.CAN_FRAMES.name:
+                can_parts.append(_shifted(decode_packed(contract.CAN_FRAMES, message), offset))
+            elif topic == contract.IMU.name:
+                imu_parts.append(_shifted(decode_packed(contract.IMU, message), offset))
+            elif message.channel.message_encoding == contract.JSON_ENCODING:
+                record = decode_json(message)
+                if record is not None:
+                    if isinstance(record.get("t_mono_ns"), int):
+                        record["t_mono_ns"] += offset
+                    json_records.setdefault(topic, []).append(record)
     for path in expand(paths):
         if not is_mcap(path):
             frames, _ = foreign.read_can_log(path)
@@ -178,10 +179,6 @@ def read_frames(paths) -> LogArrays:
                      (np.array(mono_pairs, dtype=np.int64), np.array(wall_pairs, dtype=np.int64)))
 
 
-def _published(message: LogMessage, timeline: Timeline) -> int:
-    return message.t_mono_ns - timeline.offsets_ns.get(timeline.reports[message.file_index].path, 0)
-
-
 def _shifted(records: np.ndarray, shift: int) -> np.ndarray:
     if shift == 0 or len(records) == 0:
         return records
@@ -190,13 +187,13 @@ def _shifted(records: np.ndarray, shift: int) -> np.ndarray:
     return records
 
 
-def decode_packed(topic: contract.Topic, message: LogMessage) -> np.ndarray:
+def decode_packed(topic: contract.Topic, message) -> np.ndarray:
     """Record array of a packed message; an odd-sized (damaged) payload keeps its whole records."""
     usable = len(message.data) - len(message.data) % topic.dtype.itemsize
     return np.frombuffer(message.data, dtype=topic.dtype, count=usable // topic.dtype.itemsize)
 
 
-def decode_json(message: LogMessage) -> dict | None:
+def decode_json(message) -> dict | None:
     try:
         record = json.loads(message.data)
     except (ValueError, UnicodeDecodeError):
