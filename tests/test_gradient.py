@@ -26,7 +26,7 @@ def road_height_m(s):
 def terrain_height_m(s):
     """Terrain over the road: a 40 m hill over the tunnel, a few metres of cut and fill elsewhere."""
     over_tunnel = 40 * np.clip(np.minimum(s - TUNNEL_M[0], TUNNEL_M[1] - s) / 300, 0, 1)
-    return road_height_m(s) + over_tunnel + 1.5 * np.sin(s / 230 + 2)
+    return road_height_m(s) + over_tunnel + 1.0 * np.sin(s / 60 + 2)
 
 
 def write_route_dem(directory):
