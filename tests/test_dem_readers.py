@@ -47,7 +47,7 @@ def test_geographic_geotiff_bilinear_and_coverage(tmp_path):
     rasterio = pytest.importorskip("rasterio")
     step = 1 / 3600
     rows, cols = 400, 500
-    transform = rasterio.transform.from_origin(11.0, 47.1, step, step)
+    transform = rasterio.Affine(step, 0.0, 11.0, 0.0, -step, 47.1)
     lat_c = 47.1 - (np.arange(rows) + 0.5) * step
     lon_c = 11.0 + (np.arange(cols) + 0.5) * step
     heights = plane_m(lat_c[:, None], lon_c[None, :])
@@ -67,7 +67,7 @@ def test_projected_geotiff_is_looked_up_in_its_own_crs(tmp_path):
     from rasterio.warp import transform as warp
     x0, y0 = warp("EPSG:4326", "EPSG:32632", [11.0], [47.0])
     res = 25.0
-    transform = rasterio.transform.from_origin(x0[0] - 2000, y0[0] + 2000, res, res)
+    transform = rasterio.Affine(res, 0.0, x0[0] - 2000, 0.0, -res, y0[0] + 2000)
     xs = x0[0] - 2000 + (np.arange(160) + 0.5) * res
     ys = y0[0] + 2000 - (np.arange(160) + 0.5) * res
     heights = 300.0 + 0.01 * (xs[None, :] - x0[0]) - 0.02 * (ys[:, None] - y0[0])
