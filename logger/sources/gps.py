@@ -245,6 +245,9 @@ class GpsSource(Source):
             data = self.serial.read(65536)
             if data:
                 self.feed(data, self.clock.monotonic_ns())
+        if self._buffer.strip():
+            self.handle_line(bytes(self._buffer).rstrip(b"\r"), self.clock.monotonic_ns())
+            self._buffer.clear()
         self.flush_epoch()
         self.flush_raw()
         if self.serial is not None:
