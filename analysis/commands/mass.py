@@ -17,7 +17,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles or GeoTIFFs (for the gradient)")
     parser.add_argument("--out", type=Path, default=Path("mass-out"), help="output directory")
-    parser.add_argument("--true-mass", type=float, help="the real total mass [kg], if weighed, for the figure")
+    parser.add_argument("--true-mass", type=float, nargs="+", metavar="KG",
+                        help="the real total mass [kg], if weighed, for the figure: one value, or one per segment")
     parser.add_argument("--forgetting-factor", type=float, default=0.9985, help="lambda of RLS and LM (default 0.9985)")
     parser.add_argument("--no-figure", action="store_true", help="skip the figure")
 
@@ -56,7 +57,7 @@ def run(args) -> int:
     return 0
 
 
-def draw_estimates(frame, result, path: Path, true_mass_kg: float | None = None) -> Path:
+def draw_estimates(frame, result, path: Path, true_mass_kg: list[float] | None = None) -> Path:
     """Paper Fig. 6: the estimates of each method over time, the CAN estimate and the real mass."""
     import matplotlib
     matplotlib.use("Agg")
@@ -68,8 +69,11 @@ def draw_estimates(frame, result, path: Path, true_mass_kg: float | None = None)
         ax.plot(time_s, result.columns[column] / 1000, label=label, lw=1.5 if column == "mass_ls_kg" else 0.8)
     if "reported_mass_kg" in frame:
         ax.plot(time_s, frame["reported_mass_kg"] / 1000, ".", ms=1, label="vehicle CAN estimate")
-    if true_mass_kg:
-        ax.axhline(true_mass_kg / 1000, color="k", ls="--", label="real mass")
+    if true_mass_kg and len(true_mass_kg) == len(result.segments) > 1:
+        for k, (segment, mass) in enumerate(zip(result.segments, true_mass_kg)):
+            ax.plot([segment["start_s"], segment["end_s"]], [mass / 1000] * 2, "k--", label="real mass" if k == 0 else None)
+    elif true_mass_kg:
+        ax.axhline(true_mass_kg[0] / 1000, color="k", ls="--", label="real mass")
     for segment in result.segments:
         if segment["uncertainty_kg"] not in (None, np.inf) and segment["mass_ls_kg"] is not None:
             ax.fill_between([segment["start_s"], segment["end_s"]],

@@ -92,6 +92,9 @@ def estimate_segment(phi: np.ndarray, y: np.ndarray, curb_mass_kg: float, max_ma
         return {**result, "status": "implausible",
                 "reason": f"LS mass {mass:.0f} kg outside {0.5 * curb_mass_kg:.0f}..{max_mass_kg:.0f} kg "
                           f"(check the vehicle file and the engine torque scaling)"}
+    if not np.isfinite(uncertainty):
+        return {**result, "uncertainty_kg": None, "status": "uncertain",
+                "reason": f"too few samples ({n}) for an uncertainty"}
     if uncertainty > settings.max_relative_uncertainty * mass:
         return {**result, "status": "uncertain",
                 "reason": f"uncertainty {uncertainty:.0f} kg is over {100 * settings.max_relative_uncertainty:.0f} % "
