@@ -66,12 +66,14 @@ def simulate_kernel(dt_s, max_steps, allowed_speed_mps, gradient_pct, stop_dista
     vehicle_params = (c_r, c_d, A [m^2], r_dyn [m], eta_dl); engine_params = (reference torque [Nm],
     idle [rpm], max [rpm], max power [W], shift up [rpm], shift down [rpm], shift time [s]);
     ratios = overall ratio per gear; driver_params = (max accel, comfort decel, max decel [m/s^2],
-    speed gain [1/s]); mass_after_stop_kg[j] = total mass [kg] from the middle of stop j's dwell on.
+    speed gain [1/s], downhill overspeed [m/s]: on the engine's drag alone the truck may run this
+    much above the target before the brakes come on); mass_after_stop_kg[j] = total mass [kg] from the middle of stop j's dwell on.
     """
     c_r, c_d, area, radius, eta = vehicle_params[0], vehicle_params[1], vehicle_params[2], vehicle_params[3], vehicle_params[4]
     t_ref, idle, n_max, p_max = engine_params[0], engine_params[1], engine_params[2], engine_params[3]
     n_up, n_down, shift_time = engine_params[4], engine_params[5], engine_params[6]
     a_max, b_comfort, b_max, gain = driver_params[0], driver_params[1], driver_params[2], driver_params[3]
+    overspeed = driver_params[4]
     n_mid = 0.5 * (n_up + n_down)
     last = len(allowed_speed_mps) - 1
     top = len(ratios)
@@ -108,8 +110,10 @@ def simulate_kernel(dt_s, max_steps, allowed_speed_mps, gradient_pct, stop_dista
             slope = allowed_speed_mps[i + 1] - allowed_speed_mps[i]
             accel_des = min(max(v * slope + gain * (allowed - v), -b_max), a_max)
             to_stop = stop_distance_m[stop_index] - s
-            if to_stop > 0.0 and v > 0.0 and v * v / (2.0 * to_stop) >= 0.9 * b_comfort:
+            stopping = to_stop > 0.0 and v > 0.0 and v * v / (2.0 * to_stop) >= 0.9 * b_comfort
+            if stopping:
                 accel_des = min(accel_des, -min(v * v / (2.0 * to_stop), b_max))
+            let_roll = not stopping and slope >= 0.0 and v < allowed + overspeed
             force_des = mass * accel_des + resistance
 
             if shift_left <= 0.0:
@@ -150,7 +154,7 @@ def simulate_kernel(dt_s, max_steps, allowed_speed_mps, gradient_pct, stop_dista
                 torque = min(max(wanted_torque, drag), full)
                 demand = min(max(wanted_torque, 0.0), full)
                 force = eta * ratio * torque / radius
-                if force_des < force:
+                if force_des < force and not let_roll:
                     force, brake = force_des, True
             accel = (force - resistance) / mass
             to_stop = stop_distance_m[stop_index] - s

@@ -77,6 +77,8 @@ class Driver:
     max_decel_mps2: float = 2.0
     speed_gain_per_s: float = 0.5
     traffic: float = 1.0
+    downhill_overspeed_kmh: float = 5.0
+    """Downhill the truck runs up to this much above the target on engine drag before braking."""
     """Scale of the traffic's slow-downs below the speed limit (0 = free road)."""
 
 
@@ -155,6 +157,7 @@ _RANGES = {
     "max_decel_mps2": (0.2, 8.0),
     "speed_gain_per_s": (0.01, 10.0),
     "traffic": (0.0, 2.0),
+    "downhill_overspeed_kmh": (0.0, 20.0),
     "imu_rate_hz": (10.0, 952.0),
     "gps_rate_hz": (0.1, 10.0),
     "weight_bias_pct": (0.0, 50.0),

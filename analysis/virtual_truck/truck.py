@@ -75,7 +75,7 @@ def simulate(scenario: Scenario, vehicle: Vehicle, road: Road, kernel=simulate_k
                               engine.max_power_w, engine.shift_up_speed_rpm, engine.shift_down_speed_rpm,
                               engine.shift_time_s])
     driver_params = np.array([driver.max_accel_mps2, driver.comfort_decel_mps2, driver.max_decel_mps2,
-                              driver.speed_gain_per_s])
+                              driver.speed_gain_per_s, driver.downhill_overspeed_kmh / 3.6])
     ratios = np.asarray(vehicle.total_ratios, float)
     expected_s = (np.sum(np.diff(road.distance_m) / np.maximum(road.target_speed_mps[1:], 1.0))
                   + road.stop_duration_s.sum() + road.initial_stop_s)
