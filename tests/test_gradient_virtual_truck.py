@@ -120,3 +120,25 @@ def test_imu_gradient_is_worse_than_the_barometer_as_in_the_paper(scenario_data)
     imu = np.sqrt(np.nanmean((grid["gradient_imu_pct"] - true) ** 2))
     baro = np.sqrt(np.nanmean((grid["gradient_baro_pct"] - true) ** 2))
     assert baro < imu, (name, baro, imu)
+
+
+def test_survives_a_dead_barometer_gps_jumps_and_a_gap_on_the_regional_drive(tmp_path_factory):
+    from analysis.gradient import estimate_gradient
+    from analysis.mass import estimate_mass
+    signals, truth, dem = virtual_drive_data("regional-tunnel", tmp_path_factory)
+    broken = signals.copy()
+    n = len(broken)
+    broken.loc[n // 2:, "pressure_pa"] = np.nan
+    broken.loc[3000:3030, "longitude_deg"] += 0.003
+    broken.loc[6000:6100, ["speed_mps", "engine_torque_nm"]] = np.nan
+    result = estimate_gradient(broken, dem)
+    assert any("GPS fixes left out" in note for note in result.notes)
+    assert any("barometer missing" in note for note in result.notes)
+    assert gradient_errors(result, truth)["outside"] <= 0.3
+    vehicle = virtual_truck.scenario_vehicle(virtual_truck.load_scenario("regional-tunnel"))
+    mass = estimate_mass(broken.assign(**result.samples), vehicle)
+    time_s, true_mass = truth["time_s"].to_numpy(), truth["mass_kg"].to_numpy()
+    for segment in mass.segments:
+        if segment["status"] == "ok":
+            inside = (time_s >= segment["start_s"]) & (time_s <= segment["end_s"])
+            assert abs(segment["mass_ls_kg"] / np.median(true_mass[inside]) - 1) <= 0.06
