@@ -94,6 +94,9 @@ class BinAccumulator:
             return out
         bins = np.concatenate(stream.bins) - first_bin
         sums, counts = np.concatenate(stream.sums), np.concatenate(stream.counts)
+        # a GPS fix placed at its epoch can fall before the first recorded bin
+        inside = (bins >= 0) & (bins < n_bins)
+        bins, sums, counts = bins[inside], sums[inside], counts[inside]
         if stream.kind == "last":
             out[bins] = sums
             return out

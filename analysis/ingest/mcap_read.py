@@ -305,7 +305,8 @@ def _walk(buf, report: ReadReport) -> Iterator[list[RawMessage]]:
                 report.skipped_bytes += max(0, guard - end) if guard < size else 0
                 pos = guard
                 continue
-            yield messages
+            if messages:
+                yield messages
         elif opcode not in _VALID_OPS or end > size or end > guard:
             if guard >= size:
                 break
