@@ -1,0 +1,131 @@
+"""Register-level drivers against the emulated sensors, and their conversions against the
+datasheets' formulas written out by hand."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+
+from logger import contract
+from logger.clock import Clock
+from logger.emulators.sensors import HTS221_CALIBRATION, sensor_board
+from logger.emulators.signals import TimeSeries
+from logger.sources.i2c import lsm9ds1 as lsm
+from logger.sources.i2c.base import SensorMissing
+from logger.sources.i2c.hts221 import Calibration, Hts221
+from logger.sources.i2c.lps25hb import Lps25hb, pressure_pa, temperature_c
+from logger.sources.i2c.lsm9ds1 import Lsm9ds1, Lsm9ds1Magnetometer
+
+
+def board(columns=None, missing=()):
+    clock = Clock()
+    t = np.array([0.0, 1000.0])
+    signals = TimeSeries(columns or {"time_s": t, "pressure_pa": np.full(2, 95_123.0),
+                                     "temperature_c": np.full(2, 21.3), "relative_humidity_pct": np.full(2, 47.5),
+                                     "accel_x_mps2": np.full(2, 1.25), "accel_z_mps2": np.full(2, 9.80665),
+                                     "gyro_z_radps": np.full(2, 0.05)})
+    return sensor_board(signals, clock, clock.monotonic_ns(), missing=missing), clock
+
+
+def test_lps25hb_conversions_from_the_datasheet():
+    # LPS25HB: pressure [hPa] = PRESS_OUT / 4096, temperature [degC] = 42.5 + TEMP_OUT / 480
+    assert pressure_pa(0x3FF58D) == pytest.approx(4191629 / 4096 * 100)
+    assert pressure_pa(0x3FF58D) == pytest.approx(102334.7, abs=0.1)
+    assert temperature_c(-8068) == pytest.approx(25.69167, abs=1e-5)
+
+
+def test_lps25hb_reads_every_sample_through_the_fifo():
+    bus, clock = board()
+    driver = Lps25hb(bus, 0x5C, clock, 25.0)
+    driver.probe()
+    driver.configure()
+    time.sleep(0.5)
+    out = driver.poll()
+    records = [json.loads(payload) for _, payload, _, _ in out]
+    model = bus.models["lps25hb"]
+    assert 10 <= len(records) == len(model.served) == model.produced
+    assert records[0]["pressure_raw"] == round(95_123.0 / 100 * 4096)
+    assert records[0]["pressure_pa"] == pytest.approx(95_123.0, abs=100 / 4096)
+    assert records[0]["temperature_c"] == pytest.approx(21.3, abs=1 / 480)
+    stamps = [r["t_mono_ns"] for r in records]
+    assert np.allclose(np.diff(stamps), 40e6)
+
+
+def test_hts221_calibration_interpolates_like_tn1218():
+    c = Calibration.from_registers(list(HTS221_CALIBRATION))
+    assert (c.h0_rh, c.h1_rh, c.t0_degc, c.t1_degc) == (33.0, 75.5, 10.0, 35.125)
+    assert (c.h0_t0_out, c.h1_t0_out, c.t0_out, c.t1_out) == (-4000, 9000, -500, 3500)
+    # TN1218: H = H0 + (H1 - H0) * (H_OUT - H0_T0_OUT) / (H1_T0_OUT - H0_T0_OUT)
+    assert c.humidity_pct(2500) == pytest.approx(33.0 + 42.5 * 6500 / 13000)
+    assert c.temperature_c(1500) == pytest.approx(10.0 + 25.125 * 2000 / 4000)
+    assert c.humidity_pct(40000) == 100.0
+
+
+def test_hts221_driver_against_the_model():
+    bus, clock = board()
+    driver = Hts221(bus, 0x5F, clock, 12.5)
+    driver.probe()
+    driver.configure()
+    got = []
+    for _ in range(30):
+        got += [json.loads(p) for _, p, _, _ in driver.poll()]
+        time.sleep(0.02)
+    assert got and got[-1]["relative_humidity_pct"] == pytest.approx(47.5, abs=0.01)
+    assert got[-1]["temperature_c"] == pytest.approx(21.3, abs=0.01)
+    assert [(r["humidity_raw"], r["temperature_raw"]) for r in got] == bus.models["hts221"].served
+
+
+def test_lsm9ds1_fifo_delivers_every_sample_at_952_hz():
+    bus, clock = board()
+    driver = Lsm9ds1(bus, 0x6B, clock, 952.0, accel_range_g=4, gyro_range_dps=245)
+    driver.probe()
+    driver.configure()
+    samples = []
+    deadline = time.monotonic() + 0.5
+    while time.monotonic() < deadline:
+        for _, payload, _, _ in driver.poll():
+            samples.append(contract.unpack(contract.IMU, payload))
+        time.sleep(0.008)
+    samples = np.concatenate(samples)
+    model = bus.models["lsm9ds1"]
+    assert model.overwritten == 0 and driver.overruns == 0
+    assert len(samples) == len(model.served) >= 400
+    scale = lsm.accel_scale_mps2_per_lsb(4)
+    assert scale == pytest.approx(0.122e-3 * 9.80665)
+    assert np.all(samples["accel_raw"][:, 0] == round(1.25 / scale))
+    assert np.all(samples["accel_raw"][:, 2] == round(9.80665 / scale))
+    assert np.all(samples["gyro_raw"][:, 2] == round(0.05 / lsm.gyro_scale_radps_per_lsb(245)))
+    assert np.all(np.diff(samples["t_mono_ns"].astype(np.int64)) > 0)
+
+
+def test_lsm9ds1_overrun_is_counted_when_polled_too_late():
+    bus, clock = board()
+    driver = Lsm9ds1(bus, 0x6B, clock, 952.0)
+    driver.configure()
+    time.sleep(0.1)
+    out = driver.poll()
+    assert out[0][3] == 32
+    assert driver.overruns == 1 and bus.models["lsm9ds1"].overwritten > 0
+
+
+def test_magnetometer_and_metadata():
+    bus, clock = board()
+    mag = Lsm9ds1Magnetometer(bus, 0x1E, clock, 10.0)
+    mag.probe()
+    mag.configure()
+    time.sleep(0.15)
+    record = json.loads(mag.poll()[0][1])
+    assert record["magnetic_field_t"][0] == pytest.approx(20e-6, abs=0.14e-7)
+    metadata = Lsm9ds1(bus, 0x6B, clock).channel_metadata()["/imu"]
+    assert float(metadata["gyro_scale_radps_per_lsb"]) == pytest.approx(np.radians(8.75e-3))
+
+
+def test_who_am_i_mismatch_and_missing_device():
+    bus, clock = board(missing=("hts221",))
+    with pytest.raises(SensorMissing, match="does not answer"):
+        Hts221(bus, 0x5F, clock).probe()
+    with pytest.raises(SensorMissing, match="WHO_AM_I 0xbd"):
+        Hts221(bus, 0x5C, clock).probe()

@@ -1,0 +1,150 @@
+"""The daemon in real time at full sensor rates, a missing sensor, and the systemd notify protocol."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import socket
+
+import numpy as np
+import pytest
+
+from logger import contract
+from logger.clock import Clock
+from logger.config import Config
+from logger.daemon import Daemon
+from logger.emulators.rig import EmulatedDevices, emulation_config, record_drive, run_daemon_for
+from logger.emulators.signals import TimeSeries, synthetic_drive
+
+from test_logger_crash import read_linear
+
+
+@pytest.fixture(scope="module")
+def full_rate(tmp_path_factory):
+    out = tmp_path_factory.mktemp("full-rate")
+    return record_drive(synthetic_drive(30.0), out, duration_s=4.0, return_rig=True)
+
+
+def _messages(path):
+    from mcap.records import Channel, Message
+    from mcap.stream_reader import StreamReader
+    topics, out = {}, {}
+    with open(path, "rb") as stream:
+        for record in StreamReader(stream).records:
+            if isinstance(record, Channel):
+                topics[record.id] = record.topic
+            elif isinstance(record, Message):
+                out.setdefault(topics[record.channel_id], []).append(record.data)
+    return out
+
+
+def test_full_rates_in_real_time_lose_nothing(full_rate):
+    path, daemon, devices = full_rate
+    messages = _messages(path)
+    imu = np.concatenate([contract.unpack(contract.IMU, m) for m in messages["/imu"]])
+    model = devices.board.models["lsm9ds1"]
+    assert model.overwritten == 0 and len(imu) == len(model.served) >= 3.5 * 952
+    served = np.frombuffer(b"".join(model.served), dtype="<i2").reshape(-1, 6)
+    assert np.array_equal(imu["accel_raw"], served[:, 3:])
+    import json
+    baro = [json.loads(m) for m in messages["/barometer"]]
+    assert [(b["pressure_raw"], b["temperature_raw"]) for b in baro] == devices.board.models["lps25hb"].served
+    assert len(baro) >= 3.5 * 25
+    assert len(messages["/humidity"]) == len(devices.board.models["hts221"].served) >= 3.5 * 12.5
+    frames = np.concatenate([contract.unpack(contract.CAN_FRAMES, m) for m in messages["/can/frames"]])
+    assert (frames["flags"] & contract.CAN_FLAG_TX == 0).sum() == len(devices.ecu.sent)
+    assert all(s.stats.drops == 0 for s in daemon.sources)
+
+
+def test_file_is_closed_with_summary_and_metadata(full_rate):
+    from mcap.reader import make_reader
+    path, daemon, _ = full_rate
+    with open(path, "rb") as stream:
+        reader = make_reader(stream)
+        summary = reader.get_summary()
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert summary.statistics.message_count == sum(1 for _ in iter_all(path))
+    assert metadata["haulprofile.logger"]["boot_id"] == daemon.storage.boot_id
+    imu_channel = next(c for c in summary.channels.values() if c.topic == "/imu")
+    assert float(imu_channel.metadata["accel_scale_mps2_per_lsb"]) == pytest.approx(0.122e-3 * 9.80665)
+    assert path.name.startswith(f"haulprofile_{daemon.storage.boot_id}_")
+
+
+def iter_all(path):
+    from mcap.records import Message
+    from mcap.stream_reader import StreamReader
+    with open(path, "rb") as stream:
+        for record in StreamReader(stream).records:
+            if isinstance(record, Message):
+                yield record
+
+
+def _run(tmp_path, duration_s: float, missing=(), notify_path=None, during=None):
+    config = emulation_config(tmp_path / "logs", 1.0, Config())
+    clock = Clock()
+    devices = EmulatedDevices(TimeSeries(synthetic_drive(30.0)), clock, missing_sensors=missing).start(config)
+    if notify_path is not None:
+        os.environ["NOTIFY_SOCKET"] = str(notify_path)
+    try:
+        daemon = Daemon(config, devices, clock)
+    finally:
+        os.environ.pop("NOTIFY_SOCKET", None)
+
+    async def main():
+        if during is None:
+            return await run_daemon_for(daemon, devices, duration_s)
+        task = asyncio.create_task(run_daemon_for(daemon, devices, duration_s))
+        await daemon.ready.wait()
+        await during(daemon)
+        return await task
+
+    code = asyncio.run(main())
+    return daemon, code
+
+
+def test_a_missing_sensor_is_a_warning_and_the_rest_keeps_logging(tmp_path):
+    daemon, code = _run(tmp_path, 1.5, missing=("hts221",))
+    assert code == 0
+    counts, _, complete = read_linear(daemon.storage.files_written[0])
+    assert complete and "/humidity" not in counts
+    assert counts["/barometer"] > 0 and counts["/imu"] > 0 and counts["/can/frames"] > 0
+    import json
+    diagnostics = [json.loads(m.data) for m in iter_all(daemon.storage.files_written[0])
+                   if m.data.startswith(b'{"t_mono_ns"') and b'"sources"' in m.data]
+    said = [line for d in diagnostics for line in d["messages"]]
+    assert any("hts221" in line and "does not answer" in line for line in said)
+
+
+def test_systemd_ready_and_watchdog_only_while_alive(tmp_path):
+    notify_path = tmp_path / "notify.sock"
+    server = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    server.bind(str(notify_path))
+    server.setblocking(False)
+
+    async def kill_the_i2c_thread(daemon):
+        await asyncio.sleep(1.6)
+        i2c = next(s for s in daemon.sources if s.name == "i2c")
+        i2c._stop.set()
+        await asyncio.sleep(1.5)
+        assert not daemon.alive()
+        daemon.notifier.sent.append("--- i2c dead ---")
+
+    daemon, code = _run(tmp_path, 3.5, notify_path=notify_path, during=kill_the_i2c_thread)
+    received = []
+    while True:
+        try:
+            received.append(server.recv(4096).decode())
+        except BlockingIOError:
+            break
+    server.close()
+    assert received[0].startswith("READY=1")
+    assert any(r.startswith("WATCHDOG=1") for r in received)
+    sent = daemon.notifier.sent
+    dead_at = sent.index("--- i2c dead ---")
+    assert any(s.startswith("WATCHDOG=1") for s in sent[:dead_at])
+    assert not any(s.startswith("WATCHDOG=1") for s in sent[dead_at:])
+
+
+def test_no_notify_socket_means_no_notifications(full_rate):
+    _, daemon, _ = full_rate
+    assert daemon.notifier.sent == []
