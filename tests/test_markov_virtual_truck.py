@@ -67,3 +67,20 @@ def test_statistics_of_many_candidates_converge_towards_the_input(truths):
         error[duration] = np.abs(np.median(stats[:, :, :2], axis=0) / measured[:, :2] - 1)[[0, 3]]
     assert np.all(error[14_400] < 0.05), error[14_400]
     assert error[14_400].sum() < error[900].sum()
+
+
+def test_a_generated_cycle_is_a_route_the_virtual_truck_drives(selections, tmp_path):
+    from analysis.markov import write_cycle
+    cycle = selections["urban-delivery"].cycle
+    write_cycle(cycle, tmp_path)
+    (tmp_path / "generated.toml").write_text(
+        '[scenario]\nname = "generated"\nvehicle = "rigid-18t"\nstart_latitude_deg = 50.78\n'
+        'start_longitude_deg = 6.08\nstart_time = 2025-03-04T08:00:00Z\n\n'
+        '[route]\nvdri = "cycle.vdri"\n\n[payload]\ninitial_kg = 5000.0\n')
+    truth = virtual_truck.drive(virtual_truck.load_scenario(tmp_path / "generated.toml"), seed=0).truth
+    assert truth["distance_m"].iloc[-1] == pytest.approx(cycle["distance_m"].iloc[-1], rel=0.01)
+    driven_gradient = np.interp(cycle["distance_m"], truth["distance_m"], truth["gradient_pct"])
+    assert np.mean(np.abs(driven_gradient - cycle["gradient_pct"])) < 0.2
+    stops_in_cycle = np.sum(np.diff((cycle["speed_mps"].to_numpy() == 0).astype(int)) == 1)
+    stops_driven = np.sum(np.diff((truth["speed_mps"].to_numpy() < 0.05).astype(int)) == 1)
+    assert stops_driven == pytest.approx(stops_in_cycle, abs=max(2, 0.2 * stops_in_cycle))
