@@ -70,7 +70,9 @@ class BinAccumulator:
     def mark_recorded(self, time_ns: np.ndarray) -> None:
         """Note that the logger recorded something at these times (defines ``valid``)."""
         if len(time_ns):
-            self._activity.append(np.unique(np.asarray(time_ns, dtype=np.int64) // self.period_ns))
+            bins = np.asarray(time_ns, dtype=np.int64) // self.period_ns
+            runs = bins[np.flatnonzero(np.diff(bins, prepend=bins[0] - 1))]  # mostly sorted: few runs
+            self._activity.append(np.unique(runs))
 
     def bin_range(self) -> tuple[int, int] | None:
         """(first bin, number of bins) covering every recorded time; None if nothing was."""

@@ -28,7 +28,7 @@ def data_u64(frames: np.ndarray) -> np.ndarray:
 
 def pgn_and_source(arbitration_id: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """PGN (destination cleared for PDU1) and source address of 29-bit identifiers."""
-    ids = arbitration_id.astype(np.uint32)
+    ids = arbitration_id.astype(np.uint32, copy=False)
     pgn = (ids >> 8) & 0x3FFFF
     pdu1 = ((pgn >> 8) & 0xFF) < 240
     pgn = np.where(pdu1, pgn & 0x3FF00, pgn)
@@ -59,28 +59,45 @@ class DecodedPgn:
     values: dict[str, np.ndarray]
 
 
-def decode_block(frames: np.ndarray, pgns=None) -> dict[int, DecodedPgn]:
+@dataclass
+class FrameColumns:
+    """Columns of a block of frames computed once and shared by every decoder."""
+
+    time_ns: np.ndarray
+    pgn: np.ndarray
+    source: np.ndarray
+    is_j1939: np.ndarray
+    words: np.ndarray
+
+    @classmethod
+    def of(cls, frames: np.ndarray) -> "FrameColumns":
+        pgn, source = pgn_and_source(frames["arbitration_id"])
+        return cls(frames["t_mono_ns"].astype(np.int64), pgn, source, j1939_frames(frames), data_u64(frames))
+
+
+SINGLE_FRAME_PGNS = tuple(sorted({s.pgn for s in j1939.SPNS.values()} - set(j1939.PGN_LENGTH)))
+
+
+def decode_block(frames: np.ndarray, pgns=SINGLE_FRAME_PGNS, columns: FrameColumns | None = None
+                 ) -> dict[int, DecodedPgn]:
     """Decode every single-frame PGN of ``pgns`` (default: all in `logger.j1939.SPNS`) in ``frames``."""
-    wanted = sorted({s.pgn for s in j1939.SPNS.values()} - set(j1939.PGN_LENGTH)) if pgns is None else pgns
-    ok = j1939_frames(frames)
-    pgn, source = pgn_and_source(frames["arbitration_id"])
+    c = columns if columns is not None else FrameColumns.of(frames)
     out = {}
-    for number in wanted:
-        mask = ok & (pgn == number)
-        if not mask.any():
+    for number in pgns:
+        index = np.flatnonzero(c.is_j1939 & (c.pgn == number))
+        if len(index) == 0:
             continue
-        chosen = frames[mask]
-        words = data_u64(chosen)
+        words = c.words[index]
         values = {s.name: spn_values(s, words) for s in j1939.spns_of(number)
                   if s.bit_offset + s.length_bits <= 64}
-        out[number] = DecodedPgn(number, chosen["t_mono_ns"].astype(np.int64), source[mask], values)
+        out[number] = DecodedPgn(number, c.time_ns[index], c.source[index], values)
     return out
 
 
-def tp_frames(frames: np.ndarray) -> np.ndarray:
+def tp_frames(frames: np.ndarray, columns: FrameColumns | None = None) -> np.ndarray:
     """The TP.CM and TP.DT frames of a block (kept for reassembly after all blocks are read)."""
-    pgn, _ = pgn_and_source(frames["arbitration_id"])
-    return frames[j1939_frames(frames) & np.isin(pgn, TP_PGNS)]
+    c = columns if columns is not None else FrameColumns.of(frames)
+    return frames[c.is_j1939 & ((c.pgn == TP_PGNS[0]) | (c.pgn == TP_PGNS[1]))]
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,10 @@ def _response_mask(ids: np.ndarray, extended: np.ndarray) -> np.ndarray:
 
 def obd_frames(frames: np.ndarray) -> np.ndarray:
     """Mode 01 request and response frames of a block (kept for matching after all blocks)."""
+    ids = frames["arbitration_id"]
+    # cheap first cut: 0x7DF-0x7EF, or 29-bit 0x18DA..../0x18DB....
+    candidates = np.flatnonzero(((ids >= 0x7DF) & (ids <= 0x7EF)) | ((ids >> 17) == (0x18DA0000 >> 17)))
+    frames = frames[candidates]
     flags = frames["flags"]
     data_frame = (flags & (CAN_FLAG_REMOTE | CAN_FLAG_ERROR)) == 0
     extended = (flags & CAN_FLAG_EXTENDED) != 0

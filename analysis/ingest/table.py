@@ -190,11 +190,11 @@ class Ingest:
         if len(frames) == 0:
             return
         self.can_frames += len(frames)
-        t_all = frames["t_mono_ns"].astype(np.int64)
-        self.acc.mark_recorded(t_all)
-        for pgn, decoded in j1939_decode.decode_block(frames).items():
+        columns = j1939_decode.FrameColumns.of(frames)
+        self.acc.mark_recorded(columns.time_ns)
+        for decoded in j1939_decode.decode_block(frames, columns=columns).values():
             self._add_decoded(decoded)
-        self.tp_parts.append(j1939_decode.tp_frames(frames))
+        self.tp_parts.append(j1939_decode.tp_frames(frames, columns))
         self.obd_parts.append(obd_decode.obd_frames(frames))
         if self.database is not None:
             for name, (t, values) in dbc_module.decode_frames(self.database, frames, self.dbc_messages).items():
