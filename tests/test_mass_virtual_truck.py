@@ -40,7 +40,10 @@ def test_per_segment_mass_meets_targets_on_every_scenario(estimates):
     every = []
     for name, (result, truth) in estimates.items():
         errors = _errors(result, truth)
-        print(name, [f"{100 * e:.2f} %" for e in errors])
+        print(name, "LS", [f"{100 * e:.2f} %" for e in errors],
+              "RLS", [f"{100 * e:.2f} %" for e in _errors(result, truth, "mass_rls_kg")],
+              "LM", [f"{100 * e:.2f} %" for e in _errors(result, truth, "mass_lm_kg")],
+              "CAN", [f"{100 * e:.2f} %" for e in _errors(result, truth, "reported_mass_kg")])
         assert errors, f"{name}: no segment over 5 minutes got a confident mass"
         assert np.median(errors) <= 0.03 and max(errors) <= 0.06, (name, errors)
         every += errors
