@@ -1,9 +1,14 @@
 """Representative driving cycles from sparse 2D Markov chains (paper §2.3, docs/cycles.md)."""
+
+from .chain import Chain, build_chain
 from .classes import ClassWidths
 from .counting import TransitionCounts, count_transitions, resample_1hz
-from .chain import Chain, build_chain
-from .generate import Candidates, generate
 from .criteria import Criteria, evaluate
-from .select import Selection, select_cycle
 from .export import cycle_to_vdri, vdri_to_time_cycle, write_cycle
+from .generate import Candidates, generate
+from .select import Selection, select_cycle
 from .stage import stage
+
+__all__ = ["Candidates", "Chain", "ClassWidths", "Criteria", "Selection", "TransitionCounts", "build_chain",
+           "count_transitions", "cycle_to_vdri", "evaluate", "generate", "resample_1hz", "select_cycle", "stage",
+           "vdri_to_time_cycle", "write_cycle"]

@@ -1,0 +1,66 @@
+"""The chain: loop closing between stops, pruning of dead ends and censored parking, start states."""
+
+import numpy as np
+
+from analysis.markov import ClassWidths, TransitionCounts, build_chain, count_transitions, generate
+from analysis.markov import classes as cls
+from analysis.markov.counting import _closures, physically_possible
+
+WIDTHS = ClassWidths()
+
+
+def _keys(v, g, m):
+    return cls.encode(np.array(v), np.array(g), np.array(m))
+
+
+def test_closing_links_the_final_stop_to_a_stop_at_the_same_gradient_never_within_one_stop():
+    # stop at g=2 (t0-1), drive, stop at g=5 (t4-5), drive, final stop at g=5 (t8-9)
+    segment = _keys([0, 0, 3, 4, 0, 0, 6, 2, 0, 0], [2, 2, 3, 4, 5, 5, 5, 5, 5, 5], [150] * 10)
+    closing_from, closing_to = _closures([segment])
+    assert (closing_from.tolist(), closing_to.tolist()) == ([segment[9]], [segment[4]])
+    assert physically_possible(closing_from, closing_to).all()
+    # no other stop at the final gradient, none at the initial one: nothing to close
+    lonely = _keys([0, 0, 3, 4, 0, 0], [2, 2, 3, 4, 7, 7], [150] * 6)
+    assert len(_closures([lonely])[0]) == 0
+
+
+def test_closing_links_logs_given_together_and_changes_mass_only_at_standstill():
+    first = _keys([0, 0, 5, 5, 0, 0], [1, 1, 2, 3, 4, 4], [150] * 6)
+    second = _keys([0, 0, 5, 5, 0, 0], [4, 4, 3, 2, 1, 1], [120] * 6)
+    closing_from, closing_to = _closures([first, second])
+    pairs = set(zip(closing_from.tolist(), closing_to.tolist()))
+    assert (first[5], second[0]) in pairs and (second[5], first[0]) in pairs
+    v0, g0, m0 = cls.decode(closing_from)
+    v1, g1, m1 = cls.decode(closing_to)
+    assert np.all(v0 == 0) and np.all(v1 == 0) and np.all(g0 == g1) and np.any(m0 != m1)
+
+
+def test_pruning_removes_dead_ends_and_a_stop_never_left():
+    s, a, b, dead, p = _keys([0, 3, 5, 7, 0], [0, 0, 0, 0, 1], [150] * 5)
+    # S → A → B → S (a loop), B → dead (never left), A → P → P (a parking never left)
+    counts = TransitionCounts(WIDTHS, np.array([s, a, b, b, a, p]), np.array([a, b, s, dead, p, p]),
+                              np.array([1, 1, 1, 1, 1, 5]), start_key=np.array([s]), start_count=np.array([1]))
+    chain = build_chain(counts)
+    assert sorted(chain.keys.tolist()) == sorted([s, a, b])
+    assert np.all(np.diff(chain.row_ptr) > 0)
+    assert chain.transitions_left_out == 7
+    assert chain.keys[chain.start_state].tolist() == [s]
+    paths = generate(chain, 300, 5, seed=0).paths
+    assert set(chain.keys[paths].ravel().tolist()) == {s, a, b}
+
+
+def test_one_way_drive_keeps_its_start_and_drops_its_censored_final_stop():
+    rng = np.random.default_rng(3)
+    cruise = 20 + rng.integers(-1, 2, 600)
+    speed_kmh = np.concatenate([np.zeros(20), np.linspace(0, 20, 21), cruise, np.linspace(20, 0, 21), np.zeros(30)])
+    drive = {"speed_mps": speed_kmh / 3.6, "gradient_pct": np.where(np.arange(len(speed_kmh)) < 300, 1.0, -2.0),
+             "mass_kg": np.full(len(speed_kmh), 15_000.0)}
+    counts = count_transitions(drive)
+    chain = build_chain(counts)
+    assert counts.n_closed == 0
+    final_stop = cls.encode([0], [-4], [150])[0]
+    assert final_stop in counts.to_key and final_stop not in chain.keys
+    start = cls.encode([0], [2], [150])[0]
+    assert chain.keys[chain.start_state].tolist() == [start]
+    candidate = generate(chain, 1800, 1, seed=0).frame(0)
+    assert candidate["speed_mps"].iloc[-600:].min() > 0
