@@ -48,6 +48,7 @@ def stage(ctx) -> None:
         "sources": [s for s, c in (("map", "gradient_map_pct"), ("baro", "gradient_baro_pct"),
                                    ("imu", "gradient_imu_pct")) if c in grid.columns],
         "mean_map_weight": float(np.mean(grid["weight_map"])),
+        "map_sigma_m": result.map_sigma_m,
         "gradient_pct": {"mean": float(np.nanmean(gradient)), "min": float(np.nanmin(gradient)),
                          "max": float(np.nanmax(gradient))},
         "height_gain_m": float(np.sum(np.clip(np.diff(grid["height_m"].to_numpy()), 0, None))),

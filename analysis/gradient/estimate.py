@@ -72,9 +72,6 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     distance = _column(frame, "distance_m")
     if distance is None:
         distance = kinematics.distance_m(time_s, speed)
-    accel = _column(frame, "accel_mps2")
-    if accel is None:
-        accel = kinematics.acceleration_mps2(time_s, speed)
     valid = np.isfinite(distance)
     if "valid" in frame.columns:
         valid &= frame["valid"].to_numpy(dtype=bool)
@@ -84,108 +81,135 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     index = np.where(valid, distance_grid.grid_index(distance, spacing), -1)
     n_bins = int(index.max()) + 1
     s_grid = np.arange(n_bins) * spacing
-    rate_hz = _sample_rate_hz(time_s)
     out = pd.DataFrame({"distance_m": s_grid})
 
+    map_bins = _map_bins(frame, dem, distance, valid, index, n_bins, settings, notes)
     map_level = map_slope = None
     weight_map = np.zeros(n_bins)
-    lat, lon = _column(frame, "latitude_deg"), _column(frame, "longitude_deg")
-    if dem is not None and lat is not None and lon is not None:
-        east, north = sources.local_east_north_m(lat, lon)
-        jumped = sources.gps_outliers(east, north, distance, time_s, settings.gps_jump_tolerance_m,
-                                      settings.gps_reacquire_s)
-        n_jumps = int(np.sum(jumped & np.isfinite(lat)))
-        if n_jumps:
-            notes.append(f"{n_jumps} GPS fixes left out of map-matching (jumped away from the wheel-speed track)")
-        fix_ok = valid & ~jumped
-        terrain = np.full(len(frame), np.nan)
-        terrain[fix_ok] = dem.height_m(lat[fix_ok], lon[fix_ok])
-        h_acc, v_acc = _column(frame, "gps_h_acc_m"), _column(frame, "gps_v_acc_m")
-        if h_acc is None or v_acc is None:
-            notes.append("no GPS accuracy columns: map weight 1 wherever there is a fix")
-            accuracy_weight = np.ones(len(frame))
-        else:
-            accuracy_weight = sources.map_weight(h_acc, v_acc)
-        accuracy_weight = np.where(np.isfinite(terrain), accuracy_weight, np.nan)
-        bin_terrain = distance_grid.bin_mean(index, terrain, n_bins)
-        bin_weight = np.nan_to_num(distance_grid.bin_mean(index, accuracy_weight, n_bins))
+    map_sigma = None
+    if map_bins is not None:
         map_sigma = settings.map_sigma_m or settings.default_map_sigma_m
-        map_level, map_slope, weight_map = _map_fit(bin_terrain, bin_weight, spacing, map_sigma)
-    elif dem is None:
-        notes.append("no DEM: map-matching off")
-    else:
-        notes.append("no GPS position columns (latitude_deg, longitude_deg): map-matching off")
-    out["weight_map"] = weight_map
+        map_level, map_slope, weight_map = _map_fit(*map_bins, spacing, map_sigma)
 
     baro_level = baro_slope = None
-    pressure = _column(frame, "pressure_pa")
-    if pressure is not None:
-        pressure = sources.stuck_to_nan(pressure, max(3, int(settings.stuck_sensor_s * rate_hz)))
-        baro = sources.freeze_at_standstill(sources.barometric_height_m(pressure), speed, time_s)
-        bin_baro = distance_grid.bin_mean(index, baro, n_bins)
-        temperature = _column(frame, "air_temperature_c")
-        if temperature is not None and settings.use_air_temperature:
-            bin_baro = _temperature_corrected(bin_baro, distance_grid.bin_mean(index, temperature, n_bins))
-        if map_level is not None and np.any(weight_map > 0):
-            offset, _, _ = distance_grid.local_linear(map_level - bin_baro, weight_map, spacing, settings.anchor_sigma_m)
-            offset = _fill_nan(s_grid, offset)
-        else:
-            offset = np.zeros(n_bins)
-            gps_alt = _column(frame, "gps_altitude_m")
-            if gps_alt is not None:
-                gap = distance_grid.bin_mean(index, gps_alt - baro, n_bins)
-                offset[:] = np.nanmedian(gap) if np.isfinite(gap).any() else 0.0
+    bin_baro = _baro_bins(frame, speed, time_s, index, n_bins, settings, notes)
+    if bin_baro is not None:
+        offset = _baro_offset(frame, bin_baro, map_level, weight_map, index, n_bins, s_grid, settings)
         anchored = bin_baro + offset
-        baro_level, baro_slope, baro_support = distance_grid.local_linear(
-            anchored, np.isfinite(anchored).astype(float), spacing, settings.baro_sigma_m)
-        if map_level is not None and settings.map_sigma_m is None:
-            map_sigma = _best_map_sigma(bin_terrain, bin_weight, spacing, baro_slope, weight_map,
-                                        settings.map_sigma_candidates_m)
-            map_level, map_slope, weight_map = _map_fit(bin_terrain, bin_weight, spacing, map_sigma)
+        baro_level, baro_slope, _ = distance_grid.local_linear(anchored, np.isfinite(anchored).astype(float),
+                                                               spacing, settings.baro_sigma_m)
+        if map_bins is not None and settings.map_sigma_m is None:
+            map_sigma = _best_map_sigma(*map_bins, spacing, baro_slope, weight_map, settings.map_sigma_candidates_m)
+            map_level, map_slope, weight_map = _map_fit(*map_bins, spacing, map_sigma)
             notes.append(f"map-matching smoothed with sigma {map_sigma:g} m (best agreement with the barometer)")
-        if np.isnan(bin_baro).mean() > 0.01 and np.isfinite(bin_baro).any():
-            notes.append(f"barometer missing on {100 * np.isnan(bin_baro).mean():.0f} % of the distance")
         out["height_baro_m"] = baro_level
         out["gradient_baro_pct"] = 100 * baro_slope
-    else:
-        notes.append("no pressure_pa: barometric height off")
+    if map_level is not None:
+        out["height_map_m"] = map_level
+        out["gradient_map_pct"] = 100 * map_slope
+    out["weight_map"] = weight_map
 
     accel_imu = _column(frame, "accel_x_mps2")
     if accel_imu is not None:
+        accel = _column(frame, "accel_mps2")
+        accel = kinematics.acceleration_mps2(time_s, speed) if accel is None else accel
         sin_angle = distance_grid.bin_mean(index, sources.imu_sin_angle(accel_imu, accel), n_bins)
         level, _, _ = distance_grid.local_linear(sin_angle, np.ones(n_bins), spacing, settings.imu_sigma_m)
         out["gradient_imu_pct"] = 100 * np.tan(np.arcsin(np.clip(level, -1, 1)))
 
-    if map_level is not None:
-        out["height_map_m"] = map_level
-        out["gradient_map_pct"] = 100 * map_slope
-        out["weight_map"] = weight_map
     if map_slope is None and baro_slope is None:
         raise UserError("gradient: needs a DEM (--dem DIR) with GPS positions, or a barometer (pressure_pa); "
                         "this input has neither")
+    fused_slope = _fuse(map_slope, weight_map, baro_slope, s_grid, notes)
+    fused_height = _integrate(fused_slope, spacing)
+    fused_height += _height_offset(fused_height, map_level, weight_map, baro_level)
+    out["height_m"] = fused_height
+    out["gradient_pct"] = 100 * fused_slope
+
+    samples = {name: np.interp(distance, s_grid, out[name].to_numpy(), left=np.nan, right=np.nan)
+               for name in out.columns if name != "distance_m"}
+    return GradientResult(grid=out, samples=samples, notes=notes, map_sigma_m=map_sigma)
+
+
+def _map_bins(frame, dem, distance, valid, index, n_bins, settings, notes):
+    """Per-bin DEM height [m] at the GPS fixes and per-bin accuracy weight, or None without map."""
+    lat, lon = _column(frame, "latitude_deg"), _column(frame, "longitude_deg")
+    if dem is None:
+        notes.append("no DEM: map-matching off")
+        return None
+    if lat is None or lon is None:
+        notes.append("no GPS position columns (latitude_deg, longitude_deg): map-matching off")
+        return None
+    time_s = frame["time_s"].to_numpy(dtype=float)
+    east, north = sources.local_east_north_m(lat, lon)
+    jumped = sources.gps_outliers(east, north, distance, time_s, settings.gps_jump_tolerance_m,
+                                  settings.gps_reacquire_s)
+    n_jumps = int(np.sum(jumped & np.isfinite(lat)))
+    if n_jumps:
+        notes.append(f"{n_jumps} GPS fixes left out of map-matching (jumped away from the wheel-speed track)")
+    fix_ok = valid & ~jumped
+    terrain = np.full(len(frame), np.nan)
+    terrain[fix_ok] = dem.height_m(lat[fix_ok], lon[fix_ok])
+    h_acc, v_acc = _column(frame, "gps_h_acc_m"), _column(frame, "gps_v_acc_m")
+    if h_acc is None or v_acc is None:
+        notes.append("no GPS accuracy columns: map weight 1 wherever there is a fix")
+        accuracy_weight = np.ones(len(frame))
+    else:
+        accuracy_weight = sources.map_weight(h_acc, v_acc)
+    accuracy_weight = np.where(np.isfinite(terrain), accuracy_weight, np.nan)
+    return (distance_grid.bin_mean(index, terrain, n_bins),
+            np.nan_to_num(distance_grid.bin_mean(index, accuracy_weight, n_bins)))
+
+
+def _baro_bins(frame, speed, time_s, index, n_bins, settings, notes):
+    """Per-bin barometric height (6) [m], stuck readings dropped and standstill frozen, or None."""
+    pressure = _column(frame, "pressure_pa")
+    if pressure is None:
+        notes.append("no pressure_pa: barometric height off")
+        return None
+    pressure = sources.stuck_to_nan(pressure, max(3, int(settings.stuck_sensor_s * _sample_rate_hz(time_s))))
+    baro = sources.freeze_at_standstill(sources.barometric_height_m(pressure), speed, time_s)
+    bin_baro = distance_grid.bin_mean(index, baro, n_bins)
+    temperature = _column(frame, "air_temperature_c")
+    if temperature is not None and settings.use_air_temperature:
+        bin_baro = _temperature_corrected(bin_baro, distance_grid.bin_mean(index, temperature, n_bins))
+    missing = np.isnan(bin_baro).mean()
+    if missing == 1:
+        notes.append("pressure_pa never changes while driving (a stopped sensor): barometric height off")
+    elif missing > 0.01:
+        notes.append(f"barometer missing on {100 * missing:.0f} % of the distance")
+    return bin_baro if missing < 1 else None
+
+
+def _baro_offset(frame, bin_baro, map_level, weight_map, index, n_bins, s_grid, settings):
+    """Baseline [m] added to the barometric height: the w_map-weighted local level of
+    (map - baro) over ``anchor_sigma_m``; without a map, the median offset to the GPS altitude."""
+    if map_level is not None and np.any(weight_map > 0):
+        offset, _, _ = distance_grid.local_linear(map_level - bin_baro, weight_map, settings.spacing_m,
+                                                  settings.anchor_sigma_m)
+        return _fill_nan(s_grid, offset)
+    gps_altitude = _column(frame, "gps_altitude_m")
+    if gps_altitude is None:
+        return np.zeros(n_bins)
+    gap = distance_grid.bin_mean(index, gps_altitude, n_bins) - bin_baro
+    return np.full(n_bins, np.nanmedian(gap) if np.isfinite(gap).any() else 0.0)
+
+
+def _fuse(map_slope, weight_map, baro_slope, s_grid, notes):
+    """(8): (w_map g_map + w_baro g_baro) / (w_map + w_baro) [-]; bins with no source interpolated."""
+    n_bins = len(s_grid)
     w_map = weight_map if map_slope is not None else np.zeros(n_bins)
     w_baro = sources.WEIGHT_BARO * np.isfinite(baro_slope) if baro_slope is not None else np.zeros(n_bins)
     g_map = np.nan_to_num(map_slope) if map_slope is not None else np.zeros(n_bins)
     g_baro = np.nan_to_num(baro_slope) if baro_slope is not None else np.zeros(n_bins)
     total = w_map + w_baro
     with np.errstate(invalid="ignore", divide="ignore"):
-        fused_slope = np.where(total > 0, (w_map * g_map + w_baro * g_baro) / total, np.nan)
-    if np.isnan(fused_slope).any():
-        notes.append(f"no source on {100 * np.isnan(fused_slope).mean():.1f} % of the distance: gradient "
+        fused = np.where(total > 0, (w_map * g_map + w_baro * g_baro) / total, np.nan)
+    if np.isnan(fused).any():
+        notes.append(f"no source on {100 * np.isnan(fused).mean():.1f} % of the distance: gradient "
                      f"interpolated across")
-        fused_slope = _fill_nan(s_grid, fused_slope, fill=0.0)
-    fused_height = _integrate(fused_slope, spacing)
-    fused_height += _height_offset(fused_height, map_level, w_map, baro_level)
-    out["height_m"] = fused_height
-    out["gradient_pct"] = 100 * fused_slope
-
-    samples = {}
-    for name in out.columns:
-        if name != "distance_m":
-            samples[name] = np.interp(distance, s_grid, out[name].to_numpy(), left=np.nan, right=np.nan)
-    for name in ("height_m", "gradient_pct"):
-        samples[name] = np.where(np.isfinite(distance), samples[name], np.nan)
-    return GradientResult(grid=out, samples=samples, notes=notes, map_sigma_m=map_sigma if map_level is not None else None)
+        fused = _fill_nan(s_grid, fused, fill=0.0)
+    return fused
 
 
 def _map_fit(bin_terrain, bin_weight, spacing_m, sigma_m):
