@@ -89,6 +89,7 @@ def test_lsm9ds1_fifo_delivers_every_sample_at_952_hz():
         for _, payload, _, _ in driver.poll():
             samples.append(contract.unpack(contract.IMU, payload))
         time.sleep(0.008)
+    samples.extend(contract.unpack(contract.IMU, payload) for _, payload, _, _ in driver.flush())
     samples = np.concatenate(samples)
     model = bus.models["lsm9ds1"]
     assert model.overwritten == 0 and driver.overruns == 0
@@ -103,11 +104,11 @@ def test_lsm9ds1_fifo_delivers_every_sample_at_952_hz():
 
 def test_lsm9ds1_overrun_is_counted_when_polled_too_late():
     bus, clock = board()
-    driver = Lsm9ds1(bus, 0x6B, clock, 952.0)
+    driver = Lsm9ds1(bus, 0x6B, clock, 952.0, batch_s=0.0)
     driver.configure()
     time.sleep(0.1)
     out = driver.poll()
-    assert out[0][3] == 32
+    assert out[0][3] == 32 and len(out[0][1]) == 32 * contract.IMU_SAMPLE_DTYPE.itemsize
     assert driver.overruns == 1 and bus.models["lsm9ds1"].overwritten > 0
 
 

@@ -97,7 +97,7 @@ def test_kill_9_twenty_times(tmp_path):
         try:
             path = _wait_for_file(directory, set(known))
             file_seen_ns = time.monotonic_ns()
-            time.sleep(rng.uniform(0.2, 1.8))
+            time.sleep(rng.uniform(0.2, 1.4))
             killed_at_ns = time.monotonic_ns()
             os.kill(process.pid, signal.SIGKILL)
             process.join(10)
@@ -124,9 +124,9 @@ def test_sigterm_closes_the_file_with_its_summary(tmp_path):
     process = subprocess.Popen([sys.executable, "-m", "logger.cli", "--config", str(config)],
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     path = _wait_for_file(directory, set())
-    time.sleep(1.5)
+    time.sleep(1.2)
     process.send_signal(signal.SIGHUP)
-    time.sleep(1.0)
+    time.sleep(0.8)
     process.send_signal(signal.SIGTERM)
     assert process.wait(20) == 0, process.stderr.read().decode()
     files = sorted(directory.glob("*.mcap"))

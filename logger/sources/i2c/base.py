@@ -60,6 +60,10 @@ class Driver:
     def poll(self) -> list:
         raise NotImplementedError
 
+    def flush(self) -> list:
+        """What the driver still holds (batched samples), in `poll`'s format; called at the end."""
+        return []
+
     def channel_metadata(self) -> dict[str, dict[str, str]]:
         return {}
 
@@ -117,6 +121,7 @@ class I2cBusSource(Source):
             if wait_ns > 0:
                 clock.thread_sleep(min(wait_ns * 1e-9, tick_s))
         final = self._poll_round({d.name: 0 for d in self.drivers}, clock.monotonic_ns())
+        final += [(d.name, out, 0, None) for d in self.drivers if (out := d.flush())]
         if final:
             self._loop.call_soon_threadsafe(self._emit_all, final)
 

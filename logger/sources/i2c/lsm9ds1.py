@@ -2,14 +2,14 @@
 
 The FIFO runs in continuous mode; each poll reads FIFO_SRC for the number of unread samples and
 then each sample's gyroscope (OUT_X_L_G..) and accelerometer (OUT_X_L_XL..) words, so no sample is
-lost between polls. An overrun flag (OVRN) is counted as a drop.
+lost between polls. An overrun flag (OVRN) is counted as a drop. Samples are handed to the writer
+in batches of ``batch_s`` (one ``/imu`` message per 0.1 s by default).
 """
 
 from __future__ import annotations
 
 import math
-
-import numpy as np
+import struct
 
 from ... import contract
 from .base import AUTO_INCREMENT, Driver, s16
@@ -48,6 +48,8 @@ MAG_ODR_CODE = {0.625: 0, 1.25: 1, 2.5: 2, 5.0: 3, 10.0: 4, 20.0: 5, 40.0: 6, 80
 MAG_SENSITIVITY_GAUSS = 0.14e-3
 """±4 gauss full scale [gauss/LSB]."""
 STANDARD_GRAVITY = 9.80665
+_STAMP = struct.Struct("<Q")
+"""Start of one `contract.IMU_SAMPLE_DTYPE` record; the output registers' little-endian words follow."""
 
 
 def accel_scale_mps2_per_lsb(range_g: int) -> float:
@@ -65,13 +67,16 @@ class Lsm9ds1(Driver):
     who_am_i = WHO_AM_I_AG
 
     def __init__(self, bus, address: int, clock, odr_hz: float = 952.0, accel_range_g: int = 4,
-                 gyro_range_dps: int = 245):
+                 gyro_range_dps: int = 245, batch_s: float = 0.1):
         super().__init__(bus, address, clock)
         self.odr_hz = odr_hz
         self.accel_range_g = accel_range_g
         self.gyro_range_dps = gyro_range_dps
         self.poll_interval_s = max(4.0 / odr_hz, 0.004)
         self._period_ns = int(1e9 / odr_hz)
+        self.batch_ns = int(batch_s * 1e9)
+        self._pending = bytearray()
+        self._pending_count = 0
 
     def configure(self) -> None:
         w = self.bus.write_byte_data
@@ -90,24 +95,31 @@ class Lsm9ds1(Driver):
             "accel_range_g": str(self.accel_range_g), "gyro_range_dps": str(self.gyro_range_dps)}}
 
     def poll(self) -> list:
+        """Read what the FIFO holds; hand out one ``/imu`` message per ``batch_s`` of samples."""
         src = self.bus.read_byte_data(self.address, FIFO_SRC)
         t_mono_ns = self.clock.monotonic_ns()
         if src & FIFO_SRC_OVRN:
             self.overruns += 1
         n = src & FIFO_SRC_FSS
-        if n == 0:
-            return []
-        samples = np.zeros(n, dtype=contract.IMU_SAMPLE_DTYPE)
         read = self.bus.read_i2c_block_data
-        raw = bytearray()
-        for _ in range(n):
-            raw += bytes(read(self.address, OUT_X_L_G, 6))
-            raw += bytes(read(self.address, OUT_X_L_XL, 6))
-        words = np.frombuffer(bytes(raw), dtype="<i2").reshape(n, 6)
-        samples["gyro_raw"] = words[:, 0:3]
-        samples["accel_raw"] = words[:, 3:6]
-        samples["t_mono_ns"] = t_mono_ns - self._period_ns * np.arange(n - 1, -1, -1, dtype=np.uint64)
-        return [(contract.IMU, contract.pack(contract.IMU, samples), int(samples["t_mono_ns"][0]), n)]
+        pack = _STAMP.pack
+        pending = self._pending
+        for i in range(n):
+            gyro = bytes(read(self.address, OUT_X_L_G, 6))
+            accel = bytes(read(self.address, OUT_X_L_XL, 6))
+            pending += pack(t_mono_ns - (n - 1 - i) * self._period_ns) + accel + gyro
+        self._pending_count += n
+        if self._pending_count * self._period_ns >= self.batch_ns:
+            return self.flush()
+        return []
+
+    def flush(self) -> list:
+        if not self._pending_count:
+            return []
+        payload, count = bytes(self._pending), self._pending_count
+        self._pending.clear()
+        self._pending_count = 0
+        return [(contract.IMU, payload, _STAMP.unpack_from(payload)[0], count)]
 
 
 class Lsm9ds1Magnetometer(Driver):

@@ -1,0 +1,180 @@
+"""Logger under full load, side by side with python-can's own logging path.
+
+Load (issue 3): J1939 broadcast at 1500 frames/s (the ECU emulator's broadcasts plus a traffic
+generator filling up to 1500/s), OBD-II polling at 30 Hz, LSM9DS1 at 952 Hz through its FIFO,
+LPS25HB 25 Hz, HTS221 12.5 Hz, magnetometer 10 Hz, GPS 10 Hz, for 60 s (10 s with --quick).
+The real daemon logs it; in the same process and on the same virtual CAN channel a python-can
+``Notifier`` feeds a ``BLFWriter`` (what ``python -m can.logger`` does), so both see the same
+frames at the same time.
+
+CPU is measured per thread with ``pthread_getcpuclockid``: the daemon's threads (event loop, CAN
+reader, I2C bus, fsync) minus the time spent inside the emulated SMBus (that is the sensors'
+work, not the logger's); the emulators and the generator run on threads of their own.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import resource
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+from bench import CACHE_DIR, result
+
+from logger import contract, j1939
+from logger.clock import Clock
+from logger.config import Config
+from logger.daemon import Daemon
+from logger.emulators import sensors
+from logger.emulators.ecu import BAM_PERIOD_S, BROADCAST_PERIODS_S
+from logger.emulators.rig import EmulatedDevices, emulation_config, run_daemon_for
+from logger.emulators.signals import TimeSeries, synthetic_drive
+
+TARGET_FRAMES_PER_S = 1500.0
+
+
+def _thread_cpu_s(thread: threading.Thread) -> float:
+    return time.clock_gettime(time.pthread_getcpuclockid(thread.ident))
+
+
+class _TimedSMBus(sensors.EmulatedSMBus):
+    """The emulated SMBus, keeping the CPU time spent inside it (sensor work, not logger work)."""
+
+    cpu_ns = 0
+
+    def _timed(self, method, *args):
+        start = time.thread_time_ns()
+        try:
+            return method(self, *args)
+        finally:
+            type(self).cpu_ns += time.thread_time_ns() - start
+
+    def read_byte_data(self, *args):
+        return self._timed(sensors.EmulatedSMBus.read_byte_data, *args)
+
+    def write_byte_data(self, *args):
+        return self._timed(sensors.EmulatedSMBus.write_byte_data, *args)
+
+    def read_i2c_block_data(self, *args):
+        return self._timed(sensors.EmulatedSMBus.read_i2c_block_data, *args)
+
+
+def _generator(channel: str, frames_per_s: float, stop: threading.Event, sent: list) -> None:
+    """Other ECUs' J1939 broadcasts (engine temperature, ambient, dash...) paced in 10 ms bursts."""
+    import can
+    bus = can.Bus(interface="virtual", channel=channel)
+    rng = np.random.default_rng(1500)
+    pgns = [65262, 65269, 65276, 65263, 65270, 61443, 65132, 65217, 64917, 65256]
+    messages = [can.Message(arbitration_id=j1939.make_id(pgns[i % len(pgns)], 0x10 + i % 7, 6),
+                            data=bytes(rng.integers(0, 256, 8, dtype=np.uint8)), is_extended_id=True)
+                for i in range(1000)]
+    start, k = time.monotonic(), 0
+    while not stop.is_set():
+        due = int((time.monotonic() - start) * frames_per_s)
+        while k < due:
+            bus.send(messages[k % len(messages)])
+            k += 1
+        time.sleep(0.01)
+    sent.append(k)
+    bus.shutdown()
+
+
+def _ecu_rate() -> float:
+    return sum(1.0 / p for p in BROADCAST_PERIODS_S.values()) + 7.0 / BAM_PERIOD_S
+
+
+def logger_full_load(quick: bool) -> list[dict]:
+    import can
+    duration_s = 10.0 if quick else 60.0
+    out_dir = Path(tempfile.mkdtemp(prefix="logger-", dir=CACHE_DIR))
+    config = emulation_config(out_dir / "ours", 1.0, Config())
+    config.can.j1939.request_interval_s = 10.0
+    clock = Clock()
+    sensors.EmulatedSMBus, original = _TimedSMBus, sensors.EmulatedSMBus
+    try:
+        devices = EmulatedDevices(TimeSeries(synthetic_drive(duration_s + 30)), clock).start(config)
+    finally:
+        sensors.EmulatedSMBus = original
+    daemon = Daemon(config, devices, clock)
+
+    peer_bus = can.Bus(interface="virtual", channel=config.can.channel)
+    blf_path = out_dir / "peer.blf"
+    peer_writer = can.BLFWriter(blf_path)
+    notifier = can.Notifier(peer_bus, [peer_writer], timeout=0.5)
+    stop, generated = threading.Event(), []
+    generator = threading.Thread(target=_generator, name="j1939-generator", daemon=True,
+                                 args=(config.can.channel, TARGET_FRAMES_PER_S - _ecu_rate(), stop, generated))
+    measured: dict[str, float] = {}
+
+    async def main():
+        task = asyncio.create_task(run_daemon_for(daemon, devices, duration_s + 1.5))
+        await daemon.ready.wait()
+        generator.start()
+        await asyncio.sleep(0.5)
+        logger_threads = [threading.main_thread()] + [
+            t for t in threading.enumerate() if t.name in ("can-reader", "i2c-bus") or t.name.startswith("fsync")]
+        peer_threads = list(notifier._readers) if hasattr(notifier, "_readers") else []
+        before = {t: _thread_cpu_s(t) for t in logger_threads + peer_threads}
+        smbus_before = _TimedSMBus.cpu_ns
+        can_reader = next(t for t in logger_threads if t.name == "can-reader")
+        peer_thread = peer_threads[0]
+        await asyncio.sleep(duration_s)
+        after = {t: _thread_cpu_s(t) for t in before if t.is_alive()}
+        measured["logger_cpu_s"] = sum(after[t] - before[t] for t in after if t not in peer_threads) - \
+            (_TimedSMBus.cpu_ns - smbus_before) * 1e-9
+        measured["can_reader_cpu_s"] = after[can_reader] - before[can_reader]
+        measured["peer_cpu_s"] = after[peer_thread] - before[peer_thread]
+        measured["threads"] = {t.name: round(after[t] - before[t], 3) for t in after if t not in peer_threads}
+        measured["threads"]["smbus_emulator"] = round((_TimedSMBus.cpu_ns - smbus_before) * 1e-9, 3)
+        stop.set()
+        return await task
+
+    asyncio.run(main())
+    generator.join(2)
+    notifier.stop()
+    peer_bus.shutdown()
+
+    path = daemon.storage.files_written[0]
+    from mcap.records import Channel, Message
+    from mcap.stream_reader import StreamReader
+    topics, frames_logged, imu_logged = {}, 0, 0
+    with open(path, "rb") as stream:
+        for record in StreamReader(stream).records:
+            if isinstance(record, Channel):
+                topics[record.id] = record.topic
+            elif isinstance(record, Message) and topics[record.channel_id] == "/can/frames":
+                frames = contract.unpack(contract.CAN_FRAMES, record.data)
+                frames_logged += int(np.count_nonzero(frames["flags"] & contract.CAN_FLAG_TX == 0))
+            elif isinstance(record, Message) and topics[record.channel_id] == "/imu":
+                imu_logged += len(contract.unpack(contract.IMU, record.data))
+    frames_on_bus = generated[0] + len(devices.ecu.sent)
+    peer_frames = sum(1 for _ in can.BLFReader(blf_path))
+    source_drops = sum(s.stats.drops for s in daemon.sources if s.name != "i2c")
+    sensor_losses = sum(m.overwritten for m in devices.board.models.values())
+    dropped = source_drops + sensor_losses + (frames_on_bus - frames_logged) + \
+        (len(devices.board.models["lsm9ds1"].served) - imu_logged)
+    run_s = duration_s + 1.8
+    ours_per_frame_us = measured["can_reader_cpu_s"] / frames_on_bus * 1e6
+    peer_per_frame_us = measured["peer_cpu_s"] / peer_frames * 1e6
+    size_mb = path.stat().st_size / 1e6
+    tag = "quick" if quick else "60s"
+    return [
+        result(f"logger_full_load_{tag}_cpu_s_per_hour", measured["logger_cpu_s"] / duration_s * 3600, "s/h",
+               percent_of_one_core=100 * measured["logger_cpu_s"] / duration_s, thread_cpu_s=measured["threads"]),
+        result(f"logger_full_load_{tag}_can_cpu_per_frame (ratio = peer/ours, >1: we are cheaper)",
+               ours_per_frame_us, "us/frame", "python-can Notifier+BLFWriter", peer_per_frame_us,
+               frames_on_bus=frames_on_bus, frames_logged=frames_logged, peer_frames=peer_frames,
+               whole_logger_us_per_frame=measured["logger_cpu_s"] / frames_on_bus * 1e6),
+        result(f"logger_full_load_{tag}_dropped_samples", dropped, "samples", source_drops=source_drops,
+               sensor_overruns=sensor_losses, imu_samples=imu_logged),
+        result(f"logger_full_load_{tag}_peak_rss", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "MiB",
+               note="whole benchmark process (logger, emulators and peer)"),
+        result(f"logger_full_load_{tag}_written", size_mb / run_s * 3600, "MB/h", "python-can BLF (CAN only)",
+               blf_path.stat().st_size / 1e6 / run_s * 3600),
+    ]
+
+
+BENCHMARKS = [logger_full_load]
