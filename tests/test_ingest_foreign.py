@@ -106,3 +106,14 @@ def test_stage_without_speed_says_so(tmp_path):
     ctx = RunContext(inputs=[log], out_dir=tmp_path)
     with pytest.raises(UserError, match="no vehicle speed"):
         stage(ctx)
+
+
+@pytest.mark.parametrize("name", ["junk.mf4", "junk.blf", "junk.asc", "junk.log"])
+def test_unreadable_foreign_log_is_a_one_line_error(tmp_path, name):
+    from analysis.errors import UserError
+
+    path = tmp_path / name
+    path.write_bytes(bytes(range(256)) * 20)
+    with pytest.raises(UserError) as raised:
+        ingest_logs([path])
+    assert "\n" not in str(raised.value) and name in str(raised.value)

@@ -53,7 +53,7 @@ def read_python_can(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarra
                 channel = msg.channel if isinstance(msg.channel, int) else 0
                 rows.append((int(round(msg.timestamp * 1e9)), msg.arbitration_id, flags, min(msg.dlc, 8),
                              channel & 0xFF, 0, tuple(data.ljust(8, b"\x00"))))
-    except (ValueError, OSError, EOFError, IndexError, KeyError) as exc:
+    except Exception as exc:  # noqa: BLE001 - python-can's parsers raise many types on damaged files
         if not rows:
             raise ForeignLogError(f"{path}: cannot read as a {path.suffix} CAN log ({exc})") from None
         # keep what was read before the damage, as for a cut MCAP log
@@ -77,32 +77,10 @@ def read_mf4(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
         mdf = MDF(str(path))
     except Exception as exc:  # asammdf raises many types for unreadable files
         raise ForeignLogError(f"{path}: cannot read as MF4 ({type(exc).__name__}: {exc})") from None
-    parts = []
     try:
-        for index, group in enumerate(mdf.groups):
-            names = {c.name for c in group.channels}
-            if "CAN_DataFrame.ID" not in names:
-                continue
-            get = lambda name: mdf.get(name, group=index, raw=True)  # noqa: E731
-            ids = get("CAN_DataFrame.ID")
-            data = get("CAN_DataFrame.DataBytes").samples
-            dlc = get("CAN_DataFrame.DLC").samples.astype(np.uint8)
-            ide = get("CAN_DataFrame.IDE").samples.astype(bool) if "CAN_DataFrame.IDE" in names else None
-            channel = (get("CAN_DataFrame.BusChannel").samples.astype(np.uint8)
-                       if "CAN_DataFrame.BusChannel" in names else np.zeros(len(dlc), np.uint8))
-            frames = np.zeros(len(dlc), CAN_FRAME_DTYPE)
-            frames["t_mono_ns"] = np.round(ids.timestamps * 1e9).astype(np.uint64)
-            frames["arbitration_id"] = ids.samples.astype(np.uint32) & 0x1FFFFFFF
-            extended = ide if ide is not None else ids.samples.astype(np.uint32) > 0x7FF
-            frames["flags"] = np.where(extended, CAN_FLAG_EXTENDED, 0)
-            frames["dlc"] = np.minimum(dlc, 8)
-            frames["channel"] = channel
-            width = min(8, data.shape[1]) if data.ndim == 2 else 0
-            frames["data"][:, :width] = data[:, :width]
-            # bytes beyond the DLC are zero (contract)
-            frames["data"][np.arange(8)[None, :] >= frames["dlc"][:, None]] = 0
-            parts.append(frames)
-        start_ns = int(mdf.start_time.timestamp() * 1e9)
+        parts, start_ns = _mf4_frames(mdf)
+    except Exception as exc:  # noqa: BLE001 - asammdf raises many types on damaged files
+        raise ForeignLogError(f"{path}: cannot read the CAN frames of this MF4 ({type(exc).__name__}: {exc})") from None
     finally:
         mdf.close()
     if not parts:
@@ -111,3 +89,32 @@ def read_mf4(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
     frames = frames[np.argsort(frames["t_mono_ns"], kind="stable")]
     mono = frames["t_mono_ns"][[0, -1]].astype(np.int64)
     return frames, (mono, mono + start_ns)
+
+
+def _mf4_frames(mdf) -> tuple[list[np.ndarray], int]:
+    """Record arrays of the CAN data groups and the recording start [ns since epoch]."""
+    parts = []
+    for index, group in enumerate(mdf.groups):
+        names = {c.name for c in group.channels}
+        if "CAN_DataFrame.ID" not in names:
+            continue
+        get = lambda name: mdf.get(name, group=index, raw=True)  # noqa: E731
+        ids = get("CAN_DataFrame.ID")
+        data = get("CAN_DataFrame.DataBytes").samples
+        dlc = get("CAN_DataFrame.DLC").samples.astype(np.uint8)
+        ide = get("CAN_DataFrame.IDE").samples.astype(bool) if "CAN_DataFrame.IDE" in names else None
+        channel = (get("CAN_DataFrame.BusChannel").samples.astype(np.uint8)
+                   if "CAN_DataFrame.BusChannel" in names else np.zeros(len(dlc), np.uint8))
+        frames = np.zeros(len(dlc), CAN_FRAME_DTYPE)
+        frames["t_mono_ns"] = np.round(ids.timestamps * 1e9).astype(np.uint64)
+        frames["arbitration_id"] = ids.samples.astype(np.uint32) & 0x1FFFFFFF
+        extended = ide if ide is not None else ids.samples.astype(np.uint32) > 0x7FF
+        frames["flags"] = np.where(extended, CAN_FLAG_EXTENDED, 0)
+        frames["dlc"] = np.minimum(dlc, 8)
+        frames["channel"] = channel
+        width = min(8, data.shape[1]) if data.ndim == 2 else 0
+        frames["data"][:, :width] = data[:, :width]
+        # bytes beyond the DLC are zero (contract)
+        frames["data"][np.arange(8)[None, :] >= frames["dlc"][:, None]] = 0
+        parts.append(frames)
+    return parts, int(mdf.start_time.timestamp() * 1e9)

@@ -1,4 +1,4 @@
-"""Logs to the signals table: stream, decode block by block, align, name the columns.
+"""Logs to binned streams: read, decode block by block, reduce to output bins.
 
 CAN frames are gathered into blocks of `BLOCK_FRAMES` records (one ``np.frombuffer`` over the
 joined payloads), decoded with NumPy (J1939 SPNs per source address, OBD-II and transport
@@ -12,11 +12,9 @@ import json
 from dataclasses import dataclass, field
 
 import numpy as np
-import pandas as pd
 
 from logger import contract, j1939
 
-from .. import kinematics
 from . import align, j1939_decode, obd_decode
 from . import dbc as dbc_module
 
@@ -85,7 +83,7 @@ JSON_FIELDS = {
 
 
 class Ingest:
-    """Accumulates decoded, binned streams of one set of logs; `table()` builds the signals table."""
+    """Accumulates decoded, binned streams of one set of logs (`columns.build_table` names them)."""
 
     def __init__(self, rate_hz: float = 10.0, database=None):
         self.rate_hz = rate_hz
@@ -105,7 +103,6 @@ class Ingest:
         self.messages = 0
         self.imu_samples = 0
         self.notes: list[str] = []
-        self.sources: dict[str, list[int]] = {}
         self.tp_stats = j1939_decode.TpStats()
         self.obd_stats = obd_decode.ObdStats()
 
