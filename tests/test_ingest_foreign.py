@@ -50,6 +50,12 @@ def test_signals_table_input_passes_through(tmp_path):
     table.to_csv(path, index=False)
     frame, summary = ingest_logs([path])
     assert frame["own_column"].tolist() == list("abcde") and summary["source"] == "signals table"
+    from analysis.ingest import stage
+    from analysis.pipeline import RunContext
+
+    ctx = RunContext(inputs=[path], out_dir=tmp_path, say=lambda _m: None)
+    stage(ctx)
+    assert ctx.signals["speed_mps"].tolist() == [0, 1, 2, 3, 4.0]
 
 
 def test_commands(tmp_path, capsys):

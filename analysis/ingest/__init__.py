@@ -129,5 +129,8 @@ def stage(ctx) -> None:
                         "PID 0x0D): log the vehicle's CAN bus, or give a signals table with speed_mps")
     ctx.signals = frame
     ctx.summary["ingest"] = summary
-    ctx.say(f"ingest: {summary['rows']} rows at {summary['rate_hz']:g} Hz, "
-            f"{summary['valid_fraction']:.0%} valid, {summary['can_frames']} CAN frames")
+    if "rate_hz" in summary:
+        ctx.say(f"ingest: {summary['rows']} rows at {summary['rate_hz']:g} Hz, "
+                f"{summary['valid_fraction']:.0%} valid, {summary['can_frames']} CAN frames")
+    else:
+        ctx.say(f"ingest: signals table, {summary['rows']} rows")
