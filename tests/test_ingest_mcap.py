@@ -101,6 +101,8 @@ def test_read_frames_gives_contract_arrays(log):
     assert len(arrays.imu) == int(DURATION_S * 952)
     assert np.all(np.diff(arrays.can["t_mono_ns"].astype(np.int64)) >= 0)
     assert len(arrays.json[contract.GPS_FIX.name]) == len(truth.bin_start_mono_ns)
+    baro = arrays.json_table(contract.BAROMETER.name)
+    assert np.all(np.diff(baro["t_mono_ns"]) > 0) and baro["pressure_pa"].between(97_000, 99_000).all()
 
 
 def _write(path, seconds, seed, t0, realtime_offset):

@@ -142,6 +142,12 @@ class LogArrays:
     timeline: Timeline
     clock_pairs: tuple[np.ndarray, np.ndarray]
 
+    def json_table(self, topic: str):
+        """One JSON topic as a DataFrame (a column per field; ``t_mono_ns`` on the continuous line)."""
+        import pandas as pd
+
+        return pd.DataFrame.from_records(self.json.get(topic, []))
+
 
 def read_frames(paths) -> LogArrays:
     """Everything of ``paths`` as arrays (contract dtypes, times on the continuous line [ns]).
