@@ -33,16 +33,38 @@ class CountingError(UserError):
     pass
 
 
+def _mass_at_stops(speed_mps: np.ndarray, mass_kg: np.ndarray, standing_mps: float = 0.1) -> np.ndarray:
+    """Mass with the gaps a per-segment mass estimator leaves around stops filled: a driving run
+    (between two stops) with some mass takes its median where it has none (slow samples at
+    departure and arrival), and a stop takes the mass of the run before it (the truck arrived with
+    it), or of the run after it when the one before has none. A driving run without any mass
+    stays a gap."""
+    mass = np.array(mass_kg, dtype=float)
+    standing = np.nan_to_num(speed_mps, nan=np.inf) < standing_mps
+    starts, ends = _runs(standing)
+    for a, b in zip(starts, ends):
+        run = mass[a:b]
+        if not standing[a] and np.isnan(run).any() and not np.isnan(run).all():
+            run[np.isnan(run)] = np.nanmedian(run)
+    for a, b in zip(starts, ends):
+        run = mass[a:b]
+        if standing[a] and np.isnan(run).any():
+            known = mass[a - 1] if a > 0 else np.nan
+            run[np.isnan(run)] = mass[b] if np.isnan(known) and b < len(mass) else known
+    return mass
+
+
 def resample_1hz(signals: pd.DataFrame, gap_s: float = GAP_S) -> pd.DataFrame:
     """Signals at whole seconds: speed and gradient linear, mass held (it changes in steps).
 
-    A time gap longer than ``gap_s`` [s], a sample with ``valid`` False or a missing value splits
-    the data into segments (column ``segment``); no transition is counted across a split.
+    Mass missing inside a stop is filled (`_mass_at_stops`). A time gap longer than ``gap_s`` [s],
+    a sample with ``valid`` False or any other missing value splits the data into segments (column ``segment``); no transition is counted across a split.
     """
     missing = [c for c in NEEDED if c not in signals.columns]
     if missing:
         raise CountingError(f"signals lack column(s) {', '.join(missing)} needed for the driving cycle")
     frame = signals[list(NEEDED)].astype(float)
+    frame["mass_kg"] = _mass_at_stops(frame["speed_mps"].to_numpy(), frame["mass_kg"].to_numpy())
     usable = np.isfinite(frame.to_numpy()).all(axis=1)
     if "valid" in signals.columns:
         usable &= signals["valid"].fillna(False).to_numpy(bool)
