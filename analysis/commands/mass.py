@@ -40,6 +40,7 @@ def format_segments(segments: list[dict]) -> str:
 def run(args) -> int:
     from ..gradient import stage as gradient_stage
     from ..mass import SegmentSettings, estimate_mass
+    from ..mass.figure import draw_estimates
 
     vehicle = load_vehicle(args.vehicle)
     ctx = signals_for(args.inputs, print, vehicle=vehicle, dem_dir=args.dem)
@@ -55,34 +56,3 @@ def run(args) -> int:
     if not args.no_figure:
         print(f"wrote {draw_estimates(ctx.signals, result, args.out / 'mass.png', args.true_mass)}")
     return 0
-
-
-def draw_estimates(frame, result, path: Path, true_mass_kg: list[float] | None = None) -> Path:
-    """Paper Fig. 6: the estimates of each method over time, the CAN estimate and the real mass."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    time_s = frame["time_s"].to_numpy()
-    fig, ax = plt.subplots(figsize=(10, 5))
-    for column, label in (("mass_rls_kg", "RLS"), ("mass_lm_kg", "Levenberg-Marquardt"), ("mass_ls_kg", "LS per segment")):
-        ax.plot(time_s, result.columns[column] / 1000, label=label, lw=1.5 if column == "mass_ls_kg" else 0.8)
-    if "reported_mass_kg" in frame:
-        ax.plot(time_s, frame["reported_mass_kg"] / 1000, ".", ms=1, label="vehicle CAN estimate")
-    if true_mass_kg and len(true_mass_kg) == len(result.segments) > 1:
-        for k, (segment, mass) in enumerate(zip(result.segments, true_mass_kg)):
-            ax.plot([segment["start_s"], segment["end_s"]], [mass / 1000] * 2, "k--", label="real mass" if k == 0 else None)
-    elif true_mass_kg:
-        ax.axhline(true_mass_kg[0] / 1000, color="k", ls="--", label="real mass")
-    for segment in result.segments:
-        if segment["uncertainty_kg"] not in (None, np.inf) and segment["mass_ls_kg"] is not None:
-            ax.fill_between([segment["start_s"], segment["end_s"]],
-                            (segment["mass_ls_kg"] - 2 * segment["uncertainty_kg"]) / 1000,
-                            (segment["mass_ls_kg"] + 2 * segment["uncertainty_kg"]) / 1000, alpha=0.2, color="C2")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("mass [t]")
-    ax.legend(loc="best")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path

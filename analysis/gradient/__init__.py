@@ -12,6 +12,7 @@ import numpy as np
 from ..dem import MissingTileError, open_dem
 from ..errors import UserError
 from .estimate import GradientResult, GradientSettings, estimate_gradient
+from .figure import draw_sources
 
 __all__ = ["estimate_gradient", "GradientResult", "GradientSettings", "stage", "gradient_with_dem_fallback"]
 
@@ -42,6 +43,8 @@ def stage(ctx) -> None:
     for name, values in result.samples.items():
         frame[name] = values
     grid = result.grid
+    grid.to_csv(ctx.out_dir / "gradient.csv", index=False)
+    draw_sources(grid, ctx.out_dir / "gradient.png")
     gradient = grid["gradient_pct"].to_numpy()
     ctx.summary["gradient"] = {
         "grid_spacing_m": settings.spacing_m,
@@ -53,4 +56,5 @@ def stage(ctx) -> None:
                          "max": float(np.nanmax(gradient))},
         "height_gain_m": float(np.sum(np.clip(np.diff(grid["height_m"].to_numpy()), 0, None))),
         "notes": result.notes,
+        "files": ["gradient.csv", "gradient.png"],
     }

@@ -16,6 +16,7 @@ import pandas as pd
 
 from ..errors import UserError
 from .regression import FilterSettings, Regression, build_regression
+from .figure import draw_estimates
 from .segments import SegmentSettings, estimate_segment, segment_bounds
 
 __all__ = ["estimate_mass", "MassResult", "FilterSettings", "SegmentSettings", "stage"]
@@ -86,5 +87,6 @@ def stage(ctx) -> None:
         if segment["status"] != "ok":
             ctx.say(f"mass: segment {segment['start_s']:.0f}-{segment['end_s']:.0f} s: no confident mass "
                     f"({segment['reason']})")
+    draw_estimates(ctx.signals, result, ctx.out_dir / "mass.png")
     ctx.summary["mass"] = {"segments": result.segments, "samples_used": int(result.regression.usable.sum()),
-                           "rejected_by": result.regression.rejected, "notes": result.notes}
+                           "rejected_by": result.regression.rejected, "notes": result.notes, "files": ["mass.png"]}
