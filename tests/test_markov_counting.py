@@ -71,7 +71,7 @@ def test_counts_equal_a_brute_force_count(urban):
     reference = _brute_force_counts(urban, widths)
     ours = Counter()
     for f, t, c in zip(counts.from_key, counts.to_key, counts.count):
-        a, b = cls.decode([f, t]), None
+        a = cls.decode([f, t])
         ours[(tuple(int(x[0]) for x in a), tuple(int(x[1]) for x in a))] = int(c)
     assert ours == reference
     assert counts.count.sum() == counts.n_samples - 1 - counts.n_dropped

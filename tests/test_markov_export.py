@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from analysis import cli
-from analysis.markov import (ClassWidths, count_transitions, cycle_to_vdri, select_cycle, stage,
+from analysis.markov import (count_transitions, cycle_to_vdri, select_cycle, stage,
                              vdri_to_time_cycle, write_cycle)
 from analysis.markov.synthetic import synthetic_drive
 from analysis.pipeline import RunContext

@@ -7,6 +7,7 @@ import pytest
 from analysis.markov import ClassWidths, build_chain, count_transitions, evaluate, resample_1hz, select_cycle
 from analysis.markov import classes as cls
 from analysis.markov.criteria import ALLOWANCE, IS_MASS, NAMES, deviations, scores
+from analysis.markov.generate import run_batch
 from analysis.markov.synthetic import synthetic_drive
 
 
@@ -63,8 +64,6 @@ def test_select_returns_the_lowest_scoring_valid_candidate_reproducibly(counts):
     again = select_cycle(counts, 1800, 1500, seed=9, chain=chain)
     pd.testing.assert_frame_equal(first.cycle, again.cycle)
     assert first.n_valid > 0 and first.criteria.valid
-    valid_scores = []
-    from analysis.markov.generate import run_batch
     stats, _ = run_batch(chain, 1800, 1500, 9)
     d = deviations(stats, counts.statistics, counts.widths)
     valid = (d <= ALLOWANCE).all(axis=1)
