@@ -155,3 +155,21 @@ def test_mass_missing_around_stops_is_filled_but_a_trip_without_mass_stays_a_gap
     np.testing.assert_array_equal(filled[:8], [9e3] * 8)
     assert np.isnan(filled[8:11]).all()              # a trip without any mass estimate
     np.testing.assert_array_equal(filled[11:], [8e3] * 4)   # the stop after it: the departure mass
+
+
+def test_enforce_physics_leaves_only_possible_transitions_on_any_sequence():
+    from hypothesis import given, settings, strategies as st
+
+    @settings(max_examples=200, deadline=None, derandomize=True)
+    @given(st.lists(st.tuples(st.integers(0, 3), st.integers(-3, 3), st.integers(100, 104)), min_size=2,
+                    max_size=60))
+    def check(states):
+        v, g, m = (np.array(x) for x in zip(*states))
+        g2, m2 = enforce_physics(v, g, m)
+        keys = cls.encode(v, g2, m2)
+        possible = physically_possible(keys[:-1], keys[1:])
+        standstill_runs_of_one = ((v[1:-1] == 0) & (v[:-2] > 0) & (v[2:] > 0)).sum()
+        assert (~possible).sum() <= standstill_runs_of_one
+        assert np.array_equal(v, cls.decode(keys)[0])
+
+    check()

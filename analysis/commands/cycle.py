@@ -44,6 +44,7 @@ def _prepare(ctx: pipeline.RunContext, mass_kg: float | None) -> None:
     if ctx.signals is None:
         if "ingest" not in stages:
             raise UserError("the inputs are logs but no ingest stage is installed; give a signals table")
+        ctx.say("[ingest]")
         stages["ingest"](ctx)
     if mass_kg is not None:
         if not mass_kg > 0:

@@ -39,5 +39,9 @@ def stage(ctx) -> None:
                             "samples_1hz": counts.n_samples, "transitions_dropped": counts.n_dropped,
                             "loops_closed": counts.n_closed,
                             "files": {kind: path.name for kind, path in paths.items()}}
+    left_out = selection.chain.transitions_left_out / max(int(counts.count.sum()), 1)
+    if left_out > 0.1:
+        ctx.say(f"cycle: {left_out:.0%} of the measured transitions lead only to the end of a log or a stop "
+                f"never left, and are not drawn (docs/cycles.md, pruning)")
     ctx.say(f"cycle: {selection.criteria.statement()} (candidate {selection.index} of {selection.n_candidates}, "
             f"{selection.n_valid} valid); wrote {', '.join(p.name for p in paths.values())}")
