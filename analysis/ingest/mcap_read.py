@@ -66,9 +66,10 @@ class ReadReport:
 
     def warning(self) -> str | None:
         """One line for the user when anything was lost; None for an intact file."""
-        if self.complete and not self.bad_chunks and not self.skipped_bytes and not self.unattributed_messages:
+        if (self.complete and not self.bad_chunks and not self.skipped_bytes and not self.unattributed_messages
+                and not self.problems):
             return None
-        parts = []
+        parts = list(self.problems)
         if not self.complete:
             parts.append(f"cut short (no footer): recovered {self.read_bytes} of {self.file_bytes} bytes")
         if self.bad_chunks:
