@@ -125,3 +125,14 @@ def test_bad_requests_are_user_errors(chain):
         generate(chain, 1, 1)
     with pytest.raises(UserError, match="seed"):
         generate(chain, 100, 1, seed=-1)
+
+
+def test_random_stream_is_splitmix64():
+    """First outputs of Vigna's splitmix64.c from state 0 (0xe220a8397b1dcdaf, 0x6e789e6aa1b965f4,
+    0x06c45d188009454f), as doubles from their top 53 bits."""
+    from analysis.markov.generate import _uniform
+    expected = [(x >> 11) * 2.0**-53 for x in (0xE220A8397B1DCDAF, 0x6E789E6AA1B965F4, 0x06C45D188009454F)]
+    for kernel in (_uniform, _uniform.py_func):
+        state = np.zeros(1, np.uint64)
+        with np.errstate(over="ignore"):
+            assert [kernel(state) for _ in range(3)] == expected
