@@ -136,3 +136,20 @@ def test_random_stream_is_splitmix64():
         state = np.zeros(1, np.uint64)
         with np.errstate(over="ignore"):
             assert [kernel(state) for _ in range(3)] == expected
+
+
+@pytest.mark.parametrize("update", [False, True])
+def test_batch_kernel_equals_its_python_reference(chain, update):
+    from analysis.markov.generate import _batch
+    results = []
+    for kernel in (_batch, _batch.py_func):
+        stats = np.empty((4, 4, 4))
+        paths = np.empty((4, 301), np.int64)
+        with np.errstate(over="ignore"):
+            kernel(chain.row_ptr, chain.dest, chain.count, chain.cum_count, chain.start_state, chain.start_cum,
+                   chain.speed_mps, chain.gradient_pct, chain.mass_kg, 11, 2, 301, update, stats, paths)
+        results.append((stats, paths))
+    np.testing.assert_array_equal(results[0][1], results[1][1])
+    np.testing.assert_allclose(results[0][0], results[1][0], rtol=1e-12)
+    np.testing.assert_array_equal(results[0][1][0], generate(chain, 300, 1, seed=11, first_index=2,
+                                                             update_counts=update).paths[0])
