@@ -43,6 +43,7 @@ STAGES: list[tuple[str, str, str]] = [
     ("cycle", "analysis.markov", "stage"),
     ("loads", "analysis.loads", "stage"),
     ("simulate", "analysis.simulate", "stage"),
+    ("report", "analysis.report", "stage"),
 ]
 
 

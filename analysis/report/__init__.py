@@ -1,0 +1,38 @@
+"""The run's report: one self-contained ``report.html`` that reads like the paper's results section.
+
+The pipeline's last stage. Chapters come from what the stages left in ``ctx.summary`` and
+``ctx.out_dir``; a stage that did not run gives no chapter and is named in the lead.
+"""
+
+from __future__ import annotations
+
+from .chapters import cycle_section, gradient_section, loads_section, mass_section, simulation_section
+from .drive import drive_section
+from .html import Section, render
+
+CHAPTERS = [("gradient", gradient_section), ("mass", mass_section), ("cycle", cycle_section),
+            ("loads", loads_section), ("simulation", simulation_section)]
+
+
+def build_report(signals, summary: dict, out_dir, title: str = "haulprofile report") -> str:
+    sections: list[Section] = [drive_section(signals, summary)]
+    missing = []
+    for key, chapter in CHAPTERS:
+        if key in summary:
+            sections.append(chapter(summary, out_dir))
+        else:
+            missing.append(key)
+    lead = (f"{len(summary.get('ingest', {}).get('inputs', [])) or 'the'} input(s), "
+            f"{summary.get('distance_km', 0):.1f} km in {summary.get('duration_s', 0) / 60:.0f} min.")
+    if missing:
+        lead += f" Not in this report (stage not run or lacking inputs): {', '.join(missing)}."
+    return render(title, lead, sections)
+
+
+def stage(ctx) -> None:
+    vehicle = f" — {ctx.vehicle.name}" if ctx.vehicle is not None else ""
+    text = build_report(ctx.signals, ctx.summary, ctx.out_dir, title=f"haulprofile report{vehicle}")
+    path = ctx.out_dir / "report.html"
+    path.write_text(text, encoding="utf-8")
+    ctx.summary["report"] = str(path.name)
+    ctx.say(f"report: {path}")
