@@ -9,6 +9,7 @@ close the file cleanly, SIGHUP rotates.
 from __future__ import annotations
 
 import asyncio
+import gc
 import logging
 import os
 import signal
@@ -138,6 +139,8 @@ class Daemon:
         self.diagnostics.storage = self.storage
         if self.storage.enforce_free_space():
             self.storage.open()
+        gc.collect()
+        gc.freeze()  # start-up objects leave the collector's view: full collections stay short stalls
         for source in self.sources:
             self.source_tasks[source.name] = asyncio.create_task(source.run(), name=source.name)
         self._writer_task = asyncio.create_task(self._writer(), name="writer")

@@ -62,15 +62,18 @@ class _TimedSMBus(sensors.EmulatedSMBus):
         return self._timed(sensors.EmulatedSMBus.read_i2c_block_data, *args)
 
 
-def _generator(channel: str, frames_per_s: float, stop: threading.Event, sent: list) -> None:
-    """Other ECUs' J1939 broadcasts (engine temperature, ambient, dash...) paced in 10 ms bursts."""
+def _traffic() -> list:
+    """Other ECUs' J1939 broadcasts (engine temperature, ambient, dash...), built before the run."""
     import can
-    bus = can.Bus(interface="virtual", channel=channel)
     rng = np.random.default_rng(1500)
     pgns = [65262, 65269, 65276, 65263, 65270, 61443, 65132, 65217, 64917, 65256]
-    messages = [can.Message(arbitration_id=j1939.make_id(pgns[i % len(pgns)], 0x10 + i % 7, 6),
-                            data=bytes(rng.integers(0, 256, 8, dtype=np.uint8)), is_extended_id=True)
-                for i in range(1000)]
+    return [can.Message(arbitration_id=j1939.make_id(pgns[i % len(pgns)], 0x10 + i % 7, 6),
+                        data=bytes(rng.integers(0, 256, 8, dtype=np.uint8)), is_extended_id=True)
+            for i in range(1000)]
+
+
+def _generator(bus, messages: list, frames_per_s: float, stop: threading.Event, sent: list) -> None:
+    """Send ``messages`` round-robin at ``frames_per_s``, paced in 10 ms bursts."""
     start, k = time.monotonic(), 0
     while not stop.is_set():
         due = int((time.monotonic() - start) * frames_per_s)
@@ -79,7 +82,6 @@ def _generator(channel: str, frames_per_s: float, stop: threading.Event, sent: l
             k += 1
         time.sleep(0.01)
     sent.append(k)
-    bus.shutdown()
 
 
 def _ecu_rate() -> float:
@@ -105,8 +107,9 @@ def logger_full_load(quick: bool) -> list[dict]:
     peer_writer = can.BLFWriter(blf_path)
     notifier = can.Notifier(peer_bus, [peer_writer], timeout=0.5)
     stop, generated = threading.Event(), []
+    generator_bus = can.Bus(interface="virtual", channel=config.can.channel)
     generator = threading.Thread(target=_generator, name="j1939-generator", daemon=True,
-                                 args=(config.can.channel, TARGET_FRAMES_PER_S - _ecu_rate(), stop, generated))
+                                 args=(generator_bus, _traffic(), TARGET_FRAMES_PER_S - _ecu_rate(), stop, generated))
     measured: dict[str, float] = {}
 
     async def main():
@@ -134,6 +137,7 @@ def logger_full_load(quick: bool) -> list[dict]:
 
     asyncio.run(main())
     generator.join(2)
+    generator_bus.shutdown()
     notifier.stop()
     peer_bus.shutdown()
 

@@ -96,7 +96,7 @@ class I2cBusSource(Source):
         for driver in self.drivers:
             if now_ns < due[driver.name]:
                 continue
-            due[driver.name] = max(due[driver.name] + int(driver.poll_interval_s * 1e9), now_ns)
+            due[driver.name] = max(due[driver.name] + int(driver.poll_interval_s * 1e9), now_ns - 1_000_000)
             try:
                 out, error = driver.poll(), None
             except OSError as exc:
@@ -112,14 +112,18 @@ class I2cBusSource(Source):
             driver.configure()
         now = clock.monotonic_ns()
         due = {d.name: now for d in self.drivers}
-        tick_s = min(d.poll_interval_s for d in self.drivers)
+        tick_ns = int(min(d.poll_interval_s for d in self.drivers) * 1e9)
+        next_tick = now
         while not self._stop.is_set():
             results = self._poll_round(due, clock.monotonic_ns())
             if results:
                 self._loop.call_soon_threadsafe(self._emit_all, results)
-            wait_ns = min(due.values()) - clock.monotonic_ns()
+            next_tick += tick_ns  # slower sensors are polled on the fastest one's ticks: one wake-up
+            wait_ns = next_tick - clock.monotonic_ns()
             if wait_ns > 0:
-                clock.thread_sleep(min(wait_ns * 1e-9, tick_s))
+                clock.thread_sleep(wait_ns * 1e-9)
+            else:
+                next_tick = clock.monotonic_ns()
         final = self._poll_round({d.name: 0 for d in self.drivers}, clock.monotonic_ns())
         final += [(d.name, out, 0, None) for d in self.drivers if (out := d.flush())]
         if final:
