@@ -229,6 +229,8 @@ def _check(config: Config) -> None:
         raise ConfigError("config: i2c.lsm9ds1.gyro_range_dps must be 245, 500 or 2000")
     if config.i2c.lps25hb.odr_hz not in (1.0, 7.0, 12.5, 25.0):
         raise ConfigError("config: i2c.lps25hb.odr_hz must be 1, 7, 12.5 or 25")
+    if config.i2c.lsm9ds1.mag_odr_hz not in (0.625, 1.25, 2.5, 5.0, 10.0, 20.0, 40.0, 80.0):
+        raise ConfigError("config: i2c.lsm9ds1.mag_odr_hz must be one of 0.625, 1.25, 2.5, 5, 10, 20, 40, 80")
     if config.i2c.hts221.odr_hz not in (1.0, 7.0, 12.5):
         raise ConfigError("config: i2c.hts221.odr_hz must be 1, 7 or 12.5")
     if config.logger.time_scale != 1.0 and not config.emulation.enabled:
@@ -239,6 +241,11 @@ def from_dict(data: dict) -> Config:
     config = _build(Config, data, "")
     _check(config)
     return config
+
+
+def example_path() -> Path:
+    """The example configuration shipped with the package."""
+    return Path(__file__).with_name("logger.example.toml")
 
 
 def load(path: str | Path) -> Config:

@@ -1,0 +1,53 @@
+"""The daemon's TOML configuration: the shipped example, defaults, and one-line errors naming the key."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from logger import config as cfg
+from logger.sources.can import allowed_tx_ids
+
+
+def test_example_is_valid_and_matches_the_defaults():
+    example = cfg.load(cfg.example_path())
+    assert dataclasses.asdict(example) == dataclasses.asdict(cfg.Config())
+    assert example.can.obd.pids == [0x0D, 0x0C, 0x62, 0x63, 0x61, 0x33, 0x46]
+    assert example.i2c.lsm9ds1.odr_hz == 952.0
+
+
+@pytest.mark.parametrize("data, key", [
+    ({"can": {"bitrate": "fast"}}, "can.bitrate"),
+    ({"can": {"obd": {"rate": 30}}}, "can.obd.rate"),
+    ({"gps": {"port": 3}}, "gps.port"),
+    ({"logger": {"queue_size": 0}}, "logger.queue_size"),
+    ({"can": {"obd": {"pids": [0x0D, 0x99]}}}, "can.obd.pids"),
+    ({"can": {"obd": {"addressing": "12bit"}}}, "can.obd.addressing"),
+    ({"can": {"j1939": {"source_address": 300}}}, "can.j1939.source_address"),
+    ({"i2c": {"lsm9ds1": {"odr_hz": 1000}}}, "i2c.lsm9ds1.odr_hz"),
+    ({"i2c": {"lsm9ds1": True}}, "i2c.lsm9ds1"),
+    ({"wifi": {}}, "wifi"),
+    ({"can": {"listen_only": "yes"}}, "can.listen_only"),
+    ({"logger": {"time_scale": 10.0}}, "logger.time_scale"),
+])
+def test_bad_values_name_the_key(data, key):
+    with pytest.raises(cfg.ConfigError) as error:
+        cfg.from_dict(data)
+    message = str(error.value)
+    assert key in message and "\n" not in message
+
+
+def test_unreadable_and_invalid_files(tmp_path):
+    with pytest.raises(cfg.ConfigError, match="cannot read"):
+        cfg.load(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[can\n")
+    with pytest.raises(cfg.ConfigError, match="not valid TOML"):
+        cfg.load(bad)
+
+
+def test_listen_only_empties_the_allow_list():
+    config = cfg.from_dict({"can": {"listen_only": True}})
+    assert allowed_tx_ids(config.can) == frozenset()
+    assert allowed_tx_ids(cfg.Config().can)
