@@ -16,6 +16,7 @@ with the class grid. ``counts_a + counts_b`` is the chain of both data sets (a f
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -58,7 +59,8 @@ def resample_1hz(signals: pd.DataFrame, gap_s: float = GAP_S) -> pd.DataFrame:
     """Signals at whole seconds: speed and gradient linear, mass held (it changes in steps).
 
     Mass missing inside a stop is filled (`_mass_at_stops`). A time gap longer than ``gap_s`` [s],
-    a sample with ``valid`` False or any other missing value splits the data into segments (column ``segment``); no transition is counted across a split.
+    a sample with ``valid`` False or any other missing value splits the data into segments
+    (column ``segment``); no transition is counted across a split.
     """
     missing = [c for c in NEEDED if c not in signals.columns]
     if missing:
@@ -68,27 +70,25 @@ def resample_1hz(signals: pd.DataFrame, gap_s: float = GAP_S) -> pd.DataFrame:
     usable = np.isfinite(frame.to_numpy()).all(axis=1)
     if "valid" in signals.columns:
         usable &= signals["valid"].fillna(False).to_numpy(bool)
-    time = frame["time_s"].to_numpy()
-    breaks = np.concatenate([[True], (np.diff(time) > gap_s) | ~usable[1:] | ~usable[:-1]])
-    run_id = np.cumsum(breaks)
+    rows_all = np.flatnonzero(usable)
+    time = frame["time_s"].to_numpy()[rows_all]
+    columns = {c: frame[c].to_numpy()[rows_all] for c in ("speed_mps", "gradient_pct", "mass_kg")}
+    split = (np.diff(time) > gap_s) | (np.diff(rows_all) > 1)
+    edges = np.concatenate([[0], np.flatnonzero(split) + 1, [len(rows_all)]])
     pieces = []
-    for run in np.unique(run_id[usable]):
-        rows = np.flatnonzero((run_id == run) & usable)
-        t = time[rows]
-        grid = np.arange(np.ceil(t[0]), np.floor(t[-1]) + 0.5, 1.0)
+    for a, b in zip(edges[:-1], edges[1:]):
+        t = time[a:b]
+        grid = np.arange(np.ceil(t[0]), np.floor(t[-1]) + 0.5, 1.0) if b > a else np.zeros(0)
         if grid.size == 0:
             continue
         held = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, len(t) - 1)
-        pieces.append(pd.DataFrame({
-            "time_s": grid,
-            "speed_mps": np.interp(grid, t, frame["speed_mps"].to_numpy()[rows]),
-            "gradient_pct": np.interp(grid, t, frame["gradient_pct"].to_numpy()[rows]),
-            "mass_kg": frame["mass_kg"].to_numpy()[rows][held],
-            "segment": len(pieces),
-        }))
+        pieces.append((grid, np.interp(grid, t, columns["speed_mps"][a:b]),
+                       np.interp(grid, t, columns["gradient_pct"][a:b]), columns["mass_kg"][a:b][held],
+                       np.full(len(grid), len(pieces))))
     if not pieces:
         raise CountingError("no usable samples: speed, gradient and mass are all needed at the same time")
-    return pd.concat(pieces, ignore_index=True)
+    joined = [np.concatenate(part) for part in zip(*pieces)]
+    return pd.DataFrame(dict(zip(("time_s", "speed_mps", "gradient_pct", "mass_kg", "segment"), joined)))
 
 
 def _runs(flags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -230,43 +230,38 @@ def _stops(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return starts[stop], ends[stop] - 1
 
 
-def _find_stop(segments, stops, gradient, order, own, excluded_run, use_end):
-    """Key of the first stop (its first sample, or its last if ``use_end``) with gradient class
-    ``gradient`` along segments ``order``, skipping run ``excluded_run`` of segment ``own``."""
-    for t in order:
-        starts, ends = stops[t]
-        samples = ends if use_end else starts
-        runs = np.arange(len(samples))
-        if use_end:
-            samples, runs = samples[::-1], runs[::-1]
-        for index, run in zip(samples, runs):
-            if (t, run) != (own, excluded_run) and cls.decode(segments[t][index])[1] == gradient:
-                return segments[t][index]
-    return None
-
-
 def _closures(segments: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Closing transitions, standstill to standstill at the same gradient class: each segment's
     final stop → the first other stop like it in the following segments (cyclically, then its
     own), and the last other stop like a segment's initial stop in the preceding segments → that
     initial stop. Never within one stop, never across a gradient class."""
+    by_gradient: dict[int, list[tuple[int, int, int, int]]] = {}
+    finals, initials = {}, {}
+    for t, keys in enumerate(segments):
+        starts, ends = _stops(keys)
+        gradients = cls.decode(keys[starts])[1] if starts.size else []
+        for run, (first, last, gradient) in enumerate(zip(starts, ends, gradients)):
+            by_gradient.setdefault(int(gradient), []).append((t, run, int(keys[first]), int(keys[last])))
+        if starts.size:
+            finals[t] = (len(starts) - 1, int(keys[ends[-1]]), int(gradients[-1]))
+            initials[t] = (int(keys[starts[0]]), int(gradients[0]))
+    times = {gradient: [stop[0] for stop in stops] for gradient, stops in by_gradient.items()}
     from_keys, to_keys = [], []
-    stops = [_stops(keys) for keys in segments]
-    n = len(segments)
-    for i, keys in enumerate(segments):
-        starts, ends = stops[i]
-        if starts.size == 0:
-            continue
-        final_key, initial_key = keys[ends[-1]], keys[starts[0]]
-        forward = [(i + step) % n for step in range(1, n)] + [i]
-        target = _find_stop(segments, stops, cls.decode(final_key)[1], forward, i, len(starts) - 1, False)
+    for i, (final_run, final_key, gradient) in finals.items():
+        stops, t = by_gradient[gradient], times[gradient]
+        after = bisect.bisect_right(t, i)
+        own = [s for s in stops[bisect.bisect_left(t, i):after] if s[1] != final_run]
+        target = stops[after] if after < len(stops) else stops[0] if t[0] < i else own[0] if own else None
         if target is not None:
             from_keys.append(final_key)
-            to_keys.append(target)
-        backward = [(i - step) % n for step in range(1, n)] + [i]
-        source = _find_stop(segments, stops, cls.decode(initial_key)[1], backward, i, 0, True)
+            to_keys.append(target[2])
+    for i, (initial_key, gradient) in initials.items():
+        stops, t = by_gradient[gradient], times[gradient]
+        before = bisect.bisect_left(t, i)
+        own = [s for s in stops[before:bisect.bisect_right(t, i)] if s[1] != 0]
+        source = stops[before - 1] if before > 0 else stops[-1] if t[-1] > i else own[-1] if own else None
         if source is not None:
-            from_keys.append(source)
+            from_keys.append(source[3])
             to_keys.append(initial_key)
     return np.array(from_keys, dtype=np.int64), np.array(to_keys, dtype=np.int64)
 
