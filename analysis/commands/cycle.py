@@ -62,6 +62,13 @@ def _prepare(ctx: pipeline.RunContext, mass_kg: float | None) -> None:
         stages[name](ctx)
 
 
+def _plain(value):
+    """JSON form of NumPy scalars and paths in the summary."""
+    if hasattr(value, "item"):
+        return value.item()
+    return str(value)
+
+
 def run(args) -> int:
     if args.candidates < 1:
         raise UserError(f"--candidates must be at least 1, got {args.candidates}")
@@ -79,5 +86,5 @@ def run(args) -> int:
     if "cycle" not in ctx.summary:
         raise UserError("no cycle: the signals lack " + ", ".join(
             signals_table.missing_for(ctx.signals, ["gradient_pct", "mass_kg"])) + " (see the messages above)")
-    (args.out / "cycle.json").write_text(json.dumps(ctx.summary["cycle"], indent=2, default=pipeline._jsonable))
+    (args.out / "cycle.json").write_text(json.dumps(ctx.summary["cycle"], indent=2, default=_plain))
     return 0 if ctx.summary["cycle"]["valid"] else 1
