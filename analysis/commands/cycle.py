@@ -72,6 +72,8 @@ def _plain(value):
 def run(args) -> int:
     if args.candidates < 1:
         raise UserError(f"--candidates must be at least 1, got {args.candidates}")
+    if not args.duration >= 2:
+        raise UserError(f"--duration must be at least 2 s, got {args.duration}")
     if args.seed < 0:
         raise UserError(f"--seed must be a non-negative integer, got {args.seed}")
     widths = ClassWidths(args.speed_class_kmh, args.gradient_class_pct, args.mass_class_kg)
