@@ -7,6 +7,12 @@ against all of them.
 """
 
 
+def record_streams(*args, **kwargs):
+    """See `logger.emulators.rig.record_streams`: sensor streams -> MCAP log via the real daemon."""
+    from .rig import record_streams as _record_streams
+    return _record_streams(*args, **kwargs)
+
+
 def record_drive(*args, **kwargs):
     """See `logger.emulators.rig.record_drive` (imported lazily: it pulls in the daemon)."""
     from .rig import record_drive as _record_drive
