@@ -19,9 +19,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-figure", action="store_true", help="skip the figure")
 
 
-def signals_for(inputs, say, vehicle=None, dem_dir=None, options=None) -> RunContext:
+def signals_for(inputs, say, out_dir: Path, vehicle=None, dem_dir=None, options=None) -> RunContext:
     """Signals table of the inputs after ingest and kinematics (what the gradient and mass stages read)."""
-    ctx = RunContext(inputs=list(inputs), out_dir=Path("."), vehicle=vehicle, dem_dir=dem_dir,
+    out_dir.mkdir(parents=True, exist_ok=True)
+    ctx = RunContext(inputs=list(inputs), out_dir=out_dir, vehicle=vehicle, dem_dir=dem_dir,
                      options=options or {}, say=say)
     load_inputs(ctx)
     stages = dict(available_stages())
@@ -38,7 +39,7 @@ def run(args) -> int:
     from ..gradient import GradientSettings, gradient_with_dem_fallback
     from ..gradient.figure import draw_sources
 
-    ctx = signals_for(args.inputs, print, dem_dir=args.dem)
+    ctx = signals_for(args.inputs, print, args.out, dem_dir=args.dem)
     result = gradient_with_dem_fallback(ctx.signals, args.dem, GradientSettings(spacing_m=args.spacing), print)
     for note in result.notes:
         print(f"note: {note}")

@@ -43,7 +43,7 @@ def run(args) -> int:
     from ..mass.figure import draw_estimates
 
     vehicle = load_vehicle(args.vehicle)
-    ctx = signals_for(args.inputs, print, vehicle=vehicle, dem_dir=args.dem)
+    ctx = signals_for(args.inputs, print, args.out, vehicle=vehicle, dem_dir=args.dem)
     if "gradient_pct" not in ctx.signals.columns:
         gradient_stage(ctx)
     result = estimate_mass(ctx.signals, vehicle, segment_settings=SegmentSettings(forgetting_factor=args.forgetting_factor))

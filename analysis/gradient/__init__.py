@@ -34,7 +34,9 @@ def stage(ctx) -> None:
         ctx.say("gradient: no --dem DIR given: barometric height only (no map-matching)")
     settings = GradientSettings(**ctx.options.get("gradient", {}))
     try:
-        result = gradient_with_dem_fallback(frame, ctx.dem_dir, settings, ctx.say)
+        result = estimate_gradient(frame, open_dem(ctx.dem_dir) if ctx.dem_dir is not None else None, settings)
+    except MissingTileError as exc:
+        raise MissingTileError(f"{exc}; or run without --dem for barometric height only") from None
     except UserError as exc:
         ctx.say(f"gradient: skipped: {exc}")
         return
