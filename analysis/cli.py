@@ -63,6 +63,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("analyze: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # a bug, not the user's input: one line, the traceback on --debug
+        if known.debug:
+            raise
+        print(f"analyze {known.command}: internal error: {type(exc).__name__}: {exc} "
+              f"(rerun with 'analyze --debug {known.command} ...' and report it)", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -46,6 +46,18 @@ STAGES: list[tuple[str, str, str]] = [
     ("report", "analysis.report", "stage"),
 ]
 
+# What each stage depends on besides the stages before it: its option tables in ``ctx.options``,
+# and whether it reads the vehicle file or the DEM. A change there reruns it and everything after.
+DEPENDS_ON: dict[str, dict] = {
+    "ingest": {"options": ("ingest",)},
+    "gradient": {"options": ("gradient",), "dem": True},
+    "mass": {"options": ("mass", "mass_filter"), "vehicle": True},
+    "cycle": {"options": ("cycle",)},
+    "loads": {"options": ("loads",), "vehicle": True},
+    "simulate": {"options": ("simulate",), "vehicle": True},
+    "report": {"vehicle": True},
+}
+
 
 def available_stages() -> list[tuple[str, Callable[[RunContext], None]]]:
     stages = []
@@ -71,25 +83,61 @@ def load_inputs(ctx: RunContext) -> None:
         ctx.signals = signals_table.validate(pd.concat(frames, ignore_index=True), ", ".join(map(str, tables)))
 
 
-def run(ctx: RunContext) -> RunContext:
-    """Run every available stage and write ``signals.parquet`` and ``summary.json``."""
+def run(ctx: RunContext, until: str | None = None, cache: bool = False, progress: bool = False) -> RunContext:
+    """Run the available stages in order (up to and including ``until``) and write
+    ``signals.parquet`` and ``summary.json`` (the full run only).
+
+    With ``cache``, each stage's result is kept under ``out_dir/.cache`` keyed by the inputs, the
+    options, vehicle and DEM it depends on (`DEPENDS_ON`) and the stages before it, so a rerun with one
+    changed option reruns only the stages that depend on it.
+    """
+    from .stage_cache import StageCache
+
     ctx.out_dir.mkdir(parents=True, exist_ok=True)
     load_inputs(ctx)
     ctx.summary.setdefault("stages", [])
-    for name, stage in available_stages():
-        if name == "ingest" and ctx.signals is not None:
-            continue
-        ctx.say(f"[{name}]")
+    stages = available_stages()
+    if until is not None:
+        names = [name for name, _ in stages]
+        if until not in names:
+            raise UserError(f"no stage named {until} (stages: {', '.join(names)})")
+        stages = stages[:names.index(until) + 1]
+    if ctx.signals is not None:
+        stages = [(name, stage) for name, stage in stages if name != "ingest"]
+    store = StageCache(ctx) if cache else None
+    start = store.restore([name for name, _ in stages]) if store else 0
+    for name, _ in stages[:start]:
+        ctx.say(f"[{name}] unchanged, from cache")
+    bar = _progress(stages[start:], progress)
+    for name, stage in bar:
+        if hasattr(bar, "set_description"):
+            bar.set_description(name)
+        else:
+            ctx.say(f"[{name}]")
         stage(ctx)
+        if ctx.signals is None:
+            raise UserError("no signals: the inputs are logs but no ingest stage is installed")
         ctx.summary["stages"].append(name)
+        if store:
+            store.save(name)
     if ctx.signals is None:
         raise UserError("no signals: the inputs are logs but no ingest stage is installed")
-    signals_table.write_signals(ctx.signals, ctx.out_dir / "signals.parquet")
-    (ctx.out_dir / "summary.json").write_text(json.dumps(ctx.summary, indent=2, default=_jsonable))
+    if until is None:
+        signals_table.write_signals(ctx.signals, ctx.out_dir / "signals.parquet")
+        (ctx.out_dir / "summary.json").write_text(json.dumps(ctx.summary, indent=2, default=jsonable))
     return ctx
 
 
-def _jsonable(value):
+def _progress(stages, enabled: bool):
+    if not enabled:
+        return stages
+    from tqdm import tqdm
+
+    return tqdm(stages, unit="stage", leave=False)
+
+
+def jsonable(value):
+    """``json.dumps`` default for NumPy scalars/arrays and paths."""
     if hasattr(value, "item"):
         return value.item()
     if hasattr(value, "tolist"):

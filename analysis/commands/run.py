@@ -1,11 +1,20 @@
-"""``analyze run INPUT… --vehicle FILE [--dem DIR] --out DIR``."""
+"""``analyze run INPUT… --vehicle FILE [--dem DIR] --out DIR``: every stage, one report.
+
+Exit codes: 0 done; 2 bad input (one line says which and what to do); 3 done, but a result did
+not meet its criteria (no confident mass in any segment, or no valid cycle), said in one line;
+1 an internal error (rerun with ``analyze --debug run …`` for the traceback); 130 interrupted.
+"""
 
 from __future__ import annotations
 
+import json
+import sys
 from pathlib import Path
 
-from ..pipeline import RunContext, run as run_pipeline
+from ..pipeline import RunContext, jsonable, run as run_pipeline
 from ..vehicle import load_vehicle
+
+EXIT_UNTRUSTWORTHY_RESULT = 3
 
 
 def add_arguments(parser) -> None:
@@ -13,12 +22,52 @@ def add_arguments(parser) -> None:
     parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles (or GeoTIFFs)")
     parser.add_argument("--out", type=Path, required=True, help="output directory")
-    parser.add_argument("--quiet", action="store_true", help="print only errors")
+    parser.add_argument("--rate-hz", type=float, default=10.0, help="rate of the signals table (10 Hz)")
+    parser.add_argument("--dbc", type=Path, help="a DBC file whose signals are decoded as further columns")
+    parser.add_argument("--cycle-duration", type=float, default=1800.0, help="generated cycle length [s] (1800)")
+    parser.add_argument("--candidates", type=int, default=10_000, help="Monte Carlo candidates (10000)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
+    parser.add_argument("--payload-kg", type=float, help="payload of the simulated electric truck [kg]")
+    parser.add_argument("--no-cache", action="store_true", help="rerun every stage (default: reuse unchanged ones)")
+    output = parser.add_mutually_exclusive_group()
+    output.add_argument("--quiet", action="store_true", help="print only errors")
+    output.add_argument("--json", action="store_true", help="print the summary as JSON on stdout, nothing else")
+
+
+def options_from(args) -> dict:
+    options = {"ingest": {"rate_hz": args.rate_hz}, "cycle": {"duration_s": args.cycle_duration,
+                                                              "n_candidates": args.candidates, "seed": args.seed}}
+    if args.dbc is not None:
+        options["ingest"]["dbc"] = str(args.dbc)
+    if args.payload_kg is not None:
+        options["simulate"] = {"payload_kg": args.payload_kg}
+    return options
+
+
+def verdict(summary: dict) -> str | None:
+    """One line when a result did not meet its criteria, else None."""
+    problems = []
+    segments = summary.get("mass", {}).get("segments")
+    if segments is not None and not any(s["status"] == "ok" for s in segments):
+        problems.append("no segment has enough excitation for a confident mass (see the report's mass chapter)")
+    cycle = summary.get("cycle")
+    if cycle is not None and not cycle.get("valid", True):
+        problems.append(f"no valid cycle: {cycle.get('statement', '')} (try more --candidates or a longer "
+                        f"--cycle-duration)")
+    return "; ".join(problems) or None
 
 
 def run(args) -> int:
+    quiet = args.quiet or args.json
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle),
-                     dem_dir=args.dem, say=(lambda _msg: None) if args.quiet else print)
-    run_pipeline(ctx)
-    ctx.say(f"wrote {args.out / 'signals.parquet'} and {args.out / 'summary.json'}")
+                     dem_dir=args.dem, options=options_from(args), say=(lambda _msg: None) if quiet else print)
+    run_pipeline(ctx, cache=not args.no_cache, progress=not quiet and sys.stderr.isatty())
+    problem = verdict(ctx.summary)
+    if args.json:
+        print(json.dumps(ctx.summary, default=jsonable))
+    else:
+        ctx.say(f"wrote {args.out / 'report.html'}, {args.out / 'signals.parquet'} and {args.out / 'summary.json'}")
+    if problem:
+        print(f"analyze run: warning: {problem}", file=sys.stderr)
+        return EXIT_UNTRUSTWORTHY_RESULT
     return 0

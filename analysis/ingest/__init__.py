@@ -64,7 +64,11 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
         for path in other:
             _feed_foreign(ingest, path, bar)
     ingest.finish_streams()
-    frame, summary = build_table(ingest)
+    try:
+        frame, summary = build_table(ingest)
+    except LogError as exc:
+        damage = "; ".join(f"{Path(r.path).name}: {r.warning()}" for r in timeline.reports if r.warning())
+        raise LogError(f"{exc}" + (f" ({damage})" if damage else "")) from None
     warnings = [w for w in (r.warning() for r in timeline.reports) if w]
     if "imu-scale" in ingest.notes:
         warnings.append("IMU channel metadata has no accel_scale_mps2_per_lsb: accel_x/y/z_mps2 left out")
@@ -119,10 +123,11 @@ def read_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, progr
 def stage(ctx) -> None:
     """Pipeline stage: ``ctx.inputs`` → ``ctx.signals`` and ``ctx.summary["ingest"]``.
 
-    Options: ``rate_hz`` (10), ``dbc`` (a DBC file for further signals), ``progress``.
+    Options (``ctx.options["ingest"]``): ``rate_hz`` (10), ``dbc`` (a DBC file for further signals), ``progress``.
     """
-    frame, summary = ingest_logs(ctx.inputs, rate_hz=float(ctx.options.get("rate_hz", 10.0)),
-                                 dbc=ctx.options.get("dbc"), progress=bool(ctx.options.get("progress", False)),
+    options = ctx.options.get("ingest", {})
+    frame, summary = ingest_logs(ctx.inputs, rate_hz=float(options.get("rate_hz", 10.0)),
+                                 dbc=options.get("dbc"), progress=bool(options.get("progress", False)),
                                  say=ctx.say)
     if "speed_mps" not in frame.columns:
         raise UserError("the logs hold no vehicle speed (neither J1939 CCVS1 wheel-based speed nor OBD-II "

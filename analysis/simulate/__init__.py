@@ -17,14 +17,14 @@ __all__ = ["DriverSettings", "SimCycle", "SimulationInputError", "SimulationResu
 def stage(ctx) -> None:
     """Pipeline stage: simulate on ``cycle.vdri`` in the output directory if the cycle stage wrote
     one, else on the measured drive as a time-based cycle; outputs into ``simulation/``.
-    ``ctx.options`` may set ``payload_kg``, ``aux_power_w``, ``epto_power_w``, ``obc_power_w``."""
+    ``ctx.options["simulate"]`` may set ``payload_kg``, ``aux_power_w``, ``epto_power_w``, ``obc_power_w``."""
     from .output import write_outputs
 
     vehicle = ctx.vehicle
     if vehicle is None or vehicle.electric_powertrain is None:
         ctx.say("simulate: skipped, the vehicle file has no [electric_powertrain] table")
         return
-    mass = default_mass_kg(vehicle, ctx.options.get("payload_kg"))
+    mass = default_mass_kg(vehicle, ctx.options.get("simulate", {}).get("payload_kg"))
     vdri = ctx.out_dir / "cycle.vdri"
     if vdri.is_file():
         frame = read_vdri(vdri)
@@ -38,9 +38,9 @@ def stage(ctx) -> None:
         ctx.say("simulate: skipped, no cycle.vdri and no time_s/speed_mps signals")
         return
     try:
-        result = simulate(cycle, vehicle, aux_power_w=ctx.options.get("aux_power_w"),
-                          epto_power_w=ctx.options.get("epto_power_w", 0.0),
-                          obc_power_w=ctx.options.get("obc_power_w", 0.0))
+        result = simulate(cycle, vehicle, aux_power_w=ctx.options.get("simulate", {}).get("aux_power_w"),
+                          epto_power_w=ctx.options.get("simulate", {}).get("epto_power_w", 0.0),
+                          obc_power_w=ctx.options.get("simulate", {}).get("obc_power_w", 0.0))
     except SimulationInputError as exc:
         ctx.say(f"simulate: skipped, {exc}")
         return
