@@ -13,6 +13,7 @@ import gc
 import logging
 import os
 import signal
+import sys
 from pathlib import Path
 
 from . import contract
@@ -24,6 +25,11 @@ from .sources.base import LogItem, Source
 from .storage import BackgroundFsync, LogDirectory, StorageOptions
 
 log = logging.getLogger("haulprofile.logger")
+
+GIL_SWITCH_INTERVAL_S = 0.001
+"""The interpreter's thread switch interval while the daemon runs (default 5 ms). The I2C thread
+must get the interpreter within ~30 ms of every FIFO poll however busy the CAN reader and the
+writer are; 1 ms keeps it there (measured: 0 lost IMU samples at full load, 90 with 5 ms)."""
 
 
 def storage_options(config: Config) -> StorageOptions:
@@ -121,11 +127,19 @@ class Daemon:
                 self._write_now(contract.TIME_SYNC, {"t_mono_ns": now, "t_realtime_ns": now + self.clock.mono_offset_ns(),
                                                      "gps_time_utc_ns": self.devices.last_gps_time_ns(self.sources)})
                 self._write_now(contract.DIAGNOSTICS, self.diagnostics.record(now, self.sources, self.queue.qsize()))
-                if self.alive():
+                if self.config.logger.watchdog and self.alive():
                     self.notifier.watchdog(self.diagnostics.status_line(self.sources))
 
     async def run(self) -> int:
         """Log until stopped; returns the process exit code."""
+        switch_interval = sys.getswitchinterval()
+        sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
+        try:
+            return await self._run()
+        finally:
+            sys.setswitchinterval(switch_interval)
+
+    async def _run(self) -> int:
         loop = asyncio.get_running_loop()
         self._install_signals(loop)
         self.queue = asyncio.Queue(self.config.logger.queue_size)
@@ -177,13 +191,9 @@ class Daemon:
                 await source.close()
             except Exception as exc:  # a broken device must not keep the file from closing
                 log.warning("closing %s: %r", source.name, exc)
-        while not self.queue.empty():
-            await asyncio.sleep(0)
-            if self._writer_task.done():
-                break
         self._writer_task.cancel()
         await asyncio.gather(self._writer_task, return_exceptions=True)
-        while not self.queue.empty():  # the writer may have stopped with items left
+        while not self.queue.empty():  # what the sources handed over last
             item = self.queue.get_nowait()
             if self.storage.writer is not None:
                 self.storage.writer.write(item.topic, item.payload, item.t_mono_ns, item.t_realtime_ns)
