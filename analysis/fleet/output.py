@@ -1,0 +1,97 @@
+"""Files of a fleet run: per group ``<out>/<group>/`` the cycle (CSV, Parquet, VECTO .vdri), the
+summed transition counts (``counts.npz``, read back with `read_counts`), the load histograms
+(``histograms/*.csv``), mass per segment and ``fleet-summary.json``; ``<out>/fleet-summary.json``
+lists the groups and every failed log."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..markov import ClassWidths, TransitionCounts, write_cycle
+from ..pipeline import jsonable
+
+VALUE_NAMES = {"rainflow_range_mean_counts": "cycles", "level_crossings_torque": "upward_crossings"}
+
+
+def write_counts(counts: TransitionCounts, path: Path) -> Path:
+    np.savez_compressed(path, widths=np.array([counts.widths.speed_kmh, counts.widths.gradient_pct,
+                                               counts.widths.mass_kg]),
+                        from_key=counts.from_key, to_key=counts.to_key, count=counts.count, moments=counts.moments,
+                        totals=np.array([counts.n_samples, counts.n_dropped, counts.n_closed]),
+                        start_key=counts.start_key, start_count=counts.start_count)
+    return path
+
+
+def read_counts(path: str | Path) -> TransitionCounts:
+    """Transition counts written by `write_counts` (a group's ``counts.npz``)."""
+    with np.load(path) as data:
+        n_samples, n_dropped, n_closed = (int(x) for x in data["totals"])
+        return TransitionCounts(ClassWidths(*(float(w) for w in data["widths"])), data["from_key"], data["to_key"],
+                                data["count"], data["moments"], n_samples, n_dropped, n_closed, data["start_key"],
+                                data["start_count"])
+
+
+def group_summary(group, spec) -> dict:
+    statistics = group.statistics
+    summary = {"group": group.name, "vehicle": group.vehicle.name, "logs": statistics.logs if statistics else [],
+               "failed": [{"log": log, "error": error} for log, error in group.failed], "error": group.error}
+    if statistics is not None:
+        summary.update(
+            totals=statistics.totals,
+            damage_equivalent_torque_range_nm={str(k): v for k, v in statistics.damage_equivalent_torque_nm().items()},
+            class_widths=spec.widths.as_dict(), load_bins=spec.bins.as_dict(), mass_segments=statistics.mass_segments,
+            notes=statistics.notes)
+        if statistics.counts is not None:
+            summary["transitions"] = {"pairs": len(statistics.counts), "count": int(statistics.counts.count.sum()),
+                                      "samples_1hz": statistics.counts.n_samples,
+                                      "dropped": statistics.counts.n_dropped, "loops_closed": statistics.counts.n_closed}
+    if group.selection:
+        summary["cycle"] = {**group.selection, "duration_s": spec.duration_s}
+    return summary
+
+
+def write_group(group, spec, out_dir: Path) -> dict:
+    """Every file of one group; returns its summary (also written as ``fleet-summary.json``)."""
+    group_dir = out_dir / group.name
+    group_dir.mkdir(parents=True, exist_ok=True)
+    files = {}
+    statistics = group.statistics
+    if group.cycle is not None:
+        files.update({kind: path.name for kind, path in write_cycle(group.cycle, group_dir).items()})
+    if statistics is not None:
+        if statistics.counts is not None:
+            files["counts"] = write_counts(statistics.counts, group_dir / "counts.npz").name
+        hist_dir = group_dir / "histograms"
+        hist_dir.mkdir(exist_ok=True)
+        for name, histogram in statistics.histograms.items():
+            value = VALUE_NAMES.get(name, "time_s")
+            histogram.frame(value).to_csv(hist_dir / f"{name}.csv", index=False)
+        damage = statistics.damage_equivalent_torque_nm()
+        pd.DataFrame({"woehler_exponent": list(damage), "damage_equivalent_torque_range_nm": list(damage.values()),
+                      "equivalent_cycles": statistics.totals["loads_s"]}).to_csv(
+            hist_dir / "damage_equivalent_torque.csv", index=False)
+        files["histograms"] = "histograms/"
+        if statistics.mass_segments:
+            pd.DataFrame(statistics.mass_segments).to_csv(group_dir / "mass_segments.csv", index=False)
+            files["mass_segments"] = "mass_segments.csv"
+    summary = {**group_summary(group, spec), "files": files}
+    (group_dir / "fleet-summary.json").write_text(json.dumps(summary, indent=2, default=jsonable))
+    return summary
+
+
+def write_fleet(fleet, spec, out_dir: Path, say=print) -> dict:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    groups = [write_group(group, spec, out_dir) for group in fleet.groups]
+    summary = {"executor": fleet.executor, "dem_dir": spec.dem_dir, "groups": [
+        {key: g.get(key) for key in ("group", "vehicle", "error", "totals", "transitions", "failed")}
+        | {"cycle": g.get("cycle", {}).get("statement"), "logs": len(g["logs"])} for g in groups]}
+    (out_dir / "fleet-summary.json").write_text(json.dumps(summary, indent=2, default=jsonable))
+    for g in groups:
+        line = g.get("cycle", {}).get("statement") or g["error"]
+        say(f"fleet: {g['group']}: {len(g['logs'])} logs, {len(g['failed'])} failed; cycle: {line}; "
+            f"wrote {out_dir / g['group']}")
+    return summary

@@ -1,0 +1,208 @@
+"""Map per log → reduce per vehicle group → a cycle per group, on one process, a local process
+pool, or an existing Dask distributed cluster; the same functions (`analysis.fleet.tasks`) and
+the same result whichever runs them."""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from ..errors import UserError
+from ..ingest.foreign import SUFFIXES as FOREIGN_SUFFIXES
+from ..ingest.logs import MCAP_SUFFIXES
+from ..markov import ClassWidths
+from ..signals import SIGNALS_SUFFIXES
+from ..vehicle import Vehicle
+from .statistics import FleetStatistics, LoadBins
+from .tasks import LogResult, LogTask, group_cycle_job, map_log, reduce_group
+
+LOG_SUFFIXES = MCAP_SUFFIXES | FOREIGN_SUFFIXES | SIGNALS_SUFFIXES
+
+
+class FleetError(UserError):
+    pass
+
+
+@dataclass
+class Group:
+    """One vehicle group: a directory of logs (each one task) and its vehicle."""
+
+    name: str
+    log_dir: Path
+    vehicle: Vehicle
+    logs: list[Path]
+
+
+@dataclass
+class FleetSpec:
+    groups: list[Group]
+    dem_dir: Path | None = None
+    duration_s: float = 1800.0
+    n_candidates: int = 10_000
+    seed: int = 0
+    widths: ClassWidths = field(default_factory=ClassWidths)
+    bins: LoadBins = field(default_factory=LoadBins)
+    options: dict = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, log_dirs: list[str | Path], vehicles: list[Vehicle], **settings) -> "FleetSpec":
+        """Groups of the log directories; ``vehicles`` one for all or one per directory."""
+        log_dirs = [Path(d) for d in log_dirs]
+        if not log_dirs:
+            raise FleetError("no log directory given: give one directory of logs per vehicle group")
+        if len(vehicles) not in (1, len(log_dirs)):
+            raise FleetError(f"{len(vehicles)} vehicle files for {len(log_dirs)} log directories: give --vehicle "
+                             f"once for all groups or once per log directory, in the same order")
+        vehicles = vehicles * len(log_dirs) if len(vehicles) == 1 else vehicles
+        groups, names = [], set()
+        for log_dir, vehicle in zip(log_dirs, vehicles):
+            name = _unique(log_dir.resolve().name or "group", names)
+            groups.append(Group(name, log_dir, vehicle, find_logs(log_dir)))
+        return cls(groups, **settings)
+
+
+def _unique(name: str, taken: set[str]) -> str:
+    candidate, n = name, 2
+    while candidate in taken:
+        candidate, n = f"{name}-{n}", n + 1
+    taken.add(candidate)
+    return candidate
+
+
+def find_logs(log_dir: Path) -> list[Path]:
+    """Logs (MCAP, foreign CAN logs, signals tables) anywhere under ``log_dir``, sorted by path."""
+    if not log_dir.exists():
+        raise FleetError(f"log directory {log_dir} not found")
+    if not log_dir.is_dir():
+        raise FleetError(f"{log_dir} is not a directory: give one directory of logs per vehicle group")
+    logs = sorted(p for p in log_dir.rglob("*") if p.is_file() and p.suffix.lower() in LOG_SUFFIXES)
+    if not logs:
+        raise FleetError(f"{log_dir}: no logs (.mcap, .log/.asc/.blf/.mf4, or signals .csv/.parquet) in this "
+                         f"directory; give a directory that holds a vehicle group's logs")
+    return logs
+
+
+@dataclass
+class GroupResult:
+    name: str
+    vehicle: Vehicle
+    statistics: FleetStatistics | None
+    failed: list[tuple[str, str]]
+    cycle: object | None = None
+    selection: dict = field(default_factory=dict)
+    error: str | None = None
+
+
+@dataclass
+class FleetResult:
+    groups: list[GroupResult]
+    executor: str
+
+
+class SerialExecutor:
+    name = "serial"
+
+    def map(self, fn, items):
+        return [fn(item) for item in items]
+
+    def close(self):
+        pass
+
+
+class LocalExecutor:
+    """A ``concurrent.futures.ProcessPoolExecutor`` of ``workers`` processes."""
+
+    def __init__(self, workers: int):
+        self.name = f"process pool of {workers}"
+        self.pool = ProcessPoolExecutor(max_workers=workers)
+
+    def map(self, fn, items):
+        return list(self.pool.map(fn, items))
+
+    def close(self):
+        self.pool.shutdown()
+
+
+class DaskExecutor:
+    """An existing Dask distributed cluster at ``address`` (dask is imported only here)."""
+
+    def __init__(self, address: str):
+        try:
+            from distributed import Client
+        except ImportError:
+            raise FleetError("--scheduler needs Dask: pip install 'haulprofile[fleet]'") from None
+        try:
+            self.client = Client(address, timeout="20s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise FleetError(f"cannot reach the Dask scheduler at {address} ({exc}); start it with "
+                             f"'dask scheduler' and workers, or leave out --scheduler for the local pool") from None
+        self.name = f"dask {address}"
+
+    def map(self, fn, items):
+        items = list(items)
+        return self.client.gather(self.client.map(fn, items, pure=False)) if items else []
+
+    def close(self):
+        self.client.close()
+
+
+def executor_for(workers: int | None = None, scheduler: str | None = None):
+    if scheduler:
+        return DaskExecutor(scheduler)
+    workers = workers or os.cpu_count() or 1
+    if workers < 1:
+        raise FleetError(f"--workers must be at least 1, got {workers}")
+    return SerialExecutor() if workers == 1 else LocalExecutor(workers)
+
+
+def log_out_dir(out_dir: Path, group: Group, log: Path) -> Path:
+    return out_dir / group.name / "logs" / log.relative_to(group.log_dir).as_posix().replace("/", "__")
+
+
+def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
+              say: Callable[[str], None] = print, debug: bool = False) -> FleetResult:
+    """Map every log, reduce per group in path order, generate a cycle per group, write the
+    outputs (`analysis.fleet.output`). Raises `FleetError` only when every log failed."""
+    from .output import write_fleet
+
+    out_dir = Path(out_dir)
+    tasks = [LogTask(log, group.name, group.vehicle, log_out_dir(out_dir, group, log), spec.dem_dir, spec.options,
+                     spec.widths, spec.bins, debug) for group in spec.groups for log in group.logs]
+    executor = executor_for(workers, scheduler)
+    say(f"fleet: {len(tasks)} logs in {len(spec.groups)} group(s) on {executor.name}")
+    try:
+        results = executor.map(map_log, tasks)
+        _say_results(results, say)
+        if all(r.statistics is None for r in results):
+            first = results[0]
+            raise FleetError(f"all {len(results)} logs failed; the first, {first.path}: {first.error}")
+        groups = [_reduced(group, [r for r in results if r.group == group.name]) for group in spec.groups]
+        todo = [g for g in groups if g.statistics is not None]
+        cycles = executor.map(group_cycle_job, [(g.name, g.statistics, spec.duration_s, spec.n_candidates, spec.seed)
+                                                for g in todo])
+    finally:
+        executor.close()
+    for group, cycle in zip(todo, cycles):
+        group.cycle, group.selection, group.error = cycle.cycle, cycle.selection, cycle.error
+    fleet = FleetResult(groups, executor.name)
+    write_fleet(fleet, spec, out_dir, say)
+    return fleet
+
+
+def _reduced(group: Group, results: list[LogResult]) -> GroupResult:
+    failed = [(str(r.path), r.error) for r in sorted(results, key=lambda r: str(r.path)) if r.statistics is None]
+    statistics = reduce_group(results)
+    error = None if statistics is not None else f"every one of its {len(results)} logs failed"
+    return GroupResult(group.name, group.vehicle, statistics, failed, error=error)
+
+
+def _say_results(results: list[LogResult], say) -> None:
+    for r in results:
+        if r.statistics is None:
+            say(f"fleet: {r.path}: FAILED: {r.error}")
+        else:
+            for note in r.statistics.notes:
+                say(f"fleet: {note}")

@@ -1,0 +1,96 @@
+"""The fleet's three functions, the same whichever executor runs them: `map_log` (one log →
+its additive statistics), `reduce_group` (sum in path order) and `group_cycle` (the cycle of a
+group's summed counts). Each takes and returns plain picklable objects."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import UserError
+from ..markov import ClassWidths, select_cycle
+from ..pipeline import RunContext, run as run_pipeline
+from ..vehicle import Vehicle
+from .statistics import FleetStatistics, LoadBins, log_statistics, sum_statistics
+
+
+@dataclass
+class LogTask:
+    """One log of a group; its per-log outputs (the stages' figures) go to ``out_dir``."""
+
+    path: Path
+    group: str
+    vehicle: Vehicle
+    out_dir: Path
+    dem_dir: Path | None = None
+    options: dict = field(default_factory=dict)
+    widths: ClassWidths = field(default_factory=ClassWidths)
+    bins: LoadBins = field(default_factory=LoadBins)
+    debug: bool = False
+
+
+@dataclass
+class LogResult:
+    """A log's statistics, or why it failed (one line), with what its stages said."""
+
+    path: Path
+    group: str
+    statistics: FleetStatistics | None
+    error: str | None = None
+    messages: list[str] = field(default_factory=list)
+
+
+@dataclass
+class GroupCycle:
+    """A group's generated cycle and how it was chosen (`analysis.markov.Selection.as_dict`), or
+    why there is none (one line)."""
+
+    group: str
+    cycle: object | None
+    selection: dict
+    error: str | None = None
+
+
+def map_log(task: LogTask) -> LogResult:
+    """Pipeline up to the mass stage on one log, then its additive statistics. A log that fails
+    (a user error such as an unreadable file, or any other exception) is a result naming why,
+    so the other logs go on; with ``task.debug`` the exception is raised."""
+    messages: list[str] = []
+    ctx = RunContext(inputs=[task.path], out_dir=task.out_dir, vehicle=task.vehicle, dem_dir=task.dem_dir,
+                     options=task.options, say=messages.append)
+    try:
+        run_pipeline(ctx, until="mass")
+        statistics = log_statistics(str(task.path), ctx.signals, ctx.summary, task.vehicle, task.widths, task.bins)
+    except UserError as exc:
+        if task.debug:
+            raise
+        return LogResult(task.path, task.group, None, str(exc), messages)
+    except Exception as exc:  # noqa: BLE001 - one bad log must not stop a fleet; named in the result
+        if task.debug:
+            raise
+        return LogResult(task.path, task.group, None, f"internal error {type(exc).__name__}: {exc}", messages)
+    return LogResult(task.path, task.group, statistics, None, messages)
+
+
+def reduce_group(results: list[LogResult]) -> FleetStatistics | None:
+    """Sum the statistics of a group's logs that succeeded, sorted by path; None if none did."""
+    done = sorted((r for r in results if r.statistics is not None), key=lambda r: str(r.path))
+    return sum_statistics([r.statistics for r in done]) if done else None
+
+
+def group_cycle(group: str, statistics: FleetStatistics, duration_s: float, n_candidates: int,
+                seed: int) -> GroupCycle:
+    """`select_cycle` on the group's summed transition counts."""
+    if statistics.counts is None or len(statistics.counts) == 0:
+        return GroupCycle(group, None, {}, "no transitions counted in any log (speed, gradient and mass are "
+                                           "needed together; see the logs' notes)")
+    try:
+        selection = select_cycle(statistics.counts, duration_s, n_candidates, seed)
+    except UserError as exc:
+        return GroupCycle(group, None, {}, str(exc))
+    return GroupCycle(group, selection.cycle, selection.as_dict())
+
+
+def group_cycle_job(job: tuple) -> GroupCycle:
+    """`group_cycle` of one (group, statistics, duration_s, n_candidates, seed) tuple."""
+    return group_cycle(*job)

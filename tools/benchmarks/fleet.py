@@ -1,0 +1,69 @@
+"""Fleet runner: 50 one-hour virtual-truck MCAP logs in two vehicle groups, map → reduce → cycle per
+group, with 1 local worker (in-process, serial) against 2 local worker processes.
+
+Logs: 25 ``urban-delivery`` drives of the rigid-18t (≈ 60 min each) and 25 ``long-haul`` drives of
+the tractor-40t (≈ 52 min each), seeds 0…24, each started at its own place (2° apart) so that all
+drives' terrain tiles go into one DEM directory without overlapping. Generated once into
+``.bench-cache/fleet/``. ``--quick``: 6 drives of the urban route's first ten minutes.
+
+The speed-up is serial time / 2-worker time (above 1 means the pool is faster). The benchmark fails
+unless the 2-worker run's reduced transition counts and histograms equal the serial run's.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+from bench import result
+
+CACHE = Path(__file__).resolve().parents[2] / ".bench-cache" / "fleet"
+GROUPS = {"urban-rigid-18t": ("urban-delivery", "rigid-18t"), "long-haul-tractor-40t": ("long-haul", "tractor-40t")}
+
+
+def fleet_inputs(quick: bool) -> tuple[list[Path], list[str], Path]:
+    """(group directories, vehicle names, DEM directory), generated on first use."""
+    from analysis.fleet.virtual import virtual_fleet
+
+    group_dirs, dem_dir = virtual_fleet(CACHE / ("quick" if quick else "full"), GROUPS, 3 if quick else 25,
+                                        n_sections=5 if quick else None, workers=os.cpu_count() or 1,
+                                        say=lambda msg: print(f"fleet benchmark: {msg}", flush=True))
+    return group_dirs, [vehicle for _, vehicle in GROUPS.values()], dem_dir
+
+
+def _run(group_dirs, vehicles, dem_dir, out_dir: Path, workers: int, candidates: int):
+    from analysis.fleet import FleetSpec, run_fleet
+    from analysis.vehicle import load_vehicle
+
+    spec = FleetSpec.of(group_dirs, [load_vehicle(v) for v in vehicles], dem_dir=dem_dir,
+                        n_candidates=candidates, seed=0)
+    start = time.perf_counter()
+    fleet = run_fleet(spec, out_dir, workers=workers, say=lambda _msg: None)
+    return time.perf_counter() - start, fleet
+
+
+def bench_fleet(quick: bool) -> list[dict]:
+    group_dirs, vehicles, dem_dir = fleet_inputs(quick)
+    n_logs = sum(len(list(d.glob("*.mcap"))) for d in group_dirs)
+    candidates = 1000 if quick else 10_000
+    out = CACHE / ("quick" if quick else "full") / "out"
+    serial_s, serial = _run(group_dirs, vehicles, dem_dir, out / "serial", 1, candidates)
+    pool_s, pooled = _run(group_dirs, vehicles, dem_dir, out / "pool-2", 2, candidates)
+    for a, b in zip(serial.groups, pooled.groups):
+        if not a.statistics.same_as(b.statistics):
+            raise AssertionError(f"group {a.name}: the 2-worker run's reduced statistics differ from the serial run's")
+        if not a.cycle.equals(b.cycle):
+            raise AssertionError(f"group {a.name}: the 2-worker run chose another cycle than the serial run")
+    failed = sum(len(g.failed) for g in serial.groups)
+    hours = sum(g.statistics.totals["duration_s"] for g in serial.groups) / 3600
+    transitions = sum(int(g.statistics.counts.count.sum()) for g in serial.groups)
+    print(json.dumps({"fleet": {"logs": n_logs, "failed": failed, "hours": round(hours, 2),
+                                "transitions": transitions, "serial_s": serial_s, "pool_2_s": pool_s}}), flush=True)
+    return [result(f"fleet: {n_logs} logs ({hours:.1f} h), 2 local workers; ratio = speed-up over 1",
+                   pool_s, "s", peer="1 worker (serial, in-process)", peer_value=serial_s,
+                   counts_equal_serial=True, failed_logs=failed)]
+
+
+BENCHMARKS = [bench_fleet]
