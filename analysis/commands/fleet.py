@@ -1,0 +1,60 @@
+"""``analyze fleet LOGDIR… --vehicle FILE [--vehicle FILE…] --out DIR``: many logs, one cycle per
+vehicle group (docs/fleet.md).
+
+Exit codes: 0 done; 2 bad input (one line says which and what to do), including every log
+failing; 3 done, but some logs failed or a group has no valid cycle (one line each on stderr);
+1 an internal error (rerun with ``analyze --debug fleet …``); 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from ..fleet import FleetSpec, run_fleet
+from ..pipeline import jsonable
+from ..vehicle import load_vehicle
+
+EXIT_INCOMPLETE = 3
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("log_dirs", nargs="+", type=Path, metavar="LOGDIR",
+                        help="a directory of logs (MCAP, CAN logs or signals tables) per vehicle group")
+    parser.add_argument("--vehicle", action="append", required=True,
+                        help="vehicle file (TOML) or shipped example name; once for all groups or once per LOGDIR")
+    parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles (or GeoTIFFs) covering every route")
+    parser.add_argument("--out", type=Path, required=True, help="output directory")
+    parser.add_argument("--workers", type=int, help="local worker processes (default: the CPU count; 1 = serial)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run on an existing Dask distributed cluster, e.g. tcp://host:8786")
+    parser.add_argument("--duration", type=float, default=1800.0, help="generated cycle length per group [s] (1800)")
+    parser.add_argument("--candidates", type=int, default=10_000, help="Monte Carlo candidates per group (10000)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
+    parser.add_argument("--rate-hz", type=float, default=10.0, help="rate of the signals tables (10 Hz)")
+    output = parser.add_mutually_exclusive_group()
+    output.add_argument("--quiet", action="store_true", help="print only errors and warnings")
+    output.add_argument("--json", action="store_true", help="print the fleet summary as JSON on stdout")
+
+
+def run(args) -> int:
+    vehicles = [load_vehicle(v) for v in args.vehicle]
+    spec = FleetSpec.of(args.log_dirs, vehicles, dem_dir=args.dem, duration_s=args.duration,
+                        n_candidates=args.candidates, seed=args.seed, options={"ingest": {"rate_hz": args.rate_hz}})
+    quiet = args.quiet or args.json
+    fleet = run_fleet(spec, args.out, workers=args.workers, scheduler=args.scheduler,
+                      say=(lambda _msg: None) if quiet else print, debug=getattr(args, "debug", False))
+    problems = []
+    for group in fleet.groups:
+        problems += [f"{group.name}: log {log} failed: {error}" for log, error in group.failed]
+        if group.error:
+            problems.append(f"{group.name}: no cycle: {group.error}")
+        elif group.selection and not group.selection.get("valid", True):
+            problems.append(f"{group.name}: no valid cycle: {group.selection['statement']} (try more --candidates "
+                            f"or a longer --duration)")
+    if args.json:
+        print(json.dumps(json.loads((args.out / "fleet-summary.json").read_text()), default=jsonable))
+    for problem in problems:
+        print(f"analyze fleet: warning: {problem}", file=sys.stderr)
+    return EXIT_INCOMPLETE if problems else 0
