@@ -56,10 +56,12 @@ def run_can(section: CanSection, seconds: float, answer_obd: bool = True, broadc
         ecu.start()
         task = asyncio.create_task(source.run())
         await asyncio.sleep(seconds)
+        source.obd_at_end = source.obd.stats() if source.obd else None
+        await asyncio.get_running_loop().run_in_executor(None, ecu.stop)
+        await asyncio.sleep(0.05)
         task.cancel()
         await asyncio.gather(task, return_exceptions=True)
         await source.close()
-        ecu.stop()
         payloads = []
         while not queue.empty():
             payloads.append(queue.get_nowait().payload)
@@ -86,8 +88,8 @@ def test_obd_11bit_polling_at_the_configured_rate():
     section = CanSection(interface="virtual")
     section.j1939.request_pgns = []
     frames, source, ecu, seen = run_can(section, 1.0)
-    stats = source.obd.stats()
-    assert 24 <= stats["obd_requests"] <= 31
+    stats = source.obd_at_end
+    assert 25 <= stats["obd_requests"] <= 31
     assert stats["obd_timeouts"] == 0
     assert stats["obd_responses"] >= stats["obd_requests"] - 1  # the last one may be in flight at the stop
     responses = frames[frames["arbitration_id"] == 0x7E8]
@@ -143,7 +145,7 @@ def test_no_ecu_answers_backs_off_to_a_slow_probe():
     section.obd.probe_interval_s = 0.5
     section.j1939.request_pgns = []
     frames, source, ecu, seen = run_can(section, 1.5, answer_obd=False)
-    stats = source.obd.stats()
+    stats = source.obd_at_end
     assert stats["obd_state"].startswith("probing")
     assert stats["obd_responses"] == 0
     assert len(section.obd.pids) <= stats["obd_requests"] <= len(section.obd.pids) + 4
