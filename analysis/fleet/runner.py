@@ -152,7 +152,7 @@ class DaskExecutor:
 def executor_for(workers: int | None = None, scheduler: str | None = None):
     if scheduler:
         return DaskExecutor(scheduler)
-    workers = workers or os.cpu_count() or 1
+    workers = (os.cpu_count() or 1) if workers is None else workers
     if workers < 1:
         raise FleetError(f"--workers must be at least 1, got {workers}")
     return SerialExecutor() if workers == 1 else LocalExecutor(workers)

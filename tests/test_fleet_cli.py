@@ -1,0 +1,108 @@
+"""``analyze fleet`` as a user meets it: outputs, exit codes, and one line per kind of bad input."""
+
+import json
+
+import numpy as np
+import pytest
+
+from analysis.cli import main
+from analysis.markov.synthetic import synthetic_drive
+
+
+def write_table(path, seed: int, duration_s: float = 900.0):
+    frame = synthetic_drive(duration_s, seed=seed, kind="regional")
+    frame["accel_mps2"] = np.gradient(frame["speed_mps"].to_numpy(), frame["time_s"].to_numpy())
+    path.parent.mkdir(parents=True, exist_ok=True)
+    frame.to_parquet(path)
+
+
+@pytest.fixture(scope="module")
+def tables(tmp_path_factory):
+    root = tmp_path_factory.mktemp("cli")
+    for seed in (0, 1):
+        write_table(root / "group-a" / f"drive-{seed}.parquet", seed)
+    write_table(root / "group-b" / "day-1" / "drive.parquet", 7)
+    return root
+
+
+def run_cli(capsys, *argv):
+    code = main(list(map(str, argv)))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def one_line_error(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def test_two_groups_two_vehicles(tables, tmp_path, capsys):
+    code, out, err = run_cli(capsys, "fleet", tables / "group-a", tables / "group-b", "--vehicle", "rigid-18t",
+                             "--vehicle", "tractor-40t", "--out", tmp_path, "--workers", "1", "--candidates", "200",
+                             "--duration", "600", "--json")
+    assert code in (0, 3), err
+    summary = json.loads(out)
+    assert [g["group"] for g in summary["groups"]] == ["group-a", "group-b"]
+    assert [g["logs"] for g in summary["groups"]] == [2, 1]
+    group_b = json.loads((tmp_path / "group-b" / "fleet-summary.json").read_text())
+    assert group_b["vehicle"].startswith("Tractor") or "40" in group_b["vehicle"]
+    assert (tmp_path / "group-b" / "cycle.vdri").is_file()
+
+
+def test_a_failing_log_is_named_and_the_others_go_on(tables, tmp_path, capsys):
+    group = tmp_path / "group"
+    write_table(group / "good.parquet", 3)
+    (group / "broken.mcap").write_bytes(b"\x89MCAP0\r\n" + bytes(range(256)) * 4)
+    code, out, err = run_cli(capsys, "fleet", group, "--vehicle", "rigid-18t", "--out", tmp_path / "out",
+                             "--workers", "1", "--candidates", "200", "--duration", "600", "--quiet")
+    assert code == 3
+    assert "broken.mcap" in err and "Traceback" not in err
+    summary = json.loads((tmp_path / "out" / "group" / "fleet-summary.json").read_text())
+    assert summary["failed"][0]["log"].endswith("broken.mcap") and len(summary["logs"]) == 1
+    assert (tmp_path / "out" / "group" / "cycle.csv").is_file()
+
+
+def test_all_logs_failing_is_an_error(tmp_path, capsys):
+    group = tmp_path / "group"
+    group.mkdir()
+    (group / "a.mcap").write_bytes(b"not an mcap file at all")
+    code, _, err = run_cli(capsys, "fleet", group, "--vehicle", "rigid-18t", "--out", tmp_path / "out",
+                           "--workers", "1")
+    assert code == 2
+    line = one_line_error(err)
+    assert "all 1 logs failed" in line and "a.mcap" in line
+
+
+def test_empty_log_directory(tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    code, _, err = run_cli(capsys, "fleet", tmp_path / "empty", "--vehicle", "rigid-18t", "--out", tmp_path / "out")
+    assert code == 2
+    assert "empty: no logs" in one_line_error(err)
+
+
+def test_missing_log_directory(tmp_path, capsys):
+    code, _, err = run_cli(capsys, "fleet", tmp_path / "nowhere", "--vehicle", "rigid-18t", "--out", tmp_path / "o")
+    assert code == 2
+    assert "not found" in one_line_error(err)
+
+
+def test_vehicle_count_mismatch(tables, tmp_path, capsys):
+    code, _, err = run_cli(capsys, "fleet", tables / "group-a", tables / "group-b", tables / "group-a",
+                           "--vehicle", "rigid-18t", "--vehicle", "tractor-40t", "--out", tmp_path)
+    assert code == 2
+    assert "2 vehicle files for 3 log directories" in one_line_error(err)
+
+
+def test_vehicle_file_typo(tables, tmp_path, capsys):
+    code, _, err = run_cli(capsys, "fleet", tables / "group-a", "--vehicle", "rigid-18", "--out", tmp_path)
+    assert code == 2
+    assert "rigid-18" in one_line_error(err)
+
+
+def test_workers_must_be_positive(tables, tmp_path, capsys):
+    code, _, err = run_cli(capsys, "fleet", tables / "group-a", "--vehicle", "rigid-18t", "--out", tmp_path,
+                           "--workers", "0")
+    assert code == 2
+    assert "--workers" in one_line_error(err)
