@@ -166,3 +166,29 @@ def test_checksum_agrees_with_pynmea2(shared_data):
             continue
         assert nmea_checksum_ok(sentence) == valid, sentence
     assert nmea_checksum_ok(with_checksum("GPGGA,1,2,3"))
+
+
+def test_unplugged_receiver_is_one_error_and_a_reopen_loop_not_a_busy_loop():
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    port = os.ttyname(slave)
+    said = []
+
+    async def main():
+        source = GpsSource(asyncio.Queue(100), Clock(), port, 9600, say=said.append)
+        source.open()
+        task = asyncio.create_task(source.run())
+        os.write(master, b"$GPTXT,01,01,02,u-blox ag - www.u-blox.com*50\r\n")
+        await asyncio.sleep(0.1)
+        os.close(master)
+        os.close(slave)
+        await asyncio.sleep(0.5)
+        task.cancel()
+        await asyncio.gather(task, return_exceptions=True)
+        await source.close()
+        return source
+
+    source = asyncio.run(main())
+    assert source.stats.state == "port lost"
+    assert source.stats.errors == 1 and len(said) == 1 and "reopening" in said[0]
+    assert source.stats.extra["lines"] == 1

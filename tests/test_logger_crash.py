@@ -26,7 +26,7 @@ import logger.daemon  # noqa: F401  (imported before forking: restarts then cost
 import logger.emulators.rig  # noqa: F401
 import logger.sources.can  # noqa: F401
 import logger.sources.gps  # noqa: F401
-import logger.sources.i2c.lsm9ds1  # noqa: F401
+import logger.sources.i2c.lsm9ds1  # noqa: F401  (imported for the forked children)
 from logger import cli, contract
 
 KILLS = 20
@@ -123,7 +123,7 @@ def test_sigterm_closes_the_file_with_its_summary(tmp_path):
     config.write_text(CONFIG.format(directory=directory.as_posix()))
     process = subprocess.Popen([sys.executable, "-m", "logger.cli", "--config", str(config)],
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    path = _wait_for_file(directory, set())
+    _wait_for_file(directory, set())
     time.sleep(1.2)
     process.send_signal(signal.SIGHUP)
     time.sleep(0.8)

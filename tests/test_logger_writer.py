@@ -7,7 +7,6 @@ import io
 import struct
 
 import numpy as np
-import pytest
 from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
 from mcap.records import Message

@@ -119,8 +119,11 @@ class CanSource(Source):
         while not self._stop.is_set():
             try:
                 msg = recv(0.2)
-            except can.CanError:
+            except (can.CanError, OSError) as exc:  # interface down, bus-off: count, wait, retry
                 self.stats.errors += 1
+                if self.stats.errors in (1, 10, 100, 1000):
+                    self._say(f"can: receive error {exc} ({self.stats.errors} so far)")
+                self._stop.wait(0.5)
                 continue
             if msg is None:
                 continue

@@ -21,6 +21,7 @@ from .base import Source
 
 KNOT_MPS = 1852.0 / 3600.0
 MAX_LINE_BYTES = 512
+REOPEN_S = 5.0
 FIX_TYPES = {"RMC", "GGA", "GSA", "GST", "VTG"}
 
 
@@ -129,6 +130,8 @@ class GpsSource(Source):
         self._raw: list[str] = []
         self._raw_t: list[int] = []
         self.last_gps_time = None
+        self._reading: int | None = None
+        self._last_try_ns = 0
         for key in ("lines", "fixes", "bad_checksum", "parse_errors", "skipped"):
             self.stats.extra[key] = 0
 
@@ -220,29 +223,53 @@ class GpsSource(Source):
     def _on_readable(self) -> None:
         try:
             data = self.serial.read(4096)
-        except OSError as exc:
+        except OSError as exc:  # serial.SerialException too: receiver unplugged
             self.stats.errors += 1
-            self.say(f"serial read error: {exc}")
+            self.say(f"serial read error on {self.port_path}: {exc}; reopening every {REOPEN_S:g} s")
+            self._detach()
             return
         if data:
             self.feed(data, self.clock.monotonic_ns())
 
-    async def run(self) -> None:
-        loop = asyncio.get_running_loop()
-        if self.serial is None:
+    def _detach(self) -> None:
+        if self.serial is not None and self._reading:
+            asyncio.get_running_loop().remove_reader(self._reading)
+        self._reading = None
+        if self.serial is not None:
+            self.serial.close()
+        self.stats.state = "port lost"
+
+    def _attach(self) -> None:
+        if self.serial is None or not self.serial.is_open:
             self.open()
-        loop.add_reader(self.serial.fileno(), self._on_readable)
+        self._reading = self.serial.fileno()
+        asyncio.get_running_loop().add_reader(self._reading, self._on_readable)
         self.stats.state = "running"
+
+    async def run(self) -> None:
+        self._attach()
         try:
             while True:
                 await self.clock.sleep(1.0)
                 self.flush_raw()
+                if self._reading is None and self.clock.monotonic_ns() - self._last_try_ns > REOPEN_S * 1e9:
+                    self._last_try_ns = self.clock.monotonic_ns()
+                    try:
+                        self._attach()
+                        self.say(f"{self.port_path} open again")
+                    except OSError:
+                        pass
         finally:
-            loop.remove_reader(self.serial.fileno())
+            if self._reading is not None:
+                asyncio.get_running_loop().remove_reader(self._reading)
+                self._reading = None
 
     async def close(self) -> None:
         if self.serial is not None and self.serial.is_open:
-            data = self.serial.read(65536)
+            try:
+                data = self.serial.read(65536)
+            except OSError:
+                data = b""
             if data:
                 self.feed(data, self.clock.monotonic_ns())
         if self._buffer.strip():
