@@ -54,14 +54,18 @@ class ObdPoller:
             self._waiting = None
             return False
         self.requests += 1
+        waiting = self._waiting
+        timer = loop.call_later(self.source.clock.real_seconds(self.section.timeout_s),
+                                lambda: waiting.done() or waiting.set_result(None))
         try:
-            await asyncio.wait_for(self._waiting, self.source.clock.real_seconds(self.section.timeout_s))
-        except asyncio.TimeoutError:
+            answer = await waiting
+        finally:
+            timer.cancel()
+            self._waiting = None
+        if answer is None:
             self.timeouts += 1
             self._consecutive_timeouts += 1
             return False
-        finally:
-            self._waiting = None
         self.responses += 1
         self._consecutive_timeouts = 0
         return True

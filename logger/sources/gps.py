@@ -175,7 +175,7 @@ class GpsSource(Source):
         if text[3:6] not in FIX_TYPES or text.startswith("$P"):
             return
         try:
-            msg = pynmea2.parse(text, check=True)
+            msg = pynmea2.parse(text)  # checksum verified above
         except (pynmea2.ParseError, ValueError, AttributeError, TypeError):
             self.stats.extra["parse_errors"] += 1
             return
