@@ -106,3 +106,19 @@ def test_workers_must_be_positive(tables, tmp_path, capsys):
                            "--workers", "0")
     assert code == 2
     assert "--workers" in one_line_error(err)
+
+
+def test_unreachable_scheduler(tables, tmp_path, capsys, monkeypatch):
+    pytest.importorskip("distributed")
+    import socket
+
+    from analysis.fleet import runner
+
+    monkeypatch.setattr(runner, "DASK_CONNECT_TIMEOUT", "1s")
+    with socket.socket() as free:
+        free.bind(("127.0.0.1", 0))
+        port = free.getsockname()[1]
+    code, _, err = run_cli(capsys, "fleet", tables / "group-a", "--vehicle", "rigid-18t", "--out", tmp_path,
+                           "--scheduler", f"tcp://127.0.0.1:{port}")
+    assert code == 2
+    assert "cannot reach the Dask scheduler" in one_line_error(err)

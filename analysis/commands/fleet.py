@@ -44,7 +44,8 @@ def run(args) -> int:
                         n_candidates=args.candidates, seed=args.seed, options={"ingest": {"rate_hz": args.rate_hz}})
     quiet = args.quiet or args.json
     fleet = run_fleet(spec, args.out, workers=args.workers, scheduler=args.scheduler,
-                      say=(lambda _msg: None) if quiet else print, debug=getattr(args, "debug", False))
+                      say=(lambda _msg: None) if quiet else print, debug=getattr(args, "debug", False),
+                      progress=not quiet and sys.stderr.isatty())
     problems = []
     for group in fleet.groups:
         problems += [f"{group.name}: log {log} failed: {error}" for log, error in group.failed]

@@ -102,11 +102,16 @@ class FleetResult:
     executor: str
 
 
+DASK_CONNECT_TIMEOUT = "20s"
+
+
 class SerialExecutor:
+    """Each item in this process, in order. ``map`` yields results in the items' order (as every executor)."""
+
     name = "serial"
 
     def map(self, fn, items):
-        return [fn(item) for item in items]
+        return (fn(item) for item in items)
 
     def close(self):
         pass
@@ -120,7 +125,7 @@ class LocalExecutor:
         self.pool = ProcessPoolExecutor(max_workers=workers)
 
     def map(self, fn, items):
-        return list(self.pool.map(fn, items))
+        return self.pool.map(fn, items)
 
     def close(self):
         self.pool.shutdown()
@@ -135,7 +140,7 @@ class DaskExecutor:
         except ImportError:
             raise FleetError("--scheduler needs Dask: pip install 'haulprofile[fleet]'") from None
         try:
-            self.client = Client(address, timeout="20s")
+            self.client = Client(address, timeout=DASK_CONNECT_TIMEOUT)
         except (OSError, TimeoutError, ValueError) as exc:
             raise FleetError(f"cannot reach the Dask scheduler at {address} ({exc}); start it with "
                              f"'dask scheduler' and workers, or leave out --scheduler for the local pool") from None
@@ -143,7 +148,8 @@ class DaskExecutor:
 
     def map(self, fn, items):
         items = list(items)
-        return self.client.gather(self.client.map(fn, items, pure=False)) if items else []
+        futures = self.client.map(fn, items, pure=False) if items else []
+        return (future.result() for future in futures)
 
     def close(self):
         self.client.close()
@@ -163,9 +169,10 @@ def log_out_dir(out_dir: Path, group: Group, log: Path) -> Path:
 
 
 def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
-              say: Callable[[str], None] = print, debug: bool = False) -> FleetResult:
+              say: Callable[[str], None] = print, debug: bool = False, progress: bool = False) -> FleetResult:
     """Map every log, reduce per group in path order, generate a cycle per group, write the
-    outputs (`analysis.fleet.output`). Raises `FleetError` only when every log failed."""
+    outputs (`analysis.fleet.output`). Raises `FleetError` only when every log failed. With
+    ``progress``, a progress bar of the logs on stderr."""
     from .output import write_fleet
 
     out_dir = Path(out_dir)
@@ -174,15 +181,15 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
     executor = executor_for(workers, scheduler)
     say(f"fleet: {len(tasks)} logs in {len(spec.groups)} group(s) on {executor.name}")
     try:
-        results = executor.map(map_log, tasks)
+        results = list(_progress(executor.map(map_log, tasks), len(tasks), progress))
         _say_results(results, say)
         if all(r.statistics is None for r in results):
             first = results[0]
             raise FleetError(f"all {len(results)} logs failed; the first, {first.path}: {first.error}")
         groups = [_reduced(group, [r for r in results if r.group == group.name]) for group in spec.groups]
         todo = [g for g in groups if g.statistics is not None]
-        cycles = executor.map(group_cycle_job, [(g.name, g.statistics, spec.duration_s, spec.n_candidates, spec.seed)
-                                                for g in todo])
+        cycles = list(executor.map(group_cycle_job, [(g.name, g.statistics, spec.duration_s, spec.n_candidates,
+                                                      spec.seed) for g in todo]))
     finally:
         executor.close()
     for group, cycle in zip(todo, cycles):
@@ -190,6 +197,14 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
     fleet = FleetResult(groups, executor.name)
     write_fleet(fleet, spec, out_dir, say)
     return fleet
+
+
+def _progress(results, total: int, enabled: bool):
+    if not enabled:
+        return results
+    from tqdm import tqdm
+
+    return tqdm(results, total=total, unit="log", leave=False)
 
 
 def _reduced(group: Group, results: list[LogResult]) -> GroupResult:
