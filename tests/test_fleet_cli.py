@@ -62,6 +62,8 @@ def test_a_failing_log_is_named_and_the_others_go_on(tables, tmp_path, capsys):
     summary = json.loads((tmp_path / "out" / "group" / "fleet-summary.json").read_text())
     assert summary["failed"][0]["log"].endswith("broken.mcap") and len(summary["logs"]) == 1
     assert (tmp_path / "out" / "group" / "cycle.csv").is_file()
+    said = (tmp_path / "out" / "group" / "logs" / "broken.mcap" / "messages.txt").read_text()
+    assert "FAILED" in said and "broken.mcap" in said
 
 
 def test_all_logs_failing_is_an_error(tmp_path, capsys):

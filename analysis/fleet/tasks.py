@@ -54,22 +54,27 @@ class GroupCycle:
 def map_log(task: LogTask) -> LogResult:
     """Pipeline up to the mass stage on one log, then its additive statistics. A log that fails
     (a user error such as an unreadable file, or any other exception) is a result naming why,
-    so the other logs go on; with ``task.debug`` the exception is raised."""
+    so the other logs go on; with ``task.debug`` the exception is raised. What the stages said
+    goes to ``messages.txt`` in the log's output directory."""
     messages: list[str] = []
     ctx = RunContext(inputs=[task.path], out_dir=task.out_dir, vehicle=task.vehicle, dem_dir=task.dem_dir,
                      options=task.options, say=messages.append)
     try:
         run_pipeline(ctx, until="mass")
         statistics = log_statistics(str(task.path), ctx.signals, ctx.summary, task.vehicle, task.widths, task.bins)
+        result = LogResult(task.path, task.group, statistics, None, messages + statistics.notes)
     except UserError as exc:
         if task.debug:
             raise
-        return LogResult(task.path, task.group, None, str(exc), messages)
+        result = LogResult(task.path, task.group, None, str(exc), messages)
     except Exception as exc:  # noqa: BLE001 - one bad log must not stop a fleet; named in the result
         if task.debug:
             raise
-        return LogResult(task.path, task.group, None, f"internal error {type(exc).__name__}: {exc}", messages)
-    return LogResult(task.path, task.group, statistics, None, messages)
+        result = LogResult(task.path, task.group, None, f"internal error {type(exc).__name__}: {exc}", messages)
+    task.out_dir.mkdir(parents=True, exist_ok=True)
+    ending = [f"FAILED: {result.error}"] if result.error else []
+    (task.out_dir / "messages.txt").write_text("\n".join([str(task.path), *result.messages, *ending]) + "\n")
+    return result
 
 
 def reduce_group(results: list[LogResult]) -> FleetStatistics | None:
