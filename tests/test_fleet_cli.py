@@ -124,3 +124,24 @@ def test_unreachable_scheduler(tables, tmp_path, capsys, monkeypatch):
                            "--scheduler", f"tcp://127.0.0.1:{port}")
     assert code == 2
     assert "cannot reach the Dask scheduler" in one_line_error(err)
+
+
+def test_speed_only_table_gives_totals_and_says_what_is_missing(tmp_path, capsys):
+    import pandas as pd
+
+    group = tmp_path / "group"
+    group.mkdir()
+    time_s = np.arange(0.0, 600.0, 0.1)
+    pd.DataFrame({"time_s": time_s, "speed_mps": 10.0 + 5.0 * np.sin(time_s / 60.0)}).to_parquet(group / "a.parquet")
+    write_table(group / "b.parquet", 4)
+    out = group / "out"
+    code, printed, err = run_cli(capsys, "fleet", group, "--vehicle", "rigid-18t", "--out", out, "--workers", "1",
+                                 "--candidates", "200", "--duration", "600")
+    assert code in (0, 3), err
+    assert "a.parquet: no transition counts" in printed and "no wheel loads" in printed
+    summary = json.loads((out / "group" / "fleet-summary.json").read_text())
+    assert len(summary["logs"]) == 2 and summary["totals"]["distance_km"] > 5.9
+    # a rerun does not take the first run's tables (inside LOGDIR) for logs
+    code, printed, err = run_cli(capsys, "fleet", group, "--vehicle", "rigid-18t", "--out", out, "--workers", "1",
+                                 "--candidates", "200", "--duration", "600", "--json")
+    assert [g["logs"] for g in json.loads(printed)["groups"]] == [2]

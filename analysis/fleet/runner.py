@@ -176,6 +176,11 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
     from .output import write_fleet
 
     out_dir = Path(out_dir)
+    inside_out = out_dir.resolve()
+    for group in spec.groups:
+        group.logs = [log for log in group.logs if inside_out not in log.resolve().parents]
+        if not group.logs:
+            raise FleetError(f"{group.log_dir}: no logs outside the output directory {out_dir}")
     tasks = [LogTask(log, group.name, group.vehicle, log_out_dir(out_dir, group, log), spec.dem_dir, spec.options,
                      spec.widths, spec.bins, debug) for group in spec.groups for log in group.logs]
     executor = executor_for(workers, scheduler)

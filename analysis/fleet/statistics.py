@@ -112,7 +112,9 @@ def load_histograms(signals: pd.DataFrame, vehicle: Vehicle, bins: LoadBins) -> 
     """Wheel-load histograms [s or cycles], damage sums per Wöhler exponent and load totals of one
     log, on ``bins.period_s`` means (rows without mass or other inputs are left out)."""
     frame = signals[[c for c in (*LOAD_COLUMNS, "valid") if c in signals.columns]]
-    loads = loads_of(resample_mean(frame, bins.period_s), vehicle)
+    if set(LOAD_COLUMNS) - set(frame.columns):
+        frame = frame.iloc[:0].reindex(columns=[*LOAD_COLUMNS, "valid"])
+    loads = loads_of(resample_mean(frame, bins.period_s) if len(frame) else frame, vehicle)
     durations = loads["duration_s"].to_numpy()
     histograms = {f"time_at_level_{q}": SparseHistogram.of({q: loads[q]}, {q: getattr(bins, q)}, durations)
                   for q in QUANTITIES}
