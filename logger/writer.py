@@ -105,6 +105,6 @@ class LogWriter:
         if self._fsync:
             try:
                 self._stream.flush()
-                os.fsync(self._stream.fileno())
             except (AttributeError, OSError, ValueError):
-                pass
+                return
+            self._sync()

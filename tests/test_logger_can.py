@@ -253,3 +253,34 @@ def test_real_canedge_recording_replayed_is_logged_frame_for_frame(shared_data):
     assert [bool(f & contract.CAN_FLAG_EXTENDED) for f in frames["flags"]] == [r[3] for r in recorded]
     assert np.all(np.diff(frames["t_mono_ns"].astype(np.int64)) >= 0)
     assert abs(int(frames["t_mono_ns"][-1]) - time.monotonic_ns()) < 10e9
+
+
+def test_socketcan_vcan_frames_carry_the_kernel_timestamp():
+    try:
+        ecu_bus = can.Bus(interface="socketcan", channel="vcan0")
+        logger_bus = can.Bus(interface="socketcan", channel="vcan0")
+    except Exception as exc:  # no vcan module, no interface, not Linux
+        pytest.skip(f"needs a vcan0 interface (modprobe vcan; ip link add vcan0 type vcan; "
+                    f"ip link set vcan0 up): {exc}")
+    section = CanSection(interface="socketcan", channel="vcan0", listen_only=True)
+    clock = Clock()
+    ecu = EcuEmulator(ecu_bus, TimeSeries(SIGNALS), clock, answer_obd=False)
+
+    async def main():
+        queue = asyncio.Queue(1000)
+        source = CanSource(queue, clock, section, logger_bus)
+        ecu.start()
+        task = asyncio.create_task(source.run())
+        await asyncio.sleep(0.5)
+        await asyncio.get_running_loop().run_in_executor(None, ecu.stop)
+        await asyncio.sleep(0.05)
+        task.cancel()
+        await asyncio.gather(task, return_exceptions=True)
+        await source.close()
+        return [queue.get_nowait().payload for _ in range(queue.qsize())]
+
+    frames = contract.unpack(contract.CAN_FRAMES, b"".join(asyncio.run(main())))
+    ecu_bus.shutdown()
+    assert len(frames) == len(ecu.sent) > 20
+    assert np.all(frames["flags"] & contract.CAN_FLAG_HW_TIMESTAMP)
+    assert abs(int(frames["t_mono_ns"][-1]) - time.monotonic_ns()) < 5e9
