@@ -78,28 +78,130 @@ def test_hts221_driver_against_the_model():
     assert [(r["humidity_raw"], r["temperature_raw"]) for r in got] == bus.models["hts221"].served
 
 
-def test_lsm9ds1_fifo_delivers_every_sample_at_952_hz():
-    bus, clock = board()
-    driver = Lsm9ds1(bus, 0x6B, clock, 952.0, accel_range_g=4, gyro_range_dps=245)
+class SteppedClock(Clock):
+    """Emulation time that moves only when the test says so [ns]."""
+
+    def __init__(self):
+        super().__init__()
+        self.now_ns = 1_000_000_000_000
+
+    def monotonic_ns(self) -> int:
+        return self.now_ns
+
+    def realtime_ns(self) -> int:
+        return self.now_ns + 1_700_000_000_000_000_000
+
+
+class LateClockRead:
+    """An SMBus whose reads of one register are followed by a scheduling gap before the caller
+    reads the clock (the thread descheduled between FIFO_SRC and ``monotonic_ns``)."""
+
+    def __init__(self, bus, clock, register, gaps_ns):
+        self.bus, self.clock, self.register, self.gaps_ns = bus, clock, register, iter(gaps_ns)
+
+    def read_byte_data(self, address, register):
+        value = self.bus.read_byte_data(address, register)
+        if register == self.register:
+            self.clock.now_ns += next(self.gaps_ns)
+        return value
+
+    def __getattr__(self, name):
+        return getattr(self.bus, name)
+
+
+def stepped_board():
+    clock = SteppedClock()
+    t = np.array([0.0, 1000.0])
+    signals = TimeSeries({"time_s": t, "accel_x_mps2": np.full(2, 1.25), "accel_z_mps2": np.full(2, 9.80665),
+                          "gyro_z_radps": np.full(2, 0.05), "pressure_pa": np.full(2, 95_123.0)})
+    return sensor_board(signals, clock, clock.now_ns), clock
+
+
+@pytest.mark.parametrize("rate_error", [0.0, 0.03, -0.03])
+def test_lsm9ds1_fifo_delivers_every_sample_at_952_hz(rate_error):
+    """Late polls (up to a full FIFO) and late clock reads after FIFO_SRC, on a sensor whose
+    oscillator is off by ``rate_error``: every sample delivered, stamps strictly increasing and
+    within the read window of the sample's true time."""
+    bus, clock = stepped_board()
+    rng = np.random.default_rng(9)
+    polls = 600
+    read_gaps_ns = rng.choice([0, 0, 0, 50_000, 3_000_000, 8_000_000], size=polls)
+    late = LateClockRead(bus, clock, lsm.FIFO_SRC, read_gaps_ns)
+    driver = Lsm9ds1(late, 0x6B, clock, 952.0, accel_range_g=4, gyro_range_dps=245)
     driver.probe()
     driver.configure()
+    model = bus.models["lsm9ds1"]
+    model.odr_hz = 952.0 * (1.0 + rate_error)
     samples = []
-    deadline = time.monotonic() + 0.5
-    while time.monotonic() < deadline:
-        for _, payload, _, _ in driver.poll():
-            samples.append(contract.unpack(contract.IMU, payload))
-        time.sleep(0.008)
+    for gap_ns in rng.uniform(1e6, 15e6, size=polls).astype(np.int64):
+        clock.now_ns += int(gap_ns)
+        samples += [contract.unpack(contract.IMU, p) for _, p, _, _ in driver.poll()]
     samples.extend(contract.unpack(contract.IMU, payload) for _, payload, _, _ in driver.flush())
     samples = np.concatenate(samples)
-    model = bus.models["lsm9ds1"]
     assert model.overwritten == 0 and driver.overruns == 0
-    assert len(samples) == len(model.served) >= 400
+    assert len(samples) == len(model.served) == model.produced >= 0.95 * polls * 8e-3 * 952
     scale = lsm.accel_scale_mps2_per_lsb(4)
     assert scale == pytest.approx(0.122e-3 * 9.80665)
     assert np.all(samples["accel_raw"][:, 0] == round(1.25 / scale))
     assert np.all(samples["accel_raw"][:, 2] == round(9.80665 / scale))
     assert np.all(samples["gyro_raw"][:, 2] == round(0.05 / lsm.gyro_scale_radps_per_lsb(245)))
+    stamps = samples["t_mono_ns"].astype(np.int64)
+    period_ns = 1e9 / 952.0
+    assert np.all(np.diff(stamps) > 0)
+    assert np.diff(stamps).min() >= 0.75 * period_ns - 1 and np.diff(stamps).max() <= 1.25 * period_ns + 1
+    true_ns = model.on_since_ns + np.arange(1, len(stamps) + 1) * 1e9 / model.odr_hz
+    error_ms = (stamps - true_ns) * 1e-6
+    print(f"rate error {rate_error:+.0%}: stamp - true time {error_ms.min():.2f} .. {error_ms.max():.2f} ms")
+    assert np.all(np.abs(stamps - true_ns)[len(stamps) // 10:] <= period_ns + read_gaps_ns.max())
+
+
+def test_lsm9ds1_in_real_time_counts_what_a_busy_machine_loses():
+    """Real threads and a real clock: whatever the scheduler does, every sample the sensor gave
+    is delivered once, stamps strictly increase, and an overflow (if any) is counted."""
+    bus, clock = board()
+    driver = Lsm9ds1(bus, 0x6B, clock, 952.0)
+    driver.probe()
+    driver.configure()
+    samples = []
+    for _ in range(60):
+        samples += [contract.unpack(contract.IMU, p) for _, p, _, _ in driver.poll()]
+        time.sleep(0.008)
+    samples.extend(contract.unpack(contract.IMU, payload) for _, payload, _, _ in driver.flush())
+    samples = np.concatenate(samples)
+    model = bus.models["lsm9ds1"]
+    assert len(samples) == len(model.served) > 0
+    assert (driver.overruns > 0) == (model.overwritten > 0)
     assert np.all(np.diff(samples["t_mono_ns"].astype(np.int64)) > 0)
+
+
+def test_sample_clock_is_exact_when_reads_are_on_time():
+    from logger.sources.i2c.sample_clock import FifoSampleClock
+    period = 1_000_000
+    sample_clock = FifoSampleClock(period)
+    out = []
+    taken = 0
+    for n in (5, 8, 3, 8, 8):  # read half a period after the newest sample was taken
+        taken += n
+        out += sample_clock.stamps(n, taken * period + period // 2, taken * period + period // 2)
+    assert out == [k * period for k in range(1, taken + 1)]
+    assert sample_clock.corrections == 0
+    # an overrun re-anchors on the read window but never goes back in time
+    assert sample_clock.stamps(2, 0, 0, overrun=True) == [(taken + 1) * period, (taken + 2) * period]
+
+
+def test_lps25hb_fifo_stamps_with_late_reads():
+    bus, clock = stepped_board()
+    late = LateClockRead(bus, clock, 0x2F, [30_000_000, 0, 60_000_000] * 20)
+    driver = Lps25hb(late, 0x5C, clock, 25.0)
+    driver.configure()
+    records = []
+    for _ in range(60):
+        clock.now_ns += 250_000_000
+        records += [json.loads(p) for _, p, _, _ in driver.poll()]
+    stamps = np.array([r["t_mono_ns"] for r in records])
+    model = bus.models["lps25hb"]
+    assert len(records) == len(model.served) >= model.produced - 2 and model.overwritten == 0
+    assert np.all(np.diff(stamps) > 0)
 
 
 def test_lsm9ds1_overrun_is_counted_when_polled_too_late():

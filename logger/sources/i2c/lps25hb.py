@@ -1,13 +1,15 @@
 """ST LPS25HB barometer (datasheet DocID023722 rev 6): pressure 4096 LSB/hPa, temperature 42.5 + raw/480 degC.
 
 Read through its 32-slot FIFO in stream mode: each poll reads FIFO_STATUS for the number of
-unread samples and then that many PRESS_OUT/TEMP_OUT blocks, so a late poll loses nothing.
+unread samples and then that many PRESS_OUT/TEMP_OUT blocks, so a late poll loses nothing; stamps
+from the continuous sample clock (`FifoSampleClock`).
 """
 
 from __future__ import annotations
 
 from ... import contract
 from .base import AUTO_INCREMENT, Driver
+from .sample_clock import FifoSampleClock
 
 WHO_AM_I_VALUE = 0xBD
 CTRL_REG1 = 0x20
@@ -49,6 +51,7 @@ class Lps25hb(Driver):
         self.odr_hz = odr_hz
         self.poll_interval_s = 8.0 / odr_hz
         self._period_ns = int(1e9 / odr_hz)
+        self.sample_clock = FifoSampleClock(self._period_ns)
 
     def configure(self) -> None:
         w = self.bus.write_byte_data
@@ -57,15 +60,17 @@ class Lps25hb(Driver):
         w(self.address, FIFO_CTRL, FIFO_MODE_STREAM << 5)
 
     def poll(self) -> list:
+        before_ns = self.clock.monotonic_ns()
         status = self.bus.read_byte_data(self.address, FIFO_STATUS)
-        t_read_ns = self.clock.monotonic_ns()
-        if status & FIFO_STATUS_FULL:
+        after_ns = self.clock.monotonic_ns()
+        full = bool(status & FIFO_STATUS_FULL)
+        if full:
             self.overruns += 1
             n = FIFO_DEPTH
         else:
             n = status & FIFO_STATUS_FSS
         out = []
-        for i in range(n):
+        for t_mono_ns in self.sample_clock.stamps(n, before_ns, after_ns, overrun=full):
             b = self.bus.read_i2c_block_data(self.address, PRESS_OUT_XL | AUTO_INCREMENT, 5)
             p_raw = b[0] | (b[1] << 8) | (b[2] << 16)
             if p_raw & 0x800000:
@@ -73,7 +78,6 @@ class Lps25hb(Driver):
             t_raw = b[3] | (b[4] << 8)
             if t_raw & 0x8000:
                 t_raw -= 1 << 16
-            t_mono_ns = t_read_ns - (n - 1 - i) * self._period_ns
             record = {"t_mono_ns": t_mono_ns, "pressure_pa": pressure_pa(p_raw),
                       "temperature_c": temperature_c(t_raw), "pressure_raw": p_raw, "temperature_raw": t_raw}
             out.append((contract.BAROMETER, contract.encode_json(record), t_mono_ns, 1))

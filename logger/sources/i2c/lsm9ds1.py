@@ -3,7 +3,9 @@
 The FIFO runs in continuous mode; each poll reads FIFO_SRC for the number of unread samples and
 then each sample's gyroscope (OUT_X_L_G..) and accelerometer (OUT_X_L_XL..) words, so no sample is
 lost between polls. An overrun flag (OVRN) is counted as a drop. Samples are handed to the writer
-in batches of ``batch_s`` (one ``/imu`` message per 0.1 s by default).
+in batches of ``batch_s`` (one ``/imu`` message per 0.1 s by default). Sample stamps come from a
+continuous sample clock (`FifoSampleClock`): evenly spaced at the ODR period, strictly increasing,
+kept within the window each FIFO read allows by a bounded correction.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import struct
 
 from ... import contract
 from .base import AUTO_INCREMENT, Driver, s16
+from .sample_clock import FifoSampleClock
 
 WHO_AM_I_AG = 0x68
 WHO_AM_I_M = 0x3D
@@ -74,6 +77,7 @@ class Lsm9ds1(Driver):
         self.gyro_range_dps = gyro_range_dps
         self.poll_interval_s = max(8.0 / odr_hz, 0.004)
         self._period_ns = int(1e9 / odr_hz)
+        self.sample_clock = FifoSampleClock(self._period_ns)
         self.batch_ns = int(batch_s * 1e9)
         self._pending = bytearray()
         self._pending_count = 0
@@ -96,18 +100,20 @@ class Lsm9ds1(Driver):
 
     def poll(self) -> list:
         """Read what the FIFO holds; hand out one ``/imu`` message per ``batch_s`` of samples."""
+        before_ns = self.clock.monotonic_ns()
         src = self.bus.read_byte_data(self.address, FIFO_SRC)
-        t_mono_ns = self.clock.monotonic_ns()
-        if src & FIFO_SRC_OVRN:
+        after_ns = self.clock.monotonic_ns()
+        overrun = bool(src & FIFO_SRC_OVRN)
+        if overrun:
             self.overruns += 1
         n = src & FIFO_SRC_FSS
         read = self.bus.read_i2c_block_data
         pack = _STAMP.pack
         pending = self._pending
-        for i in range(n):
+        for t_ns in self.sample_clock.stamps(n, before_ns, after_ns, overrun):
             gyro = bytes(read(self.address, OUT_X_L_G, 6))
             accel = bytes(read(self.address, OUT_X_L_XL, 6))
-            pending += pack(t_mono_ns - (n - 1 - i) * self._period_ns) + accel + gyro
+            pending += pack(t_ns) + accel + gyro
         self._pending_count += n
         if self._pending_count * self._period_ns >= self.batch_ns:
             return self.flush()
