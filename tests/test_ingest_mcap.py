@@ -224,3 +224,17 @@ def test_j1939_vw_axle_sum_when_no_cvw(tmp_path):
     path.write_bytes(stream.getvalue())
     frame = read_logs([path])
     assert set(frame["reported_mass_kg"].dropna()) == {21500.5}
+
+
+def test_a_short_silence_is_bridged_a_long_one_stays_a_gap():
+    """Half a second without any message (a stalled batch) is held across; a missing second is a gap."""
+    from analysis.ingest.align import BinAccumulator
+
+    acc = BinAccumulator(10.0)
+    time_ns = np.concatenate([np.arange(0, 20), np.arange(25, 40), np.arange(60, 80)]) * 100_000_000
+    acc.add("x", time_ns, np.ones(len(time_ns)))
+    acc.mark_recorded(time_ns)
+    first, n = acc.bin_range()
+    recorded = acc.recorded(first, n)
+    assert recorded[20:25].all()
+    assert not recorded[40:60].any()

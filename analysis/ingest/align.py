@@ -82,10 +82,17 @@ class BinAccumulator:
         hi = max(int(a[-1]) for a in self._activity)
         return lo, hi - lo + 1
 
-    def recorded(self, first_bin: int, n_bins: int) -> np.ndarray:
+    def recorded(self, first_bin: int, n_bins: int, bridge_s: float = MAX_HOLD_S) -> np.ndarray:
+        """Bins backed by data. A silence shorter than ``bridge_s`` (a late batch, a scheduling stall)
+        is not a gap: values are held across it; a silence of ``bridge_s`` or more stays a gap."""
         mask = np.zeros(n_bins, dtype=bool)
         for bins in self._activity:
             mask[bins - first_bin] = True
+        bridge_bins = int(round(bridge_s * 1e9 / self.period_ns))
+        edges = np.flatnonzero(np.diff(np.concatenate([[1], mask.astype(np.int8), [1]])))
+        for start, stop in zip(edges[::2], edges[1::2]):
+            if 0 < start and stop < n_bins and stop - start < bridge_bins:
+                mask[start:stop] = True
         return mask
 
     def series(self, name: str, first_bin: int, n_bins: int) -> np.ndarray:

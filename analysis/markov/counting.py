@@ -58,9 +58,10 @@ def _mass_at_stops(speed_mps: np.ndarray, mass_kg: np.ndarray, standing_mps: flo
 def resample_1hz(signals: pd.DataFrame, gap_s: float = GAP_S) -> pd.DataFrame:
     """Signals at whole seconds: speed and gradient linear, mass held (it changes in steps).
 
-    Mass missing inside a stop is filled (`_mass_at_stops`). A time gap longer than ``gap_s`` [s],
-    a sample with ``valid`` False or any other missing value splits the data into segments
-    (column ``segment``); no transition is counted across a split.
+    Mass missing inside a stop is filled (`_mass_at_stops`). Samples with ``valid`` False or any
+    missing value are left out; where that leaves more than ``gap_s`` [s] without a usable sample,
+    the data is split into segments (column ``segment``) and no transition is counted across the
+    split. Shorter dropouts (a lost CAN frame, a stalled batch) are interpolated over.
     """
     missing = [c for c in NEEDED if c not in signals.columns]
     if missing:
@@ -73,7 +74,7 @@ def resample_1hz(signals: pd.DataFrame, gap_s: float = GAP_S) -> pd.DataFrame:
     rows_all = np.flatnonzero(usable)
     time = frame["time_s"].to_numpy()[rows_all]
     columns = {c: frame[c].to_numpy()[rows_all] for c in ("speed_mps", "gradient_pct", "mass_kg")}
-    split = (np.diff(time) > gap_s) | (np.diff(rows_all) > 1)
+    split = np.diff(time) > gap_s
     edges = np.concatenate([[0], np.flatnonzero(split) + 1, [len(rows_all)]])
     pieces = []
     for a, b in zip(edges[:-1], edges[1:]):
