@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import resource
 import time
 from pathlib import Path
 
@@ -33,15 +34,22 @@ def fleet_inputs(quick: bool) -> tuple[list[Path], list[str], Path]:
     return group_dirs, [vehicle for _, vehicle in GROUPS.values()], dem_dir
 
 
+def _cpu_s() -> float:
+    """CPU time of this process and its finished children [s]."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
 def _run(group_dirs, vehicles, dem_dir, out_dir: Path, workers: int, candidates: int):
+    """(wall time [s], CPU time of this process and its workers [s], the fleet result)."""
     from analysis.fleet import FleetSpec, run_fleet
     from analysis.vehicle import load_vehicle
 
     spec = FleetSpec.of(group_dirs, [load_vehicle(v) for v in vehicles], dem_dir=dem_dir,
                         n_candidates=candidates, seed=0)
-    start = time.perf_counter()
+    cpu, start = _cpu_s(), time.perf_counter()
     fleet = run_fleet(spec, out_dir, workers=workers, say=lambda _msg: None)
-    return time.perf_counter() - start, fleet
+    return time.perf_counter() - start, _cpu_s() - cpu, fleet
 
 
 def _warm_up(group_dirs, vehicles, dem_dir, out_dir: Path) -> None:
@@ -62,8 +70,8 @@ def bench_fleet(quick: bool) -> list[dict]:
     n_logs = sum(len(list(d.glob("*.mcap"))) for d in group_dirs)
     candidates = 1000 if quick else 10_000
     out = CACHE / ("quick" if quick else "full") / "out"
-    serial_s, serial = _run(group_dirs, vehicles, dem_dir, out / "serial", 1, candidates)
-    pool_s, pooled = _run(group_dirs, vehicles, dem_dir, out / "pool-2", 2, candidates)
+    serial_s, serial_cpu_s, serial = _run(group_dirs, vehicles, dem_dir, out / "serial", 1, candidates)
+    pool_s, pool_cpu_s, pooled = _run(group_dirs, vehicles, dem_dir, out / "pool-2", 2, candidates)
     for a, b in zip(serial.groups, pooled.groups):
         if not a.statistics.same_as(b.statistics):
             raise AssertionError(f"group {a.name}: the 2-worker run's reduced statistics differ from the serial run's")
@@ -72,11 +80,16 @@ def bench_fleet(quick: bool) -> list[dict]:
     failed = sum(len(g.failed) for g in serial.groups)
     hours = sum(g.statistics.totals["duration_s"] for g in serial.groups) / 3600
     transitions = sum(int(g.statistics.counts.count.sum()) for g in serial.groups)
+    # Share of a core each run got (1 = a whole core per worker): below 1, other processes took the rest.
+    serial_share, pool_share = serial_cpu_s / serial_s, pool_cpu_s / (2 * pool_s)
     print(json.dumps({"fleet": {"logs": n_logs, "failed": failed, "hours": round(hours, 2),
-                                "transitions": transitions, "serial_s": serial_s, "pool_2_s": pool_s}}), flush=True)
+                                "transitions": transitions, "serial_s": serial_s, "serial_cpu_s": serial_cpu_s,
+                                "pool_2_s": pool_s, "pool_2_cpu_s": pool_cpu_s, "serial_core_share": serial_share,
+                                "pool_2_core_share_per_worker": pool_share}}), flush=True)
     return [result(f"fleet: {n_logs} logs ({hours:.1f} h), 2 local workers; ratio = speed-up over 1",
                    pool_s, "s", peer="1 worker (serial, in-process)", peer_value=serial_s,
-                   counts_equal_serial=True, failed_logs=failed)]
+                   counts_equal_serial=True, failed_logs=failed, serial_core_share=round(serial_share, 3),
+                   pool_core_share_per_worker=round(pool_share, 3))]
 
 
 BENCHMARKS = [bench_fleet]
