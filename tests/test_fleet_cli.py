@@ -145,3 +145,15 @@ def test_speed_only_table_gives_totals_and_says_what_is_missing(tmp_path, capsys
     code, printed, err = run_cli(capsys, "fleet", group, "--vehicle", "rigid-18t", "--out", out, "--workers", "1",
                                  "--candidates", "200", "--duration", "600", "--json")
     assert [g["logs"] for g in json.loads(printed)["groups"]] == [2]
+
+
+def test_groups_of_the_same_directory_name_get_distinct_names(tmp_path):
+    from analysis.fleet import FleetSpec
+    from analysis.vehicle import load_vehicle
+
+    for parent in ("a", "b"):
+        write_table(tmp_path / parent / "logs" / "drive.parquet", 1, 120.0)
+    spec = FleetSpec.of([tmp_path / "a" / "logs", tmp_path / "b" / "logs"], [load_vehicle("rigid-18t")],
+                        dem_dir=str(tmp_path))
+    assert [g.name for g in spec.groups] == ["logs", "logs-2"]
+    assert spec.dem_dir == tmp_path

@@ -47,6 +47,9 @@ class FleetSpec:
     bins: LoadBins = field(default_factory=LoadBins)
     options: dict = field(default_factory=dict)
 
+    def __post_init__(self):
+        self.dem_dir = Path(self.dem_dir) if self.dem_dir is not None else None
+
     @classmethod
     def of(cls, log_dirs: list[str | Path], vehicles: list[Vehicle], **settings) -> "FleetSpec":
         """Groups of the log directories; ``vehicles`` one for all or one per directory."""
