@@ -1,4 +1,4 @@
-"""``analyze cycle INPUT… --duration 1800 --candidates 10000 --seed 0 --out DIR``.
+"""``analyze cycle INPUT… --duration 1800 --candidates 100000 --seed 0 --out DIR``.
 
 INPUT is a signals table (CSV/Parquet) or, when the ingest stage is installed, MCAP logs. Missing
 gradient or mass columns are computed by the pipeline's own stages (kinematics, gradient, mass)
@@ -27,7 +27,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--speed-class-kmh", type=float, default=1.0, help="speed class width [km/h] (1)")
     parser.add_argument("--gradient-class-pct", type=float, default=0.5, help="gradient class width [%%] (0.5)")
     parser.add_argument("--mass-class-kg", type=float, default=100.0, help="mass class width [kg] (100)")
-    parser.add_argument("--candidates", type=int, default=10_000, help="Monte Carlo candidates (10000)")
+    parser.add_argument("--candidates", type=int, default=100_000, help="Monte Carlo candidates (100000, about 2-3 s)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (0); same seed, same cycle")
     parser.add_argument("--update-counts", action="store_true",
                         help="draw without replacement from the measured transitions (paper's matrix update)")

@@ -39,7 +39,7 @@ class Selection:
                 "transitions_outside_kept_chain": self.chain.transitions_left_out}
 
 
-def select_cycle(counts: TransitionCounts, duration_s: float = 1800.0, n_candidates: int = 10_000,
+def select_cycle(counts: TransitionCounts, duration_s: float = 1800.0, n_candidates: int = 100_000,
                  seed: int = 0, update_counts: bool = False, chain: Chain | None = None) -> Selection:
     """Generate ``n_candidates`` cycles of ``duration_s`` [s], score them (eq. (15)) and return the
     valid one with the lowest score S, or, if none is valid, the lowest-scoring one (its criteria

@@ -1,7 +1,7 @@
 """The ``cycle`` stage of ``analyze run``: count, generate, select, write the cycle.
 
 Options (``ctx.options["cycle"]``): ``duration_s`` (1800), ``widths`` (`ClassWidths` or its keys),
-``n_candidates`` (10 000), ``seed`` (0), ``update_counts`` (False).
+``n_candidates`` (100 000), ``seed`` (0), ``update_counts`` (False).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from .figure import plot_cycle
 from .select import select_cycle
 
 NEEDED = ["time_s", "speed_mps", "gradient_pct", "mass_kg"]
-DEFAULTS = {"duration_s": 1800.0, "n_candidates": 10_000, "seed": 0, "update_counts": False}
+DEFAULTS = {"duration_s": 1800.0, "n_candidates": 100_000, "seed": 0, "update_counts": False}
 
 
 def stage(ctx) -> None:
