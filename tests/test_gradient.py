@@ -8,7 +8,7 @@ import pytest
 from analysis import road_load
 from analysis.dem.srtm import SrtmDem, write_hgt
 from analysis.errors import UserError
-from analysis.gradient import GradientSettings, estimate_gradient, gradient_with_dem_fallback
+from analysis.gradient import estimate_gradient, gradient_with_dem_fallback
 from analysis.gradient import grid as distance_grid
 from analysis.gradient import sources
 from analysis.kinematics import acceleration_mps2

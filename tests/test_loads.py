@@ -1,7 +1,6 @@
 """Load collectives: rainflow via the `rainflow` package (ASTM E1049), time conservation, closed forms."""
 
 import numpy as np
-import pandas as pd
 import pytest
 import rainflow
 

@@ -176,7 +176,7 @@ def test_map_path_is_relative_to_vehicle_file_and_axle_ratio_defaults_to_vehicle
     (tmp_path / "maps").mkdir()
     grid = [(n, t, 0.9) for n in (0, 4000) for t in (0, 2400)]
     pd.DataFrame(grid, columns=["speed_rpm", "torque_nm", "efficiency"]).to_csv(tmp_path / "maps" / "em.csv", index=False)
-    text = f"""[vehicle]
+    text = """[vehicle]
 name = "test"
 curb_mass_kg = 9000
 drag_coefficient = 0.6

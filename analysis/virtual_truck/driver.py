@@ -14,7 +14,6 @@ from __future__ import annotations
 import math
 
 import numba
-import numpy as np
 
 from ..road_load import AIR_DENSITY_KGPM3, G_MPS2
 
