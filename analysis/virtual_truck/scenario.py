@@ -77,9 +77,9 @@ class Driver:
     max_decel_mps2: float = 2.0
     speed_gain_per_s: float = 0.5
     traffic: float = 1.0
+    """Scale of the traffic's slow-downs below the speed limit (0 = free road)."""
     downhill_overspeed_kmh: float = 5.0
     """Downhill the truck runs up to this much above the target on engine drag before braking."""
-    """Scale of the traffic's slow-downs below the speed limit (0 = free road)."""
 
 
 @dataclass(frozen=True)
