@@ -50,7 +50,7 @@ class ObdSection:
     addressing: str = "11bit"
     timeout_s: float = 0.1
     failed_rounds_before_probe: int = 3
-    probe_interval_s: float = 10.0
+    probe_interval_s: float = 2.0
 
 
 @dataclass

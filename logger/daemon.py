@@ -26,6 +26,10 @@ from .storage import BackgroundFsync, LogDirectory, StorageOptions
 
 log = logging.getLogger("haulprofile.logger")
 
+WALL_CLOCK_JUMP_NS = 1_000_000_000
+"""A change of (realtime - monotonic) larger than this between two housekeeping seconds is a
+wall-clock jump (GPS or NTP setting the time after boot) [ns]."""
+
 GIL_SWITCH_INTERVAL_S = 0.001
 """The interpreter's thread switch interval while the daemon runs (default 5 ms). The I2C thread
 must get the interpreter within ~30 ms of every FIFO poll however busy the CAN reader and the
@@ -59,6 +63,7 @@ class Daemon:
         self._stop = asyncio.Event()
         self._rotate_requested = False
         self._writer_task: asyncio.Task | None = None
+        self._wall_offset_ns: int | None = None
         self.ready = asyncio.Event()
 
     def stop(self) -> None:
@@ -85,20 +90,54 @@ class Daemon:
         while True:
             item: LogItem = await queue.get()
             if self.storage.writer is not None:
-                self.storage.writer.write(item.topic, item.payload, item.t_mono_ns, item.t_realtime_ns)
+                try:
+                    self.storage.writer.write(item.topic, item.payload, item.t_mono_ns, item.t_realtime_ns)
+                except OSError as exc:
+                    self._write_failed(exc, item.records)
+                    continue
                 self.written_records[item.topic.name] = self.written_records.get(item.topic.name, 0) + item.records
             else:
                 self.diagnostics.paused_drops += item.records
 
+    def _write_failed(self, error: OSError, records: int = 0) -> None:
+        """The disk refused a write (full, failing card): pause, never stop the daemon."""
+        self.diagnostics.paused_drops += records
+        self.storage.write_failed(error)
+        while self.storage.messages:
+            self.say(self.storage.messages.pop(0))
+
     def _write_now(self, topic: contract.Topic, record: dict) -> None:
         if self.storage.writer is not None:
             t_mono = record["t_mono_ns"]
-            self.storage.writer.write_json(topic, record, t_mono, t_mono + self.clock.mono_offset_ns())
+            try:
+                self.storage.writer.write_json(topic, record, t_mono, t_mono + self.clock.mono_offset_ns())
+            except OSError as exc:
+                self._write_failed(exc)
+
+    def _check_wall_clock(self) -> None:
+        """Say when the wall clock was set (GPS or NTP time after boot); `/time/sync` has both."""
+        offset = self.clock.mono_offset_ns()
+        if self._wall_offset_ns is not None and abs(offset - self._wall_offset_ns) > WALL_CLOCK_JUMP_NS:
+            self.say(f"wall clock jumped by {(offset - self._wall_offset_ns) * 1e-9:+.3f} s; "
+                     "monotonic time stays the time base, /time/sync pairs both clocks")
+        self._wall_offset_ns = offset
 
     def alive(self) -> bool:
         writer_ok = self._writer_task is not None and not self._writer_task.done()
         return writer_ok and all(not t.done() for t in self.source_tasks.values()) and all(
             getattr(s, "alive", lambda: True)() for s in self.sources)
+
+    def _storage_tick(self) -> None:
+        writer = self.storage.writer
+        if writer is not None:
+            writer.flush_if_due(self.clock.monotonic_ns())
+        if self._rotate_requested:
+            self._rotate_requested = False
+            if not self.storage.paused:
+                self.storage.open()
+                self.say(f"rotated on request: {self.storage.path.name}")
+        elif self.storage.rotate_if_due():
+            log.info("rotated to %s", self.storage.path.name)
 
     async def _housekeeping(self) -> None:
         tick = 0
@@ -110,23 +149,24 @@ class Daemon:
                 next_ns = now_ns
             await self.clock.sleep_until_ns(next_ns)
             tick += 1
-            writer = self.storage.writer
-            if writer is not None:
-                writer.flush_if_due(self.clock.monotonic_ns())
-            if self._rotate_requested:
-                self._rotate_requested = False
-                self.storage.open()
-                self.say(f"rotated on request: {self.storage.path.name}")
-            elif self.storage.rotate_if_due():
-                log.info("rotated to %s", self.storage.path.name)
+            try:
+                self._storage_tick()
+            except OSError as exc:
+                self._write_failed(exc)
             if tick % 4 == 0:
-                self.storage.enforce_free_space()
+                self._check_wall_clock()
+                try:
+                    self.storage.enforce_free_space()
+                except OSError as exc:
+                    self._write_failed(exc)
                 while self.storage.messages:
                     self.say(self.storage.messages.pop(0))
-                now = self.clock.monotonic_ns()
-                self._write_now(contract.TIME_SYNC, {"t_mono_ns": now, "t_realtime_ns": now + self.clock.mono_offset_ns(),
-                                                     "gps_time_utc_ns": self.devices.last_gps_time_ns(self.sources)})
-                self._write_now(contract.DIAGNOSTICS, self.diagnostics.record(now, self.sources, self.queue.qsize()))
+                if self.storage.writer is not None:  # while paused, warnings wait for the next file
+                    now = self.clock.monotonic_ns()
+                    self._write_now(contract.TIME_SYNC, {
+                        "t_mono_ns": now, "t_realtime_ns": now + self.clock.mono_offset_ns(),
+                        "gps_time_utc_ns": self.devices.last_gps_time_ns(self.sources)})
+                    self._write_now(contract.DIAGNOSTICS, self.diagnostics.record(now, self.sources, self.queue.qsize()))
                 if self.config.logger.watchdog and self.alive():
                     self.notifier.watchdog(self.diagnostics.status_line(self.sources))
 
@@ -193,9 +233,12 @@ class Daemon:
                 log.warning("closing %s: %r", source.name, exc)
         self._writer_task.cancel()
         await asyncio.gather(self._writer_task, return_exceptions=True)
-        while not self.queue.empty():  # what the sources handed over last
-            item = self.queue.get_nowait()
-            if self.storage.writer is not None:
-                self.storage.writer.write(item.topic, item.payload, item.t_mono_ns, item.t_realtime_ns)
-                self.written_records[item.topic.name] = self.written_records.get(item.topic.name, 0) + item.records
-        self.storage.close()
+        try:
+            while not self.queue.empty():  # what the sources handed over last
+                item = self.queue.get_nowait()
+                if self.storage.writer is not None:
+                    self.storage.writer.write(item.topic, item.payload, item.t_mono_ns, item.t_realtime_ns)
+                    self.written_records[item.topic.name] = self.written_records.get(item.topic.name, 0) + item.records
+            self.storage.close()
+        except OSError as exc:
+            self.storage.write_failed(exc)

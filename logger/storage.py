@@ -96,6 +96,10 @@ class LogDirectory:
         self.deleted: list[Path] = []
         self.paused = False
         self.messages: list[str] = []
+        self.free_space_probe = lambda directory: shutil.disk_usage(directory).free
+        """Free bytes [B] of the file system holding ``directory``; tests hand in a fake."""
+        self._resume_free_bytes = options.min_free_bytes
+        self.write_failures = 0
 
     def _next_path(self) -> Path:
         pattern = re.compile(rf"^{re.escape(self.options.prefix)}_{self.boot_id}_\d{{8}}T\d{{6}}Z_(\d+)\.mcap$")
@@ -138,17 +142,44 @@ class LogDirectory:
         return False
 
     def free_bytes(self) -> int:
-        return shutil.disk_usage(self.directory).free
+        return self.free_space_probe(self.directory)
+
+    def write_failed(self, error: OSError) -> None:
+        """A write or flush of the current file failed (ENOSPC, EIO): close what can be closed and
+        pause until the file system has room for a few chunks more than the watermark."""
+        self.write_failures += 1
+        name = self.path.name if self.path else "?"
+        if self.writer is not None:
+            try:
+                self.writer.close()
+            except (OSError, ValueError):
+                pass
+            try:
+                self._stream.close()
+            except (OSError, ValueError):
+                pass
+            self.writer = None
+            self._stream = None
+        self.paused = True
+        try:
+            free = self.free_bytes()
+        except OSError:
+            free = 0
+        self._resume_free_bytes = max(self.options.min_free_bytes, free + 4 * self.options.chunk_size_bytes)
+        self.messages.append(f"writing {name} failed ({error}): file closed at its last complete chunk, "
+                             f"writing paused until {self._resume_free_bytes} bytes are free")
 
     def enforce_free_space(self) -> bool:
         """Apply the watermark; True if writing may go on. Adds a line to ``messages`` on action."""
         free = self.free_bytes()
-        if free >= self.options.min_free_bytes:
+        needed = self._resume_free_bytes if self.paused else self.options.min_free_bytes
+        if free >= needed:
             if self.paused:
                 self.paused = False
-                self.messages.append(f"free space back to {free} bytes: writing resumed")
+                self._resume_free_bytes = self.options.min_free_bytes
                 if self.writer is None:
                     self.open()
+                self.messages.append(f"free space back to {free} bytes (new file {self.path.name}): writing resumed")
             return True
         if self.options.on_low_space == "delete_oldest":
             for old in log_files(self.directory, self.options.prefix):

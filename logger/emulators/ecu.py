@@ -50,6 +50,8 @@ class EcuEmulator:
         self.bam_period_s = bam_period_s if broadcast else None
         self.sent: list[tuple[int, bool, bytes]] = []
         self.received_requests = 0
+        self.silent = False
+        """True: the ECU sends and answers nothing (powered down, disconnected); its schedule runs on."""
         self._events: list[tuple[int, int, str, object]] = []
         self._seq = 0
         self._stop = threading.Event()
@@ -84,6 +86,8 @@ class EcuEmulator:
             self._thread.join(2.0)
 
     def _send(self, arbitration_id: int, data: bytes, extended: bool) -> None:
+        if self.silent:
+            return
         self.bus.send(can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=extended))
         self.sent.append((arbitration_id, extended, bytes(data)))
 
@@ -95,7 +99,7 @@ class EcuEmulator:
                 self._fire(t_ns, kind, arg)
             wait_ns = (self._events[0][0] - now) if self._events else 100_000_000
             msg = self.bus.recv(timeout=min(max(wait_ns, 0) * 1e-9 / self.clock.scale, 0.1))
-            if msg is not None:
+            if msg is not None and not self.silent:
                 self._on_frame(msg)
 
     def _fire(self, t_ns: int, kind: str, arg) -> None:

@@ -69,19 +69,52 @@ class GpsEmulator:
     """Writes one epoch every ``1 / rate_hz`` emulated seconds into a pty."""
 
     def __init__(self, signals: TimeSeries, clock: Clock, t0_ns: int, rate_hz: float = 10.0,
-                 start_utc: dt.datetime | None = None):
+                 start_utc: dt.datetime | None = None, link: str | os.PathLike | None = None):
+        """``link``: a stable path (as udev's ``/dev/haulprofile-gps``) that points at the pty; the
+        logger opens it, and `replug` points it at a new pty."""
         self.signals = signals
         self.clock = clock
         self.t0_ns = t0_ns
         self.rate_hz = rate_hz
         self.start_utc = start_utc or dt.datetime(2024, 5, 14, 8, 0, 0)
-        self.master_fd, self.slave_fd = os.openpty()
-        tty.setraw(self.slave_fd)
-        self.port = os.ttyname(self.slave_fd)
+        self.link = None if link is None else os.fspath(link)
+        self._fd_lock = threading.Lock()
+        self.unplugged = False
+        self._open_pty()
         self.sent: list[str] = []
         self.received = bytearray()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+
+    def _open_pty(self) -> None:
+        self.master_fd, self.slave_fd = os.openpty()
+        tty.setraw(self.slave_fd)
+        self.tty = os.ttyname(self.slave_fd)
+        if self.link is None:
+            self.port = self.tty
+            return
+        temporary = f"{self.link}.new"
+        if os.path.lexists(temporary):
+            os.remove(temporary)
+        os.symlink(self.tty, temporary)
+        os.replace(temporary, self.link)
+        self.port = self.link
+
+    def unplug(self) -> None:
+        """The receiver is gone: the pty is hung up (the logger's reads fail); epochs are not sent."""
+        with self._fd_lock:
+            self.unplugged = True
+            for fd in (self.master_fd, self.slave_fd):
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+
+    def replug(self) -> None:
+        """The receiver is back on a new tty; ``link`` points at it."""
+        with self._fd_lock:
+            self._open_pty()
+            self.unplugged = False
 
     def start(self) -> "GpsEmulator":
         self._thread = threading.Thread(target=self._run, name="gps-emulator", daemon=True)
@@ -107,13 +140,16 @@ class GpsEmulator:
             t_s = k / self.rate_hz
             utc = self.start_utc + dt.timedelta(seconds=round(t_s, 2))
             sentences = epoch_sentences(utc, self.values(t_s))
-            try:
-                os.write(self.master_fd, "".join(s + "\r\n" for s in sentences).encode("ascii"))
-            except OSError:
-                return
-            self.sent.extend(sentences)
             k += 1
-            self._drain_input()
+            with self._fd_lock:
+                if self.unplugged:
+                    continue
+                try:
+                    os.write(self.master_fd, "".join(s + "\r\n" for s in sentences).encode("ascii"))
+                except OSError:
+                    return
+                self.sent.extend(sentences)
+                self._drain_input()
 
     def _drain_input(self) -> None:
         import select
@@ -127,8 +163,9 @@ class GpsEmulator:
             self.received += data
 
     def write_raw(self, data: bytes) -> None:
-        """Write arbitrary bytes (a recorded receiver stream) into the pty."""
-        os.write(self.master_fd, data)
+        """Write arbitrary bytes (a recorded receiver stream, line noise) into the pty."""
+        with self._fd_lock:
+            os.write(self.master_fd, data)
 
     def stop(self) -> None:
         self._stop.set()
@@ -137,8 +174,7 @@ class GpsEmulator:
 
     def close(self) -> None:
         self.stop()
-        for fd in (self.master_fd, self.slave_fd):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
+        if not self.unplugged:
+            self.unplug()
+        if self.link is not None and os.path.islink(self.link):
+            os.remove(self.link)

@@ -27,8 +27,11 @@ class EmulatedDevices(Devices):
     """Device seam handing out emulators; ``start()`` before the daemon runs, ``close()`` after."""
 
     def __init__(self, signals: TimeSeries, clock: Clock, missing_sensors: tuple[str, ...] = (),
-                 answer_obd: bool = True, broadcast: bool = True, ecu_options: dict | None = None):
+                 answer_obd: bool = True, broadcast: bool = True, ecu_options: dict | None = None,
+                 gps_link: str | Path | None = None):
+        """``gps_link``: a stable path the GPS pty is reached through (see `GpsEmulator`)."""
         self.signals = signals
+        self.gps_link = gps_link
         self.clock = clock
         self.missing_sensors = missing_sensors
         self.answer_obd = answer_obd
@@ -48,7 +51,7 @@ class EmulatedDevices(Devices):
         i2c = config.i2c
         self.board = sensor_board(self.signals, self.clock, self.t0_ns, i2c.lps25hb.address, i2c.hts221.address,
                                   i2c.lsm9ds1.address_ag, i2c.lsm9ds1.address_m, self.missing_sensors)
-        self.gps = GpsEmulator(self.signals, self.clock, self.t0_ns, config.gps.rate_hz)
+        self.gps = GpsEmulator(self.signals, self.clock, self.t0_ns, config.gps.rate_hz, link=self.gps_link)
         self._ecu_bus = can.Bus(interface="virtual", channel=self._channel, receive_own_messages=False)
         self.ecu = EcuEmulator(self._ecu_bus, self.signals, self.clock, answer_obd=self.answer_obd,
                                broadcast=self.broadcast and config.emulation.j1939_broadcast, **self.ecu_options)

@@ -25,6 +25,11 @@ FRAME_STRUCT = struct.Struct("<QIBBBB8s")
 assert FRAME_STRUCT.size == contract.CAN_FRAME_DTYPE.itemsize
 
 HW_TIMESTAMP_INTERFACES = {"socketcan"}
+RECEIVE_RETRY_S = 0.5
+"""Wait after a receive error (interface down, bus-off) before the next try [s]."""
+WALL_CLOCK_JUMP_NS = 1_000_000_000
+"""A frame's receive stamp (wall clock) this far from now means the wall clock was set since the
+clock offset was taken: the offset is taken again, monotonic time stays the time base [ns]."""
 
 
 def allowed_tx_ids(section: CanSection) -> frozenset[int]:
@@ -51,13 +56,16 @@ def allowed_tx_ids(section: CanSection) -> frozenset[int]:
 class TxGuard:
     """The only way the logger transmits: checks the allow-list, logs what it sent."""
 
-    def __init__(self, bus: can.BusABC, allowed: frozenset[int], record):
+    def __init__(self, bus: can.BusABC, allowed: frozenset[int], record, say=None):
         self._bus = bus
         self.allowed = allowed
         self._record = record
+        self._say = say or (lambda message: None)
         self.sent = 0
         self.blocked = 0
         self.errors = 0
+        self.failing = 0
+        """Failed sends in a row (bus-off, no ACK, interface down); 0 while sending works."""
 
     def send(self, arbitration_id: int, data: bytes, extended: bool) -> bool:
         if arbitration_id not in self.allowed:
@@ -66,9 +74,15 @@ class TxGuard:
         message = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=extended)
         try:
             self._bus.send(message, timeout=0.05)
-        except can.CanError:
+        except (can.CanError, OSError) as exc:
             self.errors += 1
+            self.failing += 1
+            if self.failing in (1, 100, 10000):
+                self._say(f"can: send failed: {exc!r} ({self.failing} in a row); receiving goes on")
             return False
+        if self.failing:
+            self._say(f"can: sending works again after {self.failing} failed sends")
+            self.failing = 0
         self.sent += 1
         self._record(arbitration_id, data, extended)
         return True
@@ -92,7 +106,7 @@ class CanSource(Source):
         self._offset_ns = clock.mono_offset_ns()
         self._thread: threading.Thread | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
-        self.guard = TxGuard(self.bus, allowed_tx_ids(section), self._record_tx)
+        self.guard = TxGuard(self.bus, allowed_tx_ids(section), self._record_tx, self._say)
         sa = section.j1939.source_address
         self._tp_keys = {(j1939.PGN_TP_CM | sa), (j1939.PGN_TP_DT | sa)} if (
             section.j1939.enabled and section.j1939.answer_rts and not section.listen_only) else set()
@@ -116,15 +130,23 @@ class CanSource(Source):
         scaled = clock.scale != 1.0
         hw_flag = contract.CAN_FLAG_HW_TIMESTAMP if self._hw_stamp else 0
         obd_ids, tp_keys = self._obd_ids, self._tp_keys
+        failing = 0
         while not self._stop.is_set():
             try:
                 msg = recv(0.2)
             except (can.CanError, OSError) as exc:  # interface down, bus-off: count, wait, retry
                 self.stats.errors += 1
-                if self.stats.errors in (1, 10, 100, 1000):
-                    self._say(f"can: receive error {exc} ({self.stats.errors} so far)")
-                self._stop.wait(0.5)
+                failing += 1
+                self.stats.state = "receive error"
+                if failing in (1, 10, 100, 1000):
+                    self._say(f"can: receive error {exc} ({failing} in a row); retrying every "
+                              f"{RECEIVE_RETRY_S:g} s")
+                self._stop.wait(RECEIVE_RETRY_S)
                 continue
+            if failing:
+                self._say(f"can: receiving again after {failing} receive errors")
+                failing = 0
+                self.stats.state = "running"
             if msg is None:
                 continue
             arb = msg.arbitration_id
@@ -139,6 +161,9 @@ class CanSource(Source):
                 t_ns = clock.mono_ns_from_unix_s(msg.timestamp, 0)
             else:
                 t_ns = int(msg.timestamp * 1e9) - self._offset_ns
+                if abs(t_ns - clock.monotonic_ns()) > WALL_CLOCK_JUMP_NS:  # the wall clock was set
+                    self._offset_ns = clock.mono_offset_ns()
+                    t_ns = int(msg.timestamp * 1e9) - self._offset_ns
             data = bytes(msg.data)
             record = pack(t_ns, arb, flags, msg.dlc, 0, 0, data)
             with self._lock:

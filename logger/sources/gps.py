@@ -21,7 +21,8 @@ from .base import Source
 
 KNOT_MPS = 1852.0 / 3600.0
 MAX_LINE_BYTES = 512
-REOPEN_S = 5.0
+REOPEN_S = 1.0
+"""How often a lost serial port (receiver unplugged, tty gone) is tried again [s]."""
 FIX_TYPES = {"RMC", "GGA", "GSA", "GST", "VTG"}
 
 

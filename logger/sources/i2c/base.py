@@ -17,6 +17,10 @@ from ..base import Source
 
 AUTO_INCREMENT = 0x80
 """Sub-address MSB that makes ST sensors (LPS25HB, HTS221, LSM9DS1 magnetometer) auto-increment."""
+LOST_AFTER_ERRORS = 3
+"""Consecutive failed polls after which a sensor counts as lost (unplugged, browned out)."""
+REPROBE_INTERVAL_S = 1.0
+"""How often a lost sensor is probed (WHO_AM_I) and, once it answers, configured again [s]."""
 
 
 class SMBusLike(Protocol):
@@ -78,6 +82,9 @@ class I2cBusSource(Source):
 
     Each driver is polled every ``driver.poll_interval_s``; results reach the event loop in one
     hand-over per poll round that produced data. Stats per sensor are in ``stats.extra``.
+    A failed transaction (EIO, NACK) is counted; after ``LOST_AFTER_ERRORS`` in a row the sensor is
+    lost and probed every ``REPROBE_INTERVAL_S``; when it answers it is configured again (a sensor
+    that lost power comes back with its registers reset) and polled as before.
     """
 
     name = "i2c"
@@ -88,28 +95,52 @@ class I2cBusSource(Source):
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._failing = {driver.name: 0 for driver in drivers}
         for driver in drivers:
-            self.stats.extra[driver.name] = {"records": 0, "overruns": 0, "errors": 0}
+            self.stats.extra[driver.name] = {"records": 0, "overruns": 0, "errors": 0, "state": "running"}
+
+    def _reprobe(self, driver: Driver) -> str | None:
+        try:
+            driver.probe()
+            driver.configure()
+        except (SensorMissing, OSError):
+            return None
+        self._failing[driver.name] = 0
+        return "back"
 
     def _poll_round(self, due: dict, now_ns: int) -> list:
+        """``[(sensor, outputs, overruns, error, event)]``; event is ``"lost"``, ``"back"`` or None."""
         results = []
         for driver in self.drivers:
             if now_ns < due[driver.name]:
                 continue
+            if self._failing[driver.name] >= LOST_AFTER_ERRORS:
+                due[driver.name] = now_ns + int(REPROBE_INTERVAL_S * 1e9)
+                if self._reprobe(driver):
+                    results.append((driver.name, [], 0, None, "back"))
+                continue
             due[driver.name] = max(due[driver.name] + int(driver.poll_interval_s * 1e9), now_ns - 1_000_000)
+            event = None
             try:
                 out, error = driver.poll(), None
+                self._failing[driver.name] = 0
             except OSError as exc:
                 out, error = [], exc
+                self._failing[driver.name] += 1
+                if self._failing[driver.name] == LOST_AFTER_ERRORS:
+                    event = "lost"
             overruns, driver.overruns = driver.overruns, 0
             if out or overruns or error:
-                results.append((driver.name, out, overruns, error))
+                results.append((driver.name, out, overruns, error, event))
         return results
 
     def _bus_thread(self) -> None:
         clock = self.clock
         for driver in self.drivers:
-            driver.configure()
+            try:
+                driver.configure()
+            except OSError:
+                self._failing[driver.name] = LOST_AFTER_ERRORS
         now = clock.monotonic_ns()
         due = {d.name: now for d in self.drivers}
         tick_ns = int(min(d.poll_interval_s for d in self.drivers) * 1e9)
@@ -125,12 +156,12 @@ class I2cBusSource(Source):
             else:
                 next_tick = clock.monotonic_ns()
         final = self._poll_round({d.name: 0 for d in self.drivers}, clock.monotonic_ns())
-        final += [(d.name, out, 0, None) for d in self.drivers if (out := d.flush())]
+        final += [(d.name, out, 0, None, None) for d in self.drivers if (out := d.flush())]
         if final:
             self._loop.call_soon_threadsafe(self._emit_all, final)
 
     def _emit_all(self, results: list) -> None:
-        for name, out, overruns, error in results:
+        for name, out, overruns, error, event in results:
             sensor = self.stats.extra[name]
             for topic, payload, t_mono_ns, records in out:
                 self.emit(topic, payload, t_mono_ns, records)
@@ -142,6 +173,13 @@ class I2cBusSource(Source):
                 sensor["errors"] += 1
                 if sensor["errors"] in (1, 100, 10000):
                     self.say(f"{name}: I2C error {error} ({sensor['errors']} so far)")
+            if event == "lost":
+                sensor["state"] = "lost"
+                self.say(f"{name}: lost after {LOST_AFTER_ERRORS} failed reads ({error}); "
+                         f"probing every {REPROBE_INTERVAL_S:g} s")
+            elif event == "back":
+                sensor["state"] = "running"
+                self.say(f"{name}: answers again, configured and polled")
 
     def alive(self) -> bool:
         return self._thread is not None and self._thread.is_alive()

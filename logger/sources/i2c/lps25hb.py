@@ -54,6 +54,7 @@ class Lps25hb(Driver):
         self.sample_clock = FifoSampleClock(self._period_ns)
 
     def configure(self) -> None:
+        self.sample_clock.last_ns = None  # a (re)configured FIFO starts a new sample sequence
         w = self.bus.write_byte_data
         w(self.address, CTRL_REG1, CTRL_REG1_PD | (ODR_CODE[self.odr_hz] << 4) | CTRL_REG1_BDU)
         w(self.address, CTRL_REG2, CTRL_REG2_FIFO_EN)

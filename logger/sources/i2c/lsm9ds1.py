@@ -83,6 +83,7 @@ class Lsm9ds1(Driver):
         self._pending_count = 0
 
     def configure(self) -> None:
+        self.sample_clock.last_ns = None  # a (re)configured FIFO starts a new sample sequence
         w = self.bus.write_byte_data
         odr = ODR_CODE[self.odr_hz]
         w(self.address, CTRL_REG8, CTRL_REG8_BDU | CTRL_REG8_IF_ADD_INC)
