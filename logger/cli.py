@@ -1,4 +1,5 @@
-"""``haulprofile-logger --config FILE``: run the daemon (or ``--check`` the file and exit)."""
+"""``haulprofile-logger --config FILE``: run the daemon (or ``--check`` the file, or print the
+running logger's ``--status``, and exit)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true", help="only read and check the configuration")
     parser.add_argument("--duration", type=float, default=None,
                         help="stop after this many (emulated) seconds; default: until SIGTERM")
+    parser.add_argument("--status", action="store_true",
+                        help="print the health of the running logger (its newest file's /diagnostics) and exit; "
+                             "exit code 1 if a source is not running or the file is stale")
     parser.add_argument("-v", "--verbose", action="store_true")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
@@ -26,6 +30,11 @@ def main(argv: list[str] | None = None) -> int:
     except config_module.ConfigError as exc:
         print(f"haulprofile-logger: error: {exc}", file=sys.stderr)
         return 2
+    if args.status:
+        from .status import status_lines
+        lines, healthy = status_lines(config.logger.directory, config.logger.prefix)
+        print("\n".join(lines))
+        return 0 if healthy else 1
     if args.check:
         print(f"haulprofile-logger: {args.config} is valid")
         return 0

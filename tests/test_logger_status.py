@@ -1,0 +1,29 @@
+"""``haulprofile-logger --status``: the newest log's last `/diagnostics`, read while written."""
+
+from __future__ import annotations
+
+from logger import cli
+from logger.config import Config
+from logger.emulators.rig import record_drive
+from logger.emulators.signals import synthetic_drive
+from logger.readback import last_diagnostics
+
+
+def test_status_of_a_log_directory(tmp_path, capsys):
+    config = Config()
+    config.i2c.lsm9ds1.odr_hz = 119.0
+    path = record_drive(synthetic_drive(30.0), tmp_path / "logs", duration_s=2.5, config=config)
+    record = last_diagnostics(path)
+    assert set(record["sources"]) == {"can", "i2c", "gps"}
+    cut = tmp_path / "cut" / path.name
+    cut.parent.mkdir()
+    cut.write_bytes(path.read_bytes()[: path.stat().st_size // 2])  # as the file being written
+    assert last_diagnostics(cut) is not None
+    toml = tmp_path / "logger.toml"
+    toml.write_text(f'[logger]\ndirectory = "{tmp_path / "logs"}"\n')
+    assert cli.main(["--config", str(toml), "--status"]) == 0
+    out = capsys.readouterr().out
+    assert path.name in out and "can" in out and "lsm9ds1" in out and "running" in out
+    toml.write_text(f'[logger]\ndirectory = "{tmp_path / "empty"}"\n')
+    assert cli.main(["--config", str(toml), "--status"]) == 1
+    assert "no logs in" in capsys.readouterr().out
