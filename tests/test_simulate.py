@@ -203,3 +203,14 @@ gear_ratios = [3.2, 1.0]
     cycle = distance_cycle(HILLY_WITH_STOPS, 16_000.0)
     a, b = simulate(cycle, mapped), simulate(cycle, explicit)
     assert a.summary["battery_terminal_energy_kwh"] == pytest.approx(b.summary["battery_terminal_energy_kwh"], rel=1e-9)
+
+
+def test_driver_holds_the_target_until_a_far_lower_target_is_near(rigid):
+    """A lower limit 3 km ahead, with small target wiggles on the way: the driver keeps 80 km/h and
+    coasts down only in the last few hundred metres, not from the first moment it sees the limit."""
+    rows = [(0, 80, 0, 0)] + [(200 + 100 * i, 80 - (i % 2), 0, 0) for i in range(28)] + [(3000, 50, 0, 0),
+                                                                                        (5000, 50, 0, 0)]
+    tr = simulate(distance_cycle(vdri_frame(rows), 16_000.0), rigid).trace
+    cruise = tr[(tr["distance_m"] > 1000) & (tr["distance_m"] < 2000)]
+    assert (cruise["target_speed_mps"] - cruise["speed_mps"]).max() < 1.0
+    assert tr.loc[(tr["distance_m"] > 2990) & (tr["distance_m"] < 3010), "speed_mps"].max() < 52 / KMH

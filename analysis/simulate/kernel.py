@@ -41,6 +41,10 @@ N_PARAMETERS = 21
 
 # --- driver states
 STANDSTILL, DRIVE, COAST, BRAKE = 0, 1, 2, 3
+COAST_HOLD = 0.5
+"""Once coasting towards a lower target, the driver keeps coasting while the deceleration still
+needed is at least this share of the coasting deceleration; below it (the lower target is far or
+the truck already slow) the driver drives again instead of rolling down to it."""
 
 # --- output columns, one row per step (values at the step's start, energies over the step)
 C_TIME, C_DIST, C_SPEED, C_TARGET, C_ACCEL, C_STATE, C_GEAR = 0, 1, 2, 3, 4, 5, 6
@@ -244,7 +248,7 @@ def run_kernel(time_based, row_pos, row_target, row_gradient, row_f_roll, row_f_
             a_coast = -f_res / m_eff
             if need >= p[P_DEC_BRAKE] or (is_stop and need > 0.0 and v < 1.0):
                 state, a_wish = BRAKE, min(a_ctrl, -need)
-            elif need > 0.0 and (need >= -a_coast or state == COAST):
+            elif need > 0.0 and (need >= -a_coast or (state == COAST and need >= COAST_HOLD * -a_coast)):
                 state, a_wish = COAST, min(a_ctrl, a_coast)
             else:
                 state, a_wish = DRIVE, a_ctrl
