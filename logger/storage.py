@@ -16,6 +16,7 @@ from pathlib import Path
 
 from .writer import LogWriter
 
+CURRENT_MARKER = ".current"
 _NAME = re.compile(r"^(?P<prefix>.+)_(?P<boot>[0-9a-f]{8})_(?P<utc>\d{8}T\d{6}Z)_(?P<seq>\d{4,})\.mcap$")
 
 
@@ -121,7 +122,25 @@ class LogDirectory:
             self.writer.flush()
         self._opened_mono_s = time.monotonic()
         self.files_written.append(self.path)
+        self._mark_current(self.path.name)
         return self.path
+
+    @property
+    def current_marker(self) -> Path:
+        """``.current`` in the log directory: the name of the file being written (absent when none
+        is), so copying tools (rsync ``--exclude``) can leave that one for later."""
+        return self.directory / CURRENT_MARKER
+
+    def _mark_current(self, name: str | None) -> None:
+        try:
+            if name is None:
+                self.current_marker.unlink(missing_ok=True)
+                return
+            temporary = self.directory / f"{CURRENT_MARKER}.tmp"
+            temporary.write_text(name + "\n")
+            os.replace(temporary, self.current_marker)
+        except OSError:
+            pass  # a full disk must not stop logging for a convenience file
 
     def close(self) -> None:
         if self.writer is not None:
@@ -129,6 +148,7 @@ class LogDirectory:
             self._stream.close()
             self.writer = None
             self._stream = None
+            self._mark_current(None)
 
     def rotate_if_due(self) -> bool:
         """Rotate by size or age of the current file; True if a new file was started."""
@@ -160,6 +180,7 @@ class LogDirectory:
                 pass
             self.writer = None
             self._stream = None
+            self._mark_current(None)
         self.paused = True
         try:
             free = self.free_bytes()

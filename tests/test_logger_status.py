@@ -27,3 +27,14 @@ def test_status_of_a_log_directory(tmp_path, capsys):
     toml.write_text(f'[logger]\ndirectory = "{tmp_path / "empty"}"\n')
     assert cli.main(["--config", str(toml), "--status"]) == 1
     assert "no logs in" in capsys.readouterr().out
+
+
+def test_current_marker_names_the_file_being_written(tmp_path):
+    from logger.storage import LogDirectory, StorageOptions
+    directory = LogDirectory(StorageOptions(tmp_path, min_free_bytes=0))
+    first = directory.open()
+    assert (tmp_path / ".current").read_text() == first.name + "\n"
+    second = directory.open()
+    assert (tmp_path / ".current").read_text() == second.name + "\n"
+    directory.close()
+    assert not (tmp_path / ".current").exists() and first.exists() and second.exists()
