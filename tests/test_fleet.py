@@ -144,3 +144,15 @@ def test_dask_local_cluster_gives_the_serial_result(small_fleet, serial_run, tmp
         fleet = run_small(small_fleet, tmp_path, scheduler=cluster.scheduler_address)
     assert fleet.executor.startswith("dask")
     assert_same(serial_run[0], fleet)
+
+
+def test_torque_level_crossings_on_the_fixed_grid_equal_a_plain_count():
+    from analysis.fleet.statistics import _crossings
+
+    torque = np.cumsum(np.random.default_rng(8).normal(0.0, 400.0, 2000))
+    crossings = _crossings(torque, 500.0)
+    for level_index, count in zip(crossings.keys[:, 0], crossings.values):
+        level = level_index * 500.0
+        assert count == sum(1 for x0, x1 in zip(torque[:-1], torque[1:]) if x0 < level <= x1)
+    levels_spanned = np.arange(np.ceil(torque.min() / 500), np.floor(torque.max() / 500) + 1)
+    assert set(crossings.keys[:, 0]) <= set(levels_spanned.astype(int))
