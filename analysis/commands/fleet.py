@@ -30,7 +30,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="run on an existing Dask distributed cluster, e.g. tcp://host:8786")
     parser.add_argument("--duration", type=float, default=1800.0, help="generated cycle length per group [s] (1800)")
-    parser.add_argument("--candidates", type=int, default=10_000, help="Monte Carlo candidates per group (10000)")
+    parser.add_argument("--candidates", type=int, default=100_000,
+                        help="Monte Carlo candidates per group (100000, as analyze run)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
     parser.add_argument("--rate-hz", type=float, default=10.0, help="rate of the signals tables (10 Hz)")
     output = parser.add_mutually_exclusive_group()

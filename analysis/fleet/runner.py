@@ -41,7 +41,7 @@ class FleetSpec:
     groups: list[Group]
     dem_dir: Path | None = None
     duration_s: float = 1800.0
-    n_candidates: int = 10_000
+    n_candidates: int = 100_000
     seed: int = 0
     widths: ClassWidths = field(default_factory=ClassWidths)
     bins: LoadBins = field(default_factory=LoadBins)
