@@ -8,11 +8,12 @@ names the file, table and key.
 from __future__ import annotations
 
 import tomllib
-from dataclasses import MISSING, dataclass, fields, replace
+from dataclasses import dataclass, fields, replace
 from importlib import resources
 from pathlib import Path
 
 from .errors import UserError
+from .toml_tables import check_number, check_text, is_number, table_kwargs
 
 
 class VehicleFileError(UserError):
@@ -117,41 +118,18 @@ _TOP_TABLES = {"vehicle", "engine", "electric_powertrain", "load"}
 
 def _check_value(where: str, key: str, value, annotation: str):
     if "tuple" in annotation:
-        if not isinstance(value, list) or not value or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        if not isinstance(value, list) or not value or not all(is_number(v) for v in value):
             raise VehicleFileError(f"{where}.{key}: expected a non-empty list of numbers, got {value!r}")
         if any(v <= 0 for v in value):
             raise VehicleFileError(f"{where}.{key}: every ratio must be positive, got {value!r}")
         return tuple(float(v) for v in value)
     if annotation.startswith("str"):
-        if not isinstance(value, str):
-            raise VehicleFileError(f"{where}.{key}: expected text, got {value!r}")
-        return value
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise VehicleFileError(
-            f"{where}.{key}: expected a number in the unit its name gives, got {value!r}")
-    low, high = _RANGES.get(key, (float("-inf"), float("inf")))
-    if not low <= value <= high:
-        raise VehicleFileError(
-            f"{where}.{key} = {value} is outside the possible range [{low:g}, {high:g}] (wrong unit?)")
-    return float(value)
+        return check_text(where, key, value, VehicleFileError)
+    return check_number(where, key, value, _RANGES.get(key, (float("-inf"), float("inf"))), VehicleFileError)
 
 
 def _build(cls, table: dict, where: str, allowed: set[str] | None = None):
-    allowed = allowed if allowed is not None else {f.name for f in fields(cls)}
-    for key in table:
-        if key not in allowed:
-            raise VehicleFileError(f"{where}: unknown key '{key}' (known: {', '.join(sorted(allowed))})")
-    kwargs = {}
-    for f in fields(cls):
-        if f.name not in allowed:
-            continue
-        if f.name not in table:
-            if f.default is MISSING:
-                raise VehicleFileError(f"{where}: missing key '{f.name}'")
-            continue
-        kwargs[f.name] = _check_value(where, f.name, table[f.name], str(f.type))
-    return kwargs
+    return table_kwargs(cls, table, where, _check_value, VehicleFileError, allowed)
 
 
 def vehicle_from_dict(data: dict, source: str = "<vehicle>") -> Vehicle:

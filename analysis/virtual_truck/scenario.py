@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import datetime as dt
 import tomllib
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
 
 from ..errors import UserError
+from ..toml_tables import check_number, check_text, is_number, table_kwargs
 from ..vehicle import EXAMPLES as VEHICLE_EXAMPLES
 
 
@@ -167,43 +168,18 @@ _NOISE_MAX = 1_000.0
 
 def _value(where: str, key: str, value, annotation: str):
     if annotation.startswith("tuple[float"):
-        if not isinstance(value, list) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                                  for v in value):
+        if not isinstance(value, list) or not all(is_number(v) for v in value):
             raise ScenarioFileError(f"{where}.{key}: expected a list of numbers, got {value!r}")
         return tuple(float(_value(where, key, v, "float")) for v in value)
     if annotation.startswith("str"):
-        if not isinstance(value, str):
-            raise ScenarioFileError(f"{where}.{key}: expected text, got {value!r}")
-        return value
-    if annotation == "int":
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ScenarioFileError(f"{where}.{key}: expected a whole number, got {value!r}")
-    elif isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ScenarioFileError(f"{where}.{key}: expected a number in the unit its name gives, got {value!r}")
-    low, high = _RANGES.get(key, (0.0, _NOISE_MAX))
-    if not low <= value <= high:
-        raise ScenarioFileError(f"{where}.{key} = {value} is outside the possible range [{low:g}, {high:g}] "
-                                f"(wrong unit?)")
-    return value if annotation == "int" else float(value)
+        return check_text(where, key, value, ScenarioFileError)
+    return check_number(where, key, value, _RANGES.get(key, (0.0, _NOISE_MAX)), ScenarioFileError,
+                        whole=annotation == "int")
 
 
 def _table(cls, data, where: str, skip: tuple[str, ...] = ()) -> dict:
-    if not isinstance(data, dict):
-        raise ScenarioFileError(f"{where}: expected a table, got {data!r}")
-    known = {f.name for f in fields(cls)} - set(skip) - {"base_dir"}
-    for key in data:
-        if key not in known and key not in skip:
-            raise ScenarioFileError(f"{where}: unknown key '{key}' (known: {', '.join(sorted(known))})")
-    kwargs = {}
-    for f in fields(cls):
-        if f.name not in known:
-            continue
-        if f.name not in data:
-            if f.default is MISSING and f.default_factory is MISSING:
-                raise ScenarioFileError(f"{where}: missing key '{f.name}'")
-            continue
-        kwargs[f.name] = _value(where, f.name, data[f.name], str(f.type))
-    return kwargs
+    allowed = {f.name for f in fields(cls)} - {"base_dir"}
+    return table_kwargs(cls, data, where, _value, ScenarioFileError, allowed, ignore=skip)
 
 
 def _array(cls, data, where: str) -> tuple:
