@@ -70,6 +70,7 @@ class CanSection:
     channel: str = "can0"
     bitrate: int = 250000
     listen_only: bool = False
+    receive_interval_s: float = 0.01
     batch_interval_s: float = 0.2
     obd: ObdSection = field(default_factory=ObdSection)
     j1939: J1939Section = field(default_factory=J1939Section)
@@ -207,7 +208,15 @@ def _build(cls, data: dict, prefix: str):
     return cls(**kwargs)
 
 
+MAX_RECEIVE_INTERVAL_S = 0.05
+"""Longest CAN receive cadence: an ISO-TP flow control must follow a first frame within N_Bs
+(75 ms in ISO 15765-4), and frames waiting in the socket buffer must not overflow it [s]."""
+
+
 def _check(config: Config) -> None:
+    if not 0.0 <= config.can.receive_interval_s <= MAX_RECEIVE_INTERVAL_S:
+        raise ConfigError(f"config: can.receive_interval_s must be 0 to {MAX_RECEIVE_INTERVAL_S:g} s "
+                          f"(flow control within ISO 15765-4's N_Bs), got {config.can.receive_interval_s!r}")
     if not 1 <= config.can.obd.pids_per_request <= 6:
         raise ConfigError("config: can.obd.pids_per_request must be 1 to 6 (SAE J1979)")
     for pid in config.can.obd.pids:

@@ -30,6 +30,7 @@ def test_example_is_valid_and_matches_the_defaults():
     ({"wifi": {}}, "wifi"),
     ({"can": {"listen_only": "yes"}}, "can.listen_only"),
     ({"logger": {"time_scale": 10.0}}, "logger.time_scale"),
+    ({"can": {"receive_interval_s": 0.2}}, "can.receive_interval_s"),
 ])
 def test_bad_values_name_the_key(data, key):
     with pytest.raises(cfg.ConfigError) as error:

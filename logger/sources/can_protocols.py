@@ -6,7 +6,7 @@ to its request to count answers and timeouts and to notice when no ECU answers a
 
 from __future__ import annotations
 
-import asyncio
+import collections
 
 from .. import j1939, obd
 from ..config import J1939Section, ObdSection
@@ -15,9 +15,15 @@ from ..config import J1939Section, ObdSection
 class ObdPoller:
     """Round-robin mode 01 requests at ``rate_hz`` (SAE J1979 over ISO 15765-4).
 
+    One request at a time: the next goes out at its slot once the last one was answered or
+    ``timeout_s`` passed. Answers are noted by the CAN reader thread (`on_response`) and looked at
+    when the poller wakes for its next slot, so an answer costs the event loop no wake-up.
     After ``failed_rounds_before_probe`` rounds without any answer the poller stops loading the
     bus and sends one probe every ``probe_interval_s`` until an ECU answers again.
     """
+
+    RECHECK_S = 0.01
+    """While an answer is overdue for its slot but not yet timed out, look again this often [s]."""
 
     def __init__(self, source, section: ObdSection):
         self.source = source
@@ -30,8 +36,9 @@ class ObdPoller:
         self.responses = 0
         self.timeouts = 0
         self.probing = False
-        self._waiting: asyncio.Future | None = None
-        self._expect_pid: int | None = None
+        self._answered: collections.deque = collections.deque()
+        self._outstanding: int | None = None
+        self._sent_ns = 0
         self._consecutive_timeouts = 0
 
     def stats(self) -> dict:
@@ -39,64 +46,72 @@ class ObdPoller:
                 "obd_state": "probing (no ECU answers OBD-II)" if self.probing else "polling"}
 
     def on_response(self, arbitration_id: int, payload: bytes) -> None:
-        """Called in the loop for each reassembled response (any ECU)."""
-        if len(payload) < 2 or payload[0] != obd.SERVICE_CURRENT_DATA + obd.POSITIVE_RESPONSE_OFFSET:
-            return
-        if self._waiting is not None and not self._waiting.done() and payload[1] == self._expect_pid:
-            self._waiting.set_result(payload)
+        """A reassembled response from any ECU; called in the CAN reader thread."""
+        if len(payload) >= 2 and payload[0] == obd.SERVICE_CURRENT_DATA + obd.POSITIVE_RESPONSE_OFFSET:
+            self._answered.append(payload[1])
 
-    async def _request(self, pids: list[int]) -> bool:
+    def _settle(self, now_ns: int) -> str:
+        """The outstanding request's fate: ``"answered"``, ``"timeout"``, ``"waiting"`` or ``"idle"``."""
+        while self._answered:
+            if self._answered.popleft() == self._outstanding:
+                self._outstanding = None
+                self.responses += 1
+                self._consecutive_timeouts = 0
+                return "answered"
+        if self._outstanding is None:
+            return "idle"
+        if now_ns - self._sent_ns < self.section.timeout_s * 1e9:
+            return "waiting"
+        self._outstanding = None
+        self.timeouts += 1
+        self._consecutive_timeouts += 1
+        return "timeout"
+
+    def _send(self, pids: list[int]) -> None:
         data = bytes([1 + len(pids), obd.SERVICE_CURRENT_DATA, *pids]).ljust(8, bytes([obd.PAD_BYTE]))
-        loop = asyncio.get_running_loop()
-        self._waiting = loop.create_future()
-        self._expect_pid = pids[0]
-        if not self.source.guard.send(self.request_id, data, self.extended):
-            self._waiting = None
-            return False
-        self.requests += 1
-        waiting = self._waiting
-        timer = loop.call_later(self.source.clock.real_seconds(self.section.timeout_s),
-                                lambda: waiting.done() or waiting.set_result(None))
-        try:
-            answer = await waiting
-        finally:
-            timer.cancel()
-            self._waiting = None
-        if answer is None:
-            self.timeouts += 1
-            self._consecutive_timeouts += 1
-            return False
-        self.responses += 1
-        self._consecutive_timeouts = 0
-        return True
+        self._answered.clear()
+        if self.source.guard.send(self.request_id, data, self.extended):
+            self.requests += 1
+            self._outstanding = pids[0]
+            self._sent_ns = self.source.clock.monotonic_ns()
 
     async def run(self) -> None:
         clock = self.source.clock
         period_ns = int(1e9 / self.section.rate_hz)
+        timeout_ns = int(self.section.timeout_s * 1e9)
         give_up_after = self.section.failed_rounds_before_probe * len(self.groups)
-        next_ns = clock.monotonic_ns()
+        slot_ns = wake_ns = clock.monotonic_ns()
         index = 0
         while True:
+            await clock.sleep_until_ns(wake_ns)
+            now = clock.monotonic_ns()
+            fate = self._settle(now)
+            if fate == "waiting":
+                wake_ns = min(self._sent_ns + timeout_ns, now + int(self.RECHECK_S * 1e9))
+                continue
             if self.probing:
-                if await self._request(self.groups[0]):
+                if fate == "answered":
                     self.probing = False
                     self.source.say("an ECU answers OBD-II again: polling resumed")
-                    next_ns = clock.monotonic_ns()
+                    slot_ns = now
+                elif now < slot_ns:
+                    wake_ns = slot_ns
+                    continue
                 else:
-                    await clock.sleep(self.section.probe_interval_s)
-                continue
-            await self._request(self.groups[index])
-            index = (index + 1) % len(self.groups)
-            if self._consecutive_timeouts >= give_up_after:
+                    self._send(self.groups[0])
+                    slot_ns = now + int(self.section.probe_interval_s * 1e9)
+                    wake_ns = now + timeout_ns
+                    continue
+            elif self._consecutive_timeouts >= give_up_after:
                 self.probing = True
                 self.source.say(f"no ECU answered {self._consecutive_timeouts} OBD-II requests: "
                                 f"probing every {self.section.probe_interval_s:g} s instead of polling")
+                slot_ns = wake_ns = now
                 continue
-            next_ns += period_ns
-            now = clock.monotonic_ns()
-            if next_ns < now:
-                next_ns = now
-            await clock.sleep_until_ns(next_ns)
+            self._send(self.groups[index])
+            index = (index + 1) % len(self.groups)
+            slot_ns = max(slot_ns + period_ns, now)
+            wake_ns = slot_ns
 
 
 class J1939Requester:

@@ -40,6 +40,15 @@ def _thread_cpu_s(thread: threading.Thread) -> float:
     return time.clock_gettime(time.pthread_getcpuclockid(thread.ident))
 
 
+def _thread_wakeups(thread: threading.Thread) -> int:
+    """Voluntary context switches of a thread so far (each is one sleep and one wake-up)."""
+    try:
+        with open(f"/proc/self/task/{thread.native_id}/status") as status:
+            return next(int(line.split()[1]) for line in status if line.startswith("voluntary_ctxt_switches"))
+    except (OSError, StopIteration):
+        return 0
+
+
 class _TimedSMBus(sensors.EmulatedSMBus):
     """The emulated SMBus, keeping the CPU time spent inside it (sensor work, not logger work)."""
 
@@ -121,11 +130,14 @@ def logger_full_load(quick: bool) -> list[dict]:
             t for t in threading.enumerate() if t.name in ("can-reader", "i2c-bus") or t.name.startswith("fsync")]
         peer_threads = list(notifier._readers) if hasattr(notifier, "_readers") else []
         before = {t: _thread_cpu_s(t) for t in logger_threads + peer_threads}
+        wakeups_before = {t: _thread_wakeups(t) for t in logger_threads + peer_threads}
         smbus_before = _TimedSMBus.cpu_ns
         can_reader = next(t for t in logger_threads if t.name == "can-reader")
         peer_thread = peer_threads[0]
         await asyncio.sleep(duration_s)
         after = {t: _thread_cpu_s(t) for t in before if t.is_alive()}
+        measured["wakeups_per_s"] = {t.name: round((_thread_wakeups(t) - wakeups_before[t]) / duration_s)
+                                     for t in after}
         measured["logger_cpu_s"] = sum(after[t] - before[t] for t in after if t not in peer_threads) - \
             (_TimedSMBus.cpu_ns - smbus_before) * 1e-9
         measured["can_reader_cpu_s"] = after[can_reader] - before[can_reader]
@@ -167,7 +179,8 @@ def logger_full_load(quick: bool) -> list[dict]:
     tag = "quick" if quick else "60s"
     return [
         result(f"logger_full_load_{tag}_cpu_s_per_hour", measured["logger_cpu_s"] / duration_s * 3600, "s/h",
-               percent_of_one_core=100 * measured["logger_cpu_s"] / duration_s, thread_cpu_s=measured["threads"]),
+               percent_of_one_core=100 * measured["logger_cpu_s"] / duration_s, thread_cpu_s=measured["threads"],
+               thread_wakeups_per_s=measured["wakeups_per_s"]),
         result(f"logger_full_load_{tag}_can_cpu_per_frame (ratio = peer/ours, >1: we are cheaper)",
                ours_per_frame_us, "us/frame", "python-can Notifier+BLFWriter", peer_per_frame_us,
                frames_on_bus=frames_on_bus, frames_logged=frames_logged, peer_frames=peer_frames,

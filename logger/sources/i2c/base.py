@@ -21,6 +21,9 @@ LOST_AFTER_ERRORS = 3
 """Consecutive failed polls after which a sensor counts as lost (unplugged, browned out)."""
 REPROBE_INTERVAL_S = 1.0
 """How often a lost sensor is probed (WHO_AM_I) and, once it answers, configured again [s]."""
+HANDOVER_INTERVAL_S = 0.1
+"""How often the bus thread hands what it read to the event loop: one wake-up of the loop for
+all sensors instead of one per poll that produced a sample [s]."""
 
 
 class SMBusLike(Protocol):
@@ -81,7 +84,7 @@ class I2cBusSource(Source):
     """All sensors of one I2C bus, polled by one thread (transactions never interleave).
 
     Each driver is polled every ``driver.poll_interval_s``; results reach the event loop in one
-    hand-over per poll round that produced data. Stats per sensor are in ``stats.extra``.
+    hand-over every ``HANDOVER_INTERVAL_S`` (emulated time). Stats per sensor are in ``stats.extra``.
     A failed transaction (EIO, NACK) is counted; after ``LOST_AFTER_ERRORS`` in a row the sensor is
     lost and probed every ``REPROBE_INTERVAL_S``; when it answers it is configured again (a sensor
     that lost power comes back with its registers reset) and polled as before.
@@ -144,18 +147,23 @@ class I2cBusSource(Source):
         now = clock.monotonic_ns()
         due = {d.name: now for d in self.drivers}
         tick_ns = int(min(d.poll_interval_s for d in self.drivers) * 1e9)
-        next_tick = now
+        handover_ns = int(HANDOVER_INTERVAL_S * 1e9)
+        next_tick = next_handover = now
+        pending: list = []
         while not self._stop.is_set():
-            results = self._poll_round(due, clock.monotonic_ns())
-            if results:
-                self._loop.call_soon_threadsafe(self._emit_all, results)
+            now = clock.monotonic_ns()
+            pending += self._poll_round(due, now)
+            if pending and now >= next_handover:
+                self._loop.call_soon_threadsafe(self._emit_all, pending)
+                pending = []
+                next_handover = now + handover_ns
             next_tick += tick_ns  # slower sensors are polled on the fastest one's ticks: one wake-up
             wait_ns = next_tick - clock.monotonic_ns()
             if wait_ns > 0:
                 clock.thread_sleep(wait_ns * 1e-9)
             else:
                 next_tick = clock.monotonic_ns()
-        final = self._poll_round({d.name: 0 for d in self.drivers}, clock.monotonic_ns())
+        final = pending + self._poll_round({d.name: 0 for d in self.drivers}, clock.monotonic_ns())
         final += [(d.name, out, 0, None, None) for d in self.drivers if (out := d.flush())]
         if final:
             self._loop.call_soon_threadsafe(self._emit_all, final)

@@ -75,7 +75,7 @@ class Lsm9ds1(Driver):
         self.odr_hz = odr_hz
         self.accel_range_g = accel_range_g
         self.gyro_range_dps = gyro_range_dps
-        self.poll_interval_s = max(8.0 / odr_hz, 0.004)
+        self.poll_interval_s = max(16.0 / odr_hz, 0.004)
         self._period_ns = int(1e9 / odr_hz)
         self.sample_clock = FifoSampleClock(self._period_ns)
         self.batch_ns = int(batch_s * 1e9)
