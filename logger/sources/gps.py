@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import asyncio
 import datetime as dt
+import functools
 import math
+import operator
 import struct
 
 import pynmea2
@@ -24,6 +26,8 @@ MAX_LINE_BYTES = 512
 REOPEN_S = 1.0
 """How often a lost serial port (receiver unplugged, tty gone) is tried again [s]."""
 FIX_TYPES = {"RMC", "GGA", "GSA", "GST", "VTG"}
+FALLBACK_TYPES = {"VTG", "GSA"}
+"""Sentences only needed when RMC (speed) or GGA (HDOP) left a field empty: parsed only then."""
 
 
 def nmea_checksum_ok(sentence: str) -> bool:
@@ -31,13 +35,11 @@ def nmea_checksum_ok(sentence: str) -> bool:
     star = sentence.rfind("*")
     if not sentence.startswith(("$", "!")) or star < 0 or len(sentence) < star + 3:
         return False
-    computed = 0
-    for char in sentence[1:star]:
-        computed ^= ord(char)
     try:
-        return computed == int(sentence[star + 1:star + 3], 16)
+        expected = int(sentence[star + 1:star + 3], 16)
     except ValueError:
         return False
+    return functools.reduce(operator.xor, sentence[1:star].encode("ascii", "replace"), 0) == expected
 
 
 def ubx_message(msg_class: int, msg_id: int, payload: bytes) -> bytes:
@@ -55,6 +57,15 @@ def ubx_cfg_rate(rate_hz: float) -> bytes:
     return ubx_message(0x06, 0x08, struct.pack("<HHH", int(round(1000.0 / rate_hz)), 1, 1))
 
 
+@functools.lru_cache(maxsize=4)
+def _date(ddmmyy: str) -> dt.date | None:
+    """RMC's date field (one parse per day, not per sentence)."""
+    try:
+        return pynmea2.nmea_utils.datestamp(ddmmyy) if ddmmyy else None
+    except ValueError:
+        return None
+
+
 def _float(value) -> float | None:
     try:
         return float(value) if value not in (None, "") else None
@@ -69,6 +80,7 @@ class Epoch:
         self.time_key = time_key
         self.t_mono_ns = t_mono_ns
         self.fields: dict = {}
+        self.fallbacks: list[str] = []
 
     def add(self, msg) -> None:
         kind = msg.sentence_type
@@ -80,16 +92,19 @@ class Epoch:
             f["altitude"] = _float(msg.altitude)
             f["satellites"] = int(msg.num_sats or 0)
             f["hdop"] = _float(msg.horizontal_dil)
-            f["time"] = msg.timestamp
         elif kind == "RMC":
-            if msg.spd_over_grnd not in (None, ""):
-                f["speed_mps"] = float(msg.spd_over_grnd) * KNOT_MPS
+            speed_knots = _float(msg.spd_over_grnd)
+            if speed_knots is not None:
+                f["speed_mps"] = speed_knots * KNOT_MPS
             f["course_deg"] = _float(msg.true_course)
-            if msg.datestamp and msg.timestamp:
-                f["utc"] = dt.datetime.combine(msg.datestamp, msg.timestamp)
+            date = _date(msg.data[8] if len(msg.data) > 8 else "")
+            time_of_day = msg.timestamp
+            if date and time_of_day:
+                f["utc"] = dt.datetime.combine(date, time_of_day)
         elif kind == "VTG":
-            if "speed_mps" not in f and _float(msg.spd_over_grnd_kmph) is not None:
-                f["speed_mps"] = float(msg.spd_over_grnd_kmph) / 3.6
+            speed_kmh = _float(msg.spd_over_grnd_kmph)
+            if "speed_mps" not in f and speed_kmh is not None:
+                f["speed_mps"] = speed_kmh / 3.6
         elif kind == "GST":
             lat_err, lon_err, alt_err = (_float(msg.std_dev_latitude), _float(msg.std_dev_longitude),
                                          _float(msg.std_dev_altitude))
@@ -98,6 +113,17 @@ class Epoch:
             f["v_acc_m"] = alt_err
         elif kind == "GSA":
             f["hdop"] = f.get("hdop") or _float(msg.hdop)
+
+    def add_fallbacks(self) -> int:
+        """Parse the VTG/GSA kept aside if RMC or GGA left their field empty; returns parse errors."""
+        f, errors = self.fields, 0
+        for text in self.fallbacks:
+            if (text[3:6] == "VTG" and "speed_mps" not in f) or (text[3:6] == "GSA" and not f.get("hdop")):
+                try:
+                    self.add(pynmea2.parse(text))
+                except (pynmea2.ParseError, ValueError, TypeError, AttributeError):
+                    errors += 1
+        return errors
 
     def fix(self, wall_time_ns: int) -> dict | None:
         f = self.fields
@@ -173,29 +199,33 @@ class GpsSource(Source):
             else:
                 self.stats.extra["bad_checksum"] += 1
                 return
-        if text[3:6] not in FIX_TYPES or text.startswith("$P"):
+        kind = text[3:6]
+        if kind not in FIX_TYPES or text.startswith("$P"):
+            return
+        if kind in FALLBACK_TYPES:
+            if self._epoch is not None:
+                self._epoch.fallbacks.append(text)
             return
         try:
-            msg = pynmea2.parse(text)  # checksum verified above
+            msg = pynmea2.parse(text)
         except (pynmea2.ParseError, ValueError, AttributeError, TypeError):
             self.stats.extra["parse_errors"] += 1
             return
         timestamp = getattr(msg, "timestamp", None)
-        if msg.sentence_type in ("RMC", "GGA", "GST"):
-            key = timestamp.isoformat() if timestamp else ""
-            if self._epoch is None or key != self._epoch.time_key:
-                self.flush_epoch()
-                self._epoch = Epoch(key, t_mono_ns)
-        if self._epoch is not None:
-            try:
-                self._epoch.add(msg)
-            except (ValueError, TypeError, AttributeError):
-                self.stats.extra["parse_errors"] += 1
+        key = timestamp.isoformat() if timestamp else ""
+        if self._epoch is None or key != self._epoch.time_key:
+            self.flush_epoch()
+            self._epoch = Epoch(key, t_mono_ns)
+        try:
+            self._epoch.add(msg)
+        except (ValueError, TypeError, AttributeError):
+            self.stats.extra["parse_errors"] += 1
 
     def flush_epoch(self) -> None:
         if self._epoch is None:
             return
         epoch, self._epoch = self._epoch, None
+        self.stats.extra["parse_errors"] += epoch.add_fallbacks()
         try:
             fix = epoch.fix(epoch.t_mono_ns + self.clock.mono_offset_ns())
         except (ValueError, TypeError, OverflowError):
