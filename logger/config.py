@@ -70,7 +70,7 @@ class CanSection:
     channel: str = "can0"
     bitrate: int = 250000
     listen_only: bool = False
-    receive_interval_s: float = 0.01
+    receive_interval_s: float = 0.02
     batch_interval_s: float = 0.2
     obd: ObdSection = field(default_factory=ObdSection)
     j1939: J1939Section = field(default_factory=J1939Section)

@@ -84,8 +84,10 @@ def _logger_frames(seen, ecu):
     return [m for m in seen if (m.arbitration_id, bytes(m.data)) not in ecu_frames]
 
 
-def test_obd_11bit_polling_at_the_configured_rate():
-    section = CanSection(interface="virtual")
+@pytest.mark.parametrize("receive_interval_s", [0.02, 0.0])
+def test_obd_11bit_polling_at_the_configured_rate(receive_interval_s):
+    """On the reader's 20 ms cadence and with a wake-up per frame (``receive_interval_s = 0``)."""
+    section = CanSection(interface="virtual", receive_interval_s=receive_interval_s)
     section.j1939.request_pgns = []
     frames, source, ecu, seen = run_can(section, 1.0)
     stats = source.obd_at_end

@@ -6,7 +6,8 @@ stamped on arrival), packed into the contract's 24-byte records; the asyncio tas
 the writer every ``batch_interval_s``. Waking on a cadence instead of for every frame spares the
 CPU most of the thread wake-ups (1500 frames/s arrive in some 400 bursts). The reader also
 answers what must be answered at once: ISO-TP flow control for multi-frame OBD-II responses and
-J1939 CTS / end-of-message ACK for RTS sessions addressed to the logger. Everything sent goes
+J1939 CTS / end-of-message ACK for RTS sessions addressed to the logger; and it drives the OBD-II
+poller (`ObdPoller.tick` after each wake-up's frames), so polling costs the event loop nothing. Everything sent goes
 through `TxGuard`: an explicit allow-list of arbitration ids, and nothing at all with
 ``listen_only``.
 """
@@ -110,7 +111,6 @@ class CanSource(Source):
         self._stop = threading.Event()
         self._offset_ns = clock.mono_offset_ns()
         self._thread: threading.Thread | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
         self.guard = TxGuard(self.bus, allowed_tx_ids(section), self._record_tx, self._say)
         sa = section.j1939.source_address
         self._tp_keys = {(j1939.PGN_TP_CM | sa), (j1939.PGN_TP_DT | sa)} if (
@@ -129,11 +129,17 @@ class CanSource(Source):
 
     # --- reader thread -------------------------------------------------------------------------
     def _reader(self) -> None:
-        interval_s = self.clock.real_seconds(self.section.receive_interval_s)
+        clock = self.clock
+        interval_s = clock.real_seconds(self.section.receive_interval_s)
+        obd_due_ns: int | None = None
         failing = 0
         while not self._stop.is_set():
+            timeout_s = 0.0
+            if not interval_s:  # a frame at a time: block until one comes or the poller is due
+                timeout_s = 0.2 if obd_due_ns is None else \
+                    min(max(clock.real_seconds((obd_due_ns - clock.monotonic_ns()) * 1e-9), 0.0), 0.2)
             try:
-                taken = self._take_buffered(0.0 if interval_s > 0 else 0.2)
+                taken = self._take_buffered(timeout_s)
             except (can.CanError, OSError) as exc:  # interface down, bus-off: count, wait, retry
                 self.stats.errors += 1
                 failing += 1
@@ -147,6 +153,8 @@ class CanSource(Source):
                 self._say(f"can: receiving again after {failing} receive errors")
                 failing = 0
                 self.stats.state = "running"
+            if self.obd is not None:
+                obd_due_ns = self.obd.tick(clock.monotonic_ns())
             if interval_s > 0 and taken < MAX_FRAMES_PER_WAKE:
                 self._stop.wait(interval_s)
 
@@ -191,9 +199,8 @@ class CanSource(Source):
                 elif tp_keys and extended and ((arb >> 8) & 0xFFFF) in tp_keys:
                     self._commit(records)
                     self._on_tp_frame(arb, bytes(data))
-                if not timeout_s:
-                    continue
-                self._commit(records)  # blocking receive: each frame on its own
+                if timeout_s:  # blocking receive: a frame at a time
+                    break
         finally:
             self._commit(records)
         return taken
@@ -278,10 +285,9 @@ class CanSource(Source):
         self.stats.extra = extra
 
     async def run(self) -> None:
-        self._loop = asyncio.get_running_loop()
         self._thread = threading.Thread(target=self._reader, name="can-reader", daemon=True)
         self._thread.start()
-        tasks = [asyncio.create_task(t.run()) for t in (self.obd, self.j1939) if t is not None]
+        tasks = [asyncio.create_task(self.j1939.run())] if self.j1939 is not None else []
         self.stats.state = "running"
         try:
             while True:

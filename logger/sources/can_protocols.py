@@ -15,15 +15,13 @@ from ..config import J1939Section, ObdSection
 class ObdPoller:
     """Round-robin mode 01 requests at ``rate_hz`` (SAE J1979 over ISO 15765-4).
 
-    One request at a time: the next goes out at its slot once the last one was answered or
-    ``timeout_s`` passed. Answers are noted by the CAN reader thread (`on_response`) and looked at
-    when the poller wakes for its next slot, so an answer costs the event loop no wake-up.
-    After ``failed_rounds_before_probe`` rounds without any answer the poller stops loading the
-    bus and sends one probe every ``probe_interval_s`` until an ECU answers again.
+    Driven by the CAN reader thread: `tick` runs on each of its wake-ups, after the frames that
+    arrived meanwhile (answers included, noted by `on_response`) were taken, so polling costs the
+    event loop nothing. One request at a time: the next goes out at its slot once the last one
+    was answered or ``timeout_s`` passed. After ``failed_rounds_before_probe`` rounds without any
+    answer the poller stops loading the bus and sends one probe every ``probe_interval_s`` until
+    an ECU answers again.
     """
-
-    RECHECK_S = 0.01
-    """While an answer is overdue for its slot but not yet timed out, look again this often [s]."""
 
     def __init__(self, source, section: ObdSection):
         self.source = source
@@ -40,13 +38,18 @@ class ObdPoller:
         self._outstanding: int | None = None
         self._sent_ns = 0
         self._consecutive_timeouts = 0
+        self._period_ns = int(1e9 / section.rate_hz)
+        self._timeout_ns = int(section.timeout_s * 1e9)
+        self._give_up_after = section.failed_rounds_before_probe * len(self.groups)
+        self._slot_ns: int | None = None
+        self._index = 0
 
     def stats(self) -> dict:
         return {"obd_requests": self.requests, "obd_responses": self.responses, "obd_timeouts": self.timeouts,
                 "obd_state": "probing (no ECU answers OBD-II)" if self.probing else "polling"}
 
     def on_response(self, arbitration_id: int, payload: bytes) -> None:
-        """A reassembled response from any ECU; called in the CAN reader thread."""
+        """A reassembled response from any ECU."""
         if len(payload) >= 2 and payload[0] == obd.SERVICE_CURRENT_DATA + obd.POSITIVE_RESPONSE_OFFSET:
             self._answered.append(payload[1])
 
@@ -60,58 +63,51 @@ class ObdPoller:
                 return "answered"
         if self._outstanding is None:
             return "idle"
-        if now_ns - self._sent_ns < self.section.timeout_s * 1e9:
+        if now_ns - self._sent_ns < self._timeout_ns:
             return "waiting"
         self._outstanding = None
         self.timeouts += 1
         self._consecutive_timeouts += 1
         return "timeout"
 
-    def _send(self, pids: list[int]) -> None:
+    def _send(self, pids: list[int], now_ns: int) -> None:
         data = bytes([1 + len(pids), obd.SERVICE_CURRENT_DATA, *pids]).ljust(8, bytes([obd.PAD_BYTE]))
         self._answered.clear()
         if self.source.guard.send(self.request_id, data, self.extended):
             self.requests += 1
             self._outstanding = pids[0]
-            self._sent_ns = self.source.clock.monotonic_ns()
+            self._sent_ns = now_ns
 
-    async def run(self) -> None:
-        clock = self.source.clock
-        period_ns = int(1e9 / self.section.rate_hz)
-        timeout_ns = int(self.section.timeout_s * 1e9)
-        give_up_after = self.section.failed_rounds_before_probe * len(self.groups)
-        slot_ns = wake_ns = clock.monotonic_ns()
-        index = 0
-        while True:
-            await clock.sleep_until_ns(wake_ns)
-            now = clock.monotonic_ns()
-            fate = self._settle(now)
-            if fate == "waiting":
-                wake_ns = min(self._sent_ns + timeout_ns, now + int(self.RECHECK_S * 1e9))
-                continue
-            if self.probing:
-                if fate == "answered":
-                    self.probing = False
-                    self.source.say("an ECU answers OBD-II again: polling resumed")
-                    slot_ns = now
-                elif now < slot_ns:
-                    wake_ns = slot_ns
-                    continue
-                else:
-                    self._send(self.groups[0])
-                    slot_ns = now + int(self.section.probe_interval_s * 1e9)
-                    wake_ns = now + timeout_ns
-                    continue
-            elif self._consecutive_timeouts >= give_up_after:
-                self.probing = True
-                self.source.say(f"no ECU answered {self._consecutive_timeouts} OBD-II requests: "
-                                f"probing every {self.section.probe_interval_s:g} s instead of polling")
-                slot_ns = wake_ns = now
-                continue
-            self._send(self.groups[index])
-            index = (index + 1) % len(self.groups)
-            slot_ns = max(slot_ns + period_ns, now)
-            wake_ns = slot_ns
+    def tick(self, now_ns: int) -> int:
+        """Send what is due at ``now_ns`` [ns]; returns when the poller next has something to do."""
+        if self._slot_ns is None:
+            self._slot_ns = now_ns
+        fate = self._settle(now_ns)
+        if fate == "waiting":
+            return self._sent_ns + self._timeout_ns
+        if self.probing:
+            if fate == "answered":
+                self.probing = False
+                self.source.say("an ECU answers OBD-II again: polling resumed")
+                self._slot_ns = now_ns
+            elif now_ns < self._slot_ns:
+                return self._slot_ns
+            else:
+                self._send(self.groups[0], now_ns)
+                self._slot_ns = now_ns + int(self.section.probe_interval_s * 1e9)
+                return now_ns + self._timeout_ns
+        elif self._consecutive_timeouts >= self._give_up_after:
+            self.probing = True
+            self.source.say(f"no ECU answered {self._consecutive_timeouts} OBD-II requests: "
+                            f"probing every {self.section.probe_interval_s:g} s instead of polling")
+            self._slot_ns = now_ns
+            return self.tick(now_ns)
+        if now_ns < self._slot_ns:
+            return self._slot_ns
+        self._send(self.groups[self._index], now_ns)
+        self._index = (self._index + 1) % len(self.groups)
+        self._slot_ns = max(self._slot_ns + self._period_ns, now_ns)
+        return self._slot_ns
 
 
 class J1939Requester:
