@@ -31,6 +31,9 @@ FIFO_SRC_OVRN = 0x40
 FIFO_SRC_FSS = 0x3F
 FIFO_DEPTH = 32
 FIFO_MODE_CONTINUOUS = 0b110
+MAX_POLL_INTERVAL_S = 0.1
+"""The FIFO is read when half full (16.8 ms at 952 Hz: a poll may come that late again before a
+sample is lost), at low rates at least this often [s]."""
 CTRL_REG8_BDU = 0x40
 CTRL_REG8_IF_ADD_INC = 0x04
 CTRL_REG9_FIFO_EN = 0x02
@@ -75,7 +78,7 @@ class Lsm9ds1(Driver):
         self.odr_hz = odr_hz
         self.accel_range_g = accel_range_g
         self.gyro_range_dps = gyro_range_dps
-        self.poll_interval_s = max(16.0 / odr_hz, 0.004)
+        self.poll_interval_s = min(FIFO_DEPTH / 2 / odr_hz, MAX_POLL_INTERVAL_S)
         self._period_ns = int(1e9 / odr_hz)
         self.sample_clock = FifoSampleClock(self._period_ns)
         self.batch_ns = int(batch_s * 1e9)
