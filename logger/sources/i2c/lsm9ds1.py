@@ -112,12 +112,14 @@ class Lsm9ds1(Driver):
             self.overruns += 1
         n = src & FIFO_SRC_FSS
         read = self.bus.read_i2c_block_data
+        address = self.address
         pack = _STAMP.pack
         pending = self._pending
         for t_ns in self.sample_clock.stamps(n, before_ns, after_ns, overrun):
-            gyro = bytes(read(self.address, OUT_X_L_G, 6))
-            accel = bytes(read(self.address, OUT_X_L_XL, 6))
-            pending += pack(t_ns) + accel + gyro
+            gyro = read(address, OUT_X_L_G, 6)  # gyroscope first: reading OUT_Z_H_XL pops the slot
+            pending += pack(t_ns)
+            pending.extend(read(address, OUT_X_L_XL, 6))
+            pending.extend(gyro)
         self._pending_count += n
         if self._pending_count * self._period_ns >= self.batch_ns:
             return self.flush()
