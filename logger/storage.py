@@ -28,14 +28,48 @@ def boot_id() -> str:
         return uuid.uuid4().hex[:8]
 
 
+SEQUENCE_FILE = ".sequence"
+"""The last sequence number used in a log directory, kept so numbers never repeat or go back."""
+
+
 def log_files(directory: Path, prefix: str | None = None) -> list[Path]:
-    """Log files in ``directory`` written by this scheme, oldest first (by time, then sequence)."""
+    """Log files in ``directory`` written by this scheme, oldest first.
+
+    The order is the sequence number, which counts up across boots, not the wall-clock time in the
+    name: a Raspberry Pi has no real-time clock, and until GPS or NTP sets it the clock may run
+    days behind, so a new file can carry an older time than the files before it.
+    """
     found = []
     for path in Path(directory).glob("*.mcap"):
         match = _NAME.match(path.name)
         if match and (prefix is None or match["prefix"] == prefix):
-            found.append((match["utc"], int(match["seq"]), path))
+            found.append((int(match["seq"]), match["utc"], path))
     return [p for _, _, p in sorted(found)]
+
+
+def log_name_parts(path: Path) -> tuple[str, int] | None:
+    """(prefix, sequence number) of a file named by this scheme, else None."""
+    match = _NAME.match(Path(path).name)
+    return (match["prefix"], int(match["seq"])) if match else None
+
+
+def next_sequence(directory: Path, prefix: str) -> int:
+    """One more than any sequence number used in ``directory`` (files or `SEQUENCE_FILE`); stored."""
+    marker = Path(directory) / SEQUENCE_FILE
+    try:
+        last = int(marker.read_text().strip())
+    except (OSError, ValueError):
+        last = -1
+    for path in log_files(directory, prefix):
+        last = max(last, int(_NAME.match(path.name)["seq"]))
+    sequence = last + 1
+    partial = marker.with_name(marker.name + ".partial")
+    try:
+        partial.write_text(f"{sequence}\n")
+        os.replace(partial, marker)
+    except OSError:
+        pass  # a full disk: the names of the files still carry the order
+    return sequence
 
 
 class BackgroundFsync:
@@ -103,9 +137,7 @@ class LogDirectory:
         self.write_failures = 0
 
     def _next_path(self) -> Path:
-        pattern = re.compile(rf"^{re.escape(self.options.prefix)}_{self.boot_id}_\d{{8}}T\d{{6}}Z_(\d+)\.mcap$")
-        sequences = [int(m.group(1)) for p in self.directory.iterdir() if (m := pattern.match(p.name))]
-        sequence = max(sequences, default=-1) + 1
+        sequence = next_sequence(self.directory, self.options.prefix)
         utc = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
         return self.directory / f"{self.options.prefix}_{self.boot_id}_{utc}_{sequence:04d}.mcap"
 

@@ -136,6 +136,23 @@ def test_reboot_between_files_keeps_one_time_line(tmp_path):
     assert wall[0] == first.bin_start_mono_ns[0] + synthetic.REALTIME_OFFSET_NS + synthetic.GPS_MINUS_REALTIME_NS
 
 
+def test_files_of_one_logger_go_by_sequence_when_the_clock_ran_behind(tmp_path):
+    """A Pi without RTC rebooted with its clock a day behind: its next file still comes second."""
+    first = _write(tmp_path / "haulprofile_aaaaaaaa_20231114T221320Z_0007.mcap", 10, 1,
+                   synthetic.T0_MONO_NS, synthetic.REALTIME_OFFSET_NS)
+    day_ns = 86_400 * 10**9
+    _write(tmp_path / "haulprofile_bbbbbbbb_20231113T221320Z_0008.mcap", 10, 2, 3 * 10**9,
+           synthetic.REALTIME_OFFSET_NS + synthetic.T0_MONO_NS - 3 * 10**9 - day_ns)
+    frame = read_logs([tmp_path])
+    assert frame["valid"].sum() == 200
+    assert frame["time_s"].iloc[-1] == pytest.approx(19.9)
+    wall = frame["wall_time_ns"].to_numpy()
+    assert wall[0] == first.bin_start_mono_ns[0] + synthetic.REALTIME_OFFSET_NS + synthetic.GPS_MINUS_REALTIME_NS
+    renamed = [p.rename(tmp_path / f"{k}.mcap") for k, p in enumerate(sorted(tmp_path.glob("*.mcap")))]
+    by_clock = read_logs(renamed)  # without the logger's names: the wall clock decides
+    assert by_clock["wall_time_ns"].iloc[0] < wall[0]
+
+
 def test_cut_log_is_read_to_its_last_chunk_and_recovered(log, tmp_path):
     path, _ = log
     data = path.read_bytes()

@@ -103,6 +103,24 @@ def test_file_names_and_a_new_file_per_start(tmp_path):
     assert log_files(tmp_path) == [a, b]
 
 
+def test_file_order_is_the_sequence_not_a_clock_running_behind(tmp_path, monkeypatch):
+    """A Pi without RTC may boot with a clock days behind: its new file must still count as newest."""
+    earlier_boot = tmp_path / "haulprofile_0badf00d_20300101T000000Z_0007.mcap"  # clock was right then
+    earlier_boot.write_bytes(b"x" * 1000)
+    directory = LogDirectory(_options(tmp_path, min_free_bytes=10_000))
+    new = directory.open()  # named with this machine's clock, years before 2030
+    assert new.name.endswith("_0008.mcap")
+    assert log_files(tmp_path) == [earlier_boot, new]
+    monkeypatch.setattr(directory, "free_bytes", lambda: 9_500)
+    assert directory.enforce_free_space()
+    assert directory.deleted == [earlier_boot] and new.exists()
+    directory.close()
+    new.unlink()  # every file copied off and removed: the numbers still do not go back
+    again = LogDirectory(_options(tmp_path))
+    assert again.open().name.endswith("_0009.mcap")
+    again.close()
+
+
 def test_rotation_by_size_closes_the_old_file_with_its_summary(tmp_path):
     directory = LogDirectory(_options(tmp_path, rotate_size_bytes=3_000))
     directory.open()

@@ -16,6 +16,7 @@ from typing import Iterator, NamedTuple
 import numpy as np
 
 from logger import contract
+from logger.storage import log_name_parts
 
 from ..errors import UserError
 from . import foreign
@@ -84,7 +85,13 @@ def _first_message(path: Path):
 
 
 def order_mcap(files: list[Path]) -> list[tuple[Path, int, int]]:
-    """(path, first wall clock [ns], first monotonic [ns]) sorted by wall clock; empty files last."""
+    """(path, first wall clock [ns], first monotonic [ns]) in the order the files were written.
+
+    Files of one logger (its names: one prefix, distinct sequence numbers, `logger.storage`) go by
+    their sequence number: a Raspberry Pi has no real-time clock and may log for hours with its
+    clock behind after a power cut, so a later file can carry an earlier wall clock. Other files
+    go by the wall clock of their first message; empty files last.
+    """
     entries = []
     for path in files:
         first = _first_message(path)
@@ -92,6 +99,10 @@ def order_mcap(files: list[Path]) -> list[tuple[Path, int, int]]:
             entries.append((path, np.iinfo(np.int64).max, 0))
         else:
             entries.append((path, first.log_time_ns, first.publish_time_ns))
+    names = [log_name_parts(path) for path in files]
+    if names and all(names) and len({n[0] for n in names}) == 1 and len({n[1] for n in names}) == len(names):
+        sequence = {path: n[1] for path, n in zip(files, names)}
+        return sorted(entries, key=lambda e: sequence[e[0]])
     return sorted(entries, key=lambda e: (e[1], str(e[0])))
 
 
