@@ -233,7 +233,7 @@ class Lsm9ds1AgModel(RegisterDevice):
 
     def write(self, register: int, value: int) -> None:
         super().write(register, value)
-        self._block = []  # full scales may have changed
+        self._block = []  # full scales or the rate may have changed
         if register == lsm.CTRL_REG1_G and LSM_ODR.get(value >> 5):
             self.power_on(LSM_ODR[value >> 5])
 
@@ -260,10 +260,6 @@ class Lsm9ds1AgModel(RegisterDevice):
             self._block_first, offset = k, 0
             self._block = [row.tobytes() for row in self.raw_samples(k, k + self.BLOCK_SAMPLES)]
         return self._block[offset]
-
-    def power_on(self, odr_hz: float) -> None:
-        super().power_on(odr_hz)
-        self._block = []
 
     def new_samples(self, first: int, end: int) -> None:
         if not self.regs[lsm.CTRL_REG9] & lsm.CTRL_REG9_FIFO_EN:

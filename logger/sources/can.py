@@ -7,9 +7,9 @@ the writer every ``batch_interval_s``. Waking on a cadence instead of for every 
 CPU most of the thread wake-ups (1500 frames/s arrive in some 400 bursts). The reader also
 answers what must be answered at once: ISO-TP flow control for multi-frame OBD-II responses and
 J1939 CTS / end-of-message ACK for RTS sessions addressed to the logger; and it drives the OBD-II
-poller (`ObdPoller.tick` after each wake-up's frames), so polling costs the event loop nothing. Everything sent goes
-through `TxGuard`: an explicit allow-list of arbitration ids, and nothing at all with
-``listen_only``.
+poller (`ObdPoller.tick` after each wake-up's frames), so polling costs the event loop nothing.
+Everything sent goes through `TxGuard`: an explicit allow-list of arbitration ids, and nothing at
+all with ``listen_only``.
 """
 
 from __future__ import annotations
