@@ -97,7 +97,8 @@ class Epoch:
             if speed_knots is not None:
                 f["speed_mps"] = speed_knots * KNOT_MPS
             f["course_deg"] = _float(msg.true_course)
-            date = _date(msg.data[8] if len(msg.data) > 8 else "")
+            date_index = msg.name_to_idx["datestamp"]  # the raw field: pynmea2's property parses it anew
+            date = _date(msg.data[date_index] if len(msg.data) > date_index else "")
             time_of_day = msg.timestamp
             if date and time_of_day:
                 f["utc"] = dt.datetime.combine(date, time_of_day)
