@@ -32,6 +32,8 @@ class RunContext:
     signals: pd.DataFrame | None = None
     summary: dict = field(default_factory=dict)
     say: Callable[[str], None] = print
+    figures: bool = True
+    """Draw each stage's figure (a fleet's per-log runs may leave them out: some 30 % of their time)."""
 
 
 # (stage name, module, function). Order is the order of the analysis.

@@ -54,7 +54,8 @@ class StageCache:
         previous = self._base if index == 0 else self._keys[names[index - 1]]
         name = names[index]
         needs = self._depends_on.get(name, {})
-        parts = [previous, name, {k: self.ctx.options.get(k) for k in needs.get("options", ())}]
+        parts = [previous, name, {k: self.ctx.options.get(k) for k in needs.get("options", ())},
+                 self.ctx.figures]
         if needs.get("vehicle") and self.ctx.vehicle is not None:
             parts.append(asdict(self.ctx.vehicle))
         if needs.get("dem") and self.ctx.dem_dir is not None:

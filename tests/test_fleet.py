@@ -134,6 +134,18 @@ def assert_same(a, b):
         assert x.selection == y.selection
 
 
+def test_without_figures_the_same_result_and_no_per_log_figures(small_fleet, serial_run, tmp_path):
+    dirs, dem_dir = small_fleet
+    spec = FleetSpec.of(dirs, [VEHICLE], dem_dir=dem_dir, n_candidates=300, seed=5, duration_s=600.0,
+                        figures=False)
+    fleet = run_fleet(spec, tmp_path, say=lambda _m: None, workers=1)
+    serial, serial_out = serial_run
+    assert_same(fleet, serial)
+    per_log = [p for p in serial_out.rglob("*.png") if p.parent.name not in ("rigid", "tables")]
+    assert {p.name for p in per_log} == {"gradient.png", "mass.png"}
+    assert not [p for p in tmp_path.rglob("*.png") if p.parent.name not in ("rigid", "tables")]
+
+
 def test_process_pool_gives_the_serial_result(small_fleet, serial_run, tmp_path):
     assert_same(serial_run[0], run_small(small_fleet, tmp_path, workers=2))
 

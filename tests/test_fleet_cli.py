@@ -51,6 +51,17 @@ def test_two_groups_two_vehicles(tables, tmp_path, capsys):
     assert (tmp_path / "group-b" / "cycle.vdri").is_file()
 
 
+def test_no_figures_gives_the_same_cycle(tables, tmp_path, capsys):
+    cycles = []
+    for flag in ([], ["--no-figures"]):
+        out = tmp_path / ("without" if flag else "with")
+        code, _, err = run_cli(capsys, "fleet", tables / "group-a", "--vehicle", "rigid-18t", "--out", out,
+                               "--workers", "1", "--candidates", "200", "--duration", "600", "--quiet", *flag)
+        assert code in (0, 3), err
+        cycles.append((out / "group-a" / "cycle.vdri").read_text())
+    assert cycles[0] == cycles[1]
+
+
 def test_a_failing_log_is_named_and_the_others_go_on(tables, tmp_path, capsys):
     group = tmp_path / "group"
     write_table(group / "good.parquet", 3)

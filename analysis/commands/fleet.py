@@ -34,6 +34,8 @@ def add_arguments(parser) -> None:
                         help="Monte Carlo candidates per group (100000, as analyze run)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
     parser.add_argument("--rate-hz", type=float, default=10.0, help="rate of the signals tables (10 Hz)")
+    parser.add_argument("--no-figures", action="store_true",
+                        help="skip each log's gradient and mass figures (some 30 %% of the time per log)")
     output = parser.add_mutually_exclusive_group()
     output.add_argument("--quiet", action="store_true", help="print only errors and warnings")
     output.add_argument("--json", action="store_true", help="print the fleet summary as JSON on stdout")
@@ -42,7 +44,8 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     vehicles = [load_vehicle(v) for v in args.vehicle]
     spec = FleetSpec.of(args.log_dirs, vehicles, dem_dir=args.dem, duration_s=args.duration,
-                        n_candidates=args.candidates, seed=args.seed, options={"ingest": {"rate_hz": args.rate_hz}})
+                        n_candidates=args.candidates, seed=args.seed, options={"ingest": {"rate_hz": args.rate_hz}},
+                        figures=not args.no_figures)
     quiet = args.quiet or args.json
     fleet = run_fleet(spec, args.out, workers=args.workers, scheduler=args.scheduler,
                       say=(lambda _msg: None) if quiet else print, debug=getattr(args, "debug", False),

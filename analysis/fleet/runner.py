@@ -46,6 +46,8 @@ class FleetSpec:
     widths: ClassWidths = field(default_factory=ClassWidths)
     bins: LoadBins = field(default_factory=LoadBins)
     options: dict = field(default_factory=dict)
+    figures: bool = True
+    """Each log's gradient and mass figures (some 30 % of the time per log)."""
 
     def __post_init__(self):
         self.dem_dir = Path(self.dem_dir) if self.dem_dir is not None else None
@@ -185,7 +187,7 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
         if not group.logs:
             raise FleetError(f"{group.log_dir}: no logs outside the output directory {out_dir}")
     tasks = [LogTask(log, group.name, group.vehicle, log_out_dir(out_dir, group, log), spec.dem_dir, spec.options,
-                     spec.widths, spec.bins, debug) for group in spec.groups for log in group.logs]
+                     spec.widths, spec.bins, debug, spec.figures) for group in spec.groups for log in group.logs]
     executor = executor_for(workers, scheduler)
     say(f"fleet: {len(tasks)} logs in {len(spec.groups)} group(s) on {executor.name}")
     try:

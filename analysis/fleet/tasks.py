@@ -16,7 +16,8 @@ from .statistics import FleetStatistics, LoadBins, log_statistics, sum_statistic
 
 @dataclass
 class LogTask:
-    """One log of a group; its per-log outputs (the stages' figures) go to ``out_dir``."""
+    """One log of a group; its per-log outputs (the stages' figures, unless ``figures`` is off) go
+    to ``out_dir``."""
 
     path: Path
     group: str
@@ -27,6 +28,7 @@ class LogTask:
     widths: ClassWidths = field(default_factory=ClassWidths)
     bins: LoadBins = field(default_factory=LoadBins)
     debug: bool = False
+    figures: bool = True
 
 
 @dataclass
@@ -58,7 +60,7 @@ def map_log(task: LogTask) -> LogResult:
     goes to ``messages.txt`` in the log's output directory."""
     messages: list[str] = []
     ctx = RunContext(inputs=[task.path], out_dir=task.out_dir, vehicle=task.vehicle, dem_dir=task.dem_dir,
-                     options=task.options, say=messages.append)
+                     options=task.options, say=messages.append, figures=task.figures)
     try:
         run_pipeline(ctx, until="mass")
         statistics = log_statistics(str(task.path), ctx.signals, ctx.summary, task.vehicle, task.widths, task.bins)

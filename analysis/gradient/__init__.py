@@ -46,7 +46,9 @@ def stage(ctx) -> None:
         frame[name] = values
     grid = result.grid
     grid.to_csv(ctx.out_dir / "gradient.csv", index=False)
-    draw_sources(grid, ctx.out_dir / "gradient.png")
+    files = ["gradient.csv"]
+    if ctx.figures:
+        files.append(draw_sources(grid, ctx.out_dir / "gradient.png").name)
     gradient = grid["gradient_pct"].to_numpy()
     ctx.summary["gradient"] = {
         "grid_spacing_m": settings.spacing_m,
@@ -58,5 +60,5 @@ def stage(ctx) -> None:
                          "max": float(np.nanmax(gradient))},
         "height_gain_m": float(np.sum(np.clip(np.diff(grid["height_m"].to_numpy()), 0, None))),
         "notes": result.notes,
-        "files": ["gradient.csv", "gradient.png"],
+        "files": files,
     }

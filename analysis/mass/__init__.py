@@ -87,6 +87,6 @@ def stage(ctx) -> None:
         if segment["status"] != "ok":
             ctx.say(f"mass: segment {segment['start_s']:.0f}-{segment['end_s']:.0f} s: no confident mass "
                     f"({segment['reason']})")
-    draw_estimates(ctx.signals, result, ctx.out_dir / "mass.png")
+    files = [draw_estimates(ctx.signals, result, ctx.out_dir / "mass.png").name] if ctx.figures else []
     ctx.summary["mass"] = {"segments": result.segments, "samples_used": int(result.regression.usable.sum()),
-                           "rejected_by": result.regression.rejected, "notes": result.notes, "files": ["mass.png"]}
+                           "rejected_by": result.regression.rejected, "notes": result.notes, "files": files}
