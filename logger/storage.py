@@ -60,9 +60,7 @@ def next_sequence(directory: Path, prefix: str) -> int:
         last = int(marker.read_text().strip())
     except (OSError, ValueError):
         last = -1
-    for path in log_files(directory, prefix):
-        last = max(last, int(_NAME.match(path.name)["seq"]))
-    sequence = last + 1
+    sequence = max([last] + [log_name_parts(path)[1] for path in log_files(directory, prefix)]) + 1
     partial = marker.with_name(marker.name + ".partial")
     try:
         partial.write_text(f"{sequence}\n")
