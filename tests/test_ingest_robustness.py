@@ -106,3 +106,18 @@ def test_ingest_on_damaged_logs_never_tracebacks(original, tmp_path):
         except UserError:
             continue
         assert len(frame) > 0 and "files" in summary
+
+
+@pytest.mark.parametrize("top_byte", [0x80, 0x01])
+def test_a_chunk_whose_size_field_is_damaged_is_skipped(original, top_byte):
+    """A flipped high bit of a chunk's uncompressed size (beyond what a C size can hold, or just
+    absurd) loses that chunk, not the read: every other chunk's messages come back."""
+    data, chunks, messages = original
+    start, end, keys = chunks[len(chunks) // 2]
+    size_msb = start + 9 + 16 + 7  # record head, message start/end times, last byte of uncompressed size
+    damaged = bytearray(data)
+    damaged[size_msb] ^= top_byte
+    report = ReadReport("size-flip")
+    recovered = {(m.channel.topic, m.sequence) for m in read_buffer(bytes(damaged), report)}
+    assert recovered == set(messages) - set(keys)
+    assert report.warning() is not None

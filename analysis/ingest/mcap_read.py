@@ -28,6 +28,9 @@ _MESSAGE_HEAD = struct.Struct("<HIQQ")
 _CHUNK_HEAD = struct.Struct("<QQQII")
 _ZSTD_MARK = b"\x04\x00\x00\x00zstd"
 _LZ4_MARK = b"\x03\x00\x00\x00lz4"
+MAX_CHUNK_BYTES = 1 << 32
+"""Largest uncompressed chunk believed (writers use 1 MiB by default, the logger 256 KiB); a
+larger size field is a damaged one, not a reason to allocate that much."""
 
 
 class DamagedRecord(Exception):
@@ -174,6 +177,8 @@ def _chunk_payload(body) -> bytes:
     if pos + data_len != len(body):
         raise DamagedRecord("chunk data length does not match record")
     raw = body[pos:]
+    if size > MAX_CHUNK_BYTES:
+        raise DamagedRecord(f"chunk size field damaged ({size} bytes)")
     try:
         if compression == b"zstd":
             data = zstandard.ZstdDecompressor().decompress(raw, max_output_size=size)
@@ -184,7 +189,7 @@ def _chunk_payload(body) -> bytes:
             data = bytes(raw)
         else:
             raise DamagedRecord(f"unknown chunk compression {compression!r}")
-    except (zstandard.ZstdError, RuntimeError, ValueError) as exc:
+    except (zstandard.ZstdError, RuntimeError, ValueError, OverflowError, MemoryError) as exc:
         raise DamagedRecord(f"chunk does not decompress: {exc}") from None
     if len(data) != size or (crc != 0 and zlib.crc32(data) != crc):
         raise DamagedRecord("chunk CRC mismatch")
