@@ -3,6 +3,7 @@ a warning whenever something was lost. Two logs: one the logger daemon wrote (em
 the real daemon and storage), one the foundation's LogWriter wrote with small chunks."""
 
 import io
+import struct
 
 import numpy as np
 import pytest
@@ -121,3 +122,26 @@ def test_a_chunk_whose_size_field_is_damaged_is_skipped(original, top_byte):
     recovered = {(m.channel.topic, m.sequence) for m in read_buffer(bytes(damaged), report)}
     assert recovered == set(messages) - set(keys)
     assert report.warning() is not None
+
+
+def test_a_damaged_summary_never_names_the_messages(original):
+    """Records outside chunks have no CRC: when the chunk defining a channel is lost, the summary's
+    copy may name its messages only if the footer's summary CRC holds, never a damaged copy."""
+    data, chunks, messages = original
+    footer = len(data) - 8 - 9 - 20
+    (summary_start,) = struct.unpack_from("<Q", data, footer + 9)
+    damaged = bytearray(data)
+    pos = summary_start
+    while pos < footer:
+        opcode, length = struct.unpack_from("<BQ", data, pos)
+        if opcode == 0x04:  # Channel: id u16, schema id u16, topic (u32 length, bytes)
+            damaged[pos + 9 + 8] ^= 0x20
+        pos += 9 + length
+    start, end, first_keys = chunks[0]
+    damaged[(start + end) // 2] ^= 0xFF
+    report = ReadReport("summary-damaged")
+    recovered = list(read_buffer(bytes(damaged), report))
+    topics = {topic for topic, _ in messages}
+    assert {m.channel.topic for m in recovered} <= topics
+    assert all(messages[(m.channel.topic, m.sequence)] == m.data for m in recovered)
+    assert report.unattributed_messages > 0 and report.warning() is not None

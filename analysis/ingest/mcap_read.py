@@ -4,7 +4,9 @@ The mcap library's seeking reader needs the footer and summary, which a file cut
 does not have; its stream reader stops at the first damaged record. This reader walks the records
 itself: every chunk whose CRC (and decompression) checks out yields its messages, a damaged chunk
 is counted and skipped, and after damage it resynchronises on the next chunk record that
-validates. Messages whose channel record was lost stay unattributed and are counted.
+validates. Messages whose channel record was lost stay unattributed and are counted; the summary's
+copies of schema and channel records (no CRC of their own) stand in only if the footer's summary
+CRC holds, so a flipped byte there never renames messages.
 """
 
 from __future__ import annotations
@@ -277,10 +279,28 @@ def read_buffer(buf, report: ReadReport | None = None) -> Iterator[RawMessage]:
         yield from batch
 
 
+def _summary_crc_ok(buf) -> bool:
+    """True if the file ends in an intact footer whose summary CRC matches the summary section.
+
+    Records outside chunks carry no CRC of their own; the summary's copies of the schema and
+    channel records are trusted only through this one (MCAP spec: Footer.summary_crc)."""
+    footer = len(buf) - len(MAGIC) - 9 - 20
+    if footer < len(MAGIC) or buf[len(buf) - len(MAGIC):] != MAGIC:
+        return False
+    opcode, length = _RECORD_HEAD.unpack_from(buf, footer)
+    if opcode != OP_FOOTER or length != 20:
+        return False
+    summary_start, _, crc = struct.unpack_from("<QQI", buf, footer + 9)
+    return crc != 0 and len(MAGIC) < summary_start <= footer and \
+        zlib.crc32(buf[summary_start:footer + 9 + 16]) == crc
+
+
 def _walk(buf, report: ReadReport) -> Iterator[list[RawMessage]]:
-    """Record by record; a record that would step over the next valid chunk is not trusted."""
+    """Record by record; a record that would step over the next valid chunk is not trusted, nor a
+    summary schema or channel record unless the footer's summary CRC holds."""
     size = len(buf)
     channels = _Channels()
+    summary_unchecked = False
     scanner = _Scanner(buf)
     pos = len(MAGIC)
     if buf[:len(MAGIC)] != MAGIC:
@@ -319,6 +339,8 @@ def _walk(buf, report: ReadReport) -> Iterator[list[RawMessage]]:
             report.skipped_bytes += guard - pos
             pos = guard
             continue
+        elif opcode in (OP_SCHEMA, OP_CHANNEL) and summary_unchecked:
+            pass  # copies of in-chunk records; messages left without their channel are counted
         elif opcode in (OP_SCHEMA, OP_CHANNEL, OP_MESSAGE):
             try:
                 messages = _messages(buf[pos:end], channels, report)
@@ -332,6 +354,8 @@ def _walk(buf, report: ReadReport) -> Iterator[list[RawMessage]]:
                 report.profile, _ = _string(buf[pos + 9:end], 0)
             except (DamagedRecord, struct.error, UnicodeDecodeError):
                 pass
+        elif opcode == OP_DATA_END:
+            summary_unchecked = not _summary_crc_ok(buf)
         elif opcode == OP_FOOTER:
             report.complete = buf[end:end + len(MAGIC)] == MAGIC
             report.read_bytes = min(size, end + len(MAGIC))
