@@ -145,3 +145,30 @@ def test_a_damaged_summary_never_names_the_messages(original):
     assert {m.channel.topic for m in recovered} <= topics
     assert all(messages[(m.channel.topic, m.sequence)] == m.data for m in recovered)
     assert report.unattributed_messages > 0 and report.warning() is not None
+
+
+@pytest.mark.parametrize("opcode", [0x05, 0x04, 0x02])
+def test_a_chunk_whose_opcode_was_flipped_is_still_the_chunk(original, opcode):
+    """Its CRC proves it a chunk: read as one, not as a message, a channel or the footer."""
+    data, chunks, messages = original
+    start, _, _ = chunks[len(chunks) // 2]
+    damaged = bytearray(data)
+    damaged[start] = opcode
+    report = ReadReport("opcode-flip")
+    recovered = {(m.channel.topic, m.sequence): m.data for m in read_buffer(bytes(damaged), report)}
+    assert recovered == messages
+
+
+@pytest.mark.parametrize("opcode", [0x05, 0x02])
+def test_a_message_index_flipped_into_a_message_or_footer_is_not_believed(original, opcode):
+    """Message index records sit between chunks without a CRC: one whose opcode was flipped must
+    neither add a message nor end the file."""
+    data, chunks, messages = original
+    index = make_reader(io.BytesIO(data)).get_summary().chunk_indexes[len(chunks) // 2]
+    assert index.message_index_offsets
+    damaged = bytearray(data)
+    for offset in index.message_index_offsets.values():
+        damaged[offset] = opcode
+    report = ReadReport("index-flip")
+    recovered = {(m.channel.topic, m.sequence): m.data for m in read_buffer(bytes(damaged), report)}
+    assert recovered == messages

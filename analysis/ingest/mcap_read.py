@@ -4,9 +4,11 @@ The mcap library's seeking reader needs the footer and summary, which a file cut
 does not have; its stream reader stops at the first damaged record. This reader walks the records
 itself: every chunk whose CRC (and decompression) checks out yields its messages, a damaged chunk
 is counted and skipped, and after damage it resynchronises on the next chunk record that
-validates. Messages whose channel record was lost stay unattributed and are counted; the summary's
-copies of schema and channel records (no CRC of their own) stand in only if the footer's summary
-CRC holds, so a flipped byte there never renames messages.
+validates. Messages whose channel record was lost stay unattributed and are counted. Records
+outside chunks have no CRC of their own, so: in a chunked file a message record outside a chunk is
+damage (a flipped opcode of a message index, say), not data; the summary's copies of schema and
+channel records stand in only if the footer's summary CRC holds; a footer is only the footer
+with its 20 bytes and the closing magic.
 """
 
 from __future__ import annotations
@@ -218,12 +220,15 @@ class _Scanner:
         return at
 
     def records(self, pos: int) -> bytes | None:
-        """Decompressed records of the chunk record at ``pos`` if it validates (CRC, sizes), else None."""
+        """Decompressed records of the chunk record at ``pos`` if it validates (CRC, sizes), else None.
+
+        The opcode byte is not asked: a chunk whose opcode was flipped (into a message, a footer...)
+        is still the chunk its CRC proves, not a record to believe."""
         if self._cached[0] == pos:
             return self._cached[1]
         result = None
         buf = self.buf
-        if 0 <= pos and pos + 9 <= self.size and buf[pos] == OP_CHUNK:
+        if 0 <= pos and pos + 9 <= self.size:
             (length,) = _U64.unpack_from(buf, pos + 1)
             if pos + 9 + length <= self.size:
                 try:
@@ -308,12 +313,13 @@ def _walk(buf, report: ReadReport) -> Iterator[list[RawMessage]]:
         report.problems.append("no MCAP magic at the start")
         pos = 0
     guard = scanner.next_chunk(pos)
+    chunked = guard < size  # then messages live in chunks: one outside is a damaged record
     while pos + 9 <= size:
         if pos > guard:
             guard = scanner.next_chunk(pos)
         opcode, length = _RECORD_HEAD.unpack_from(buf, pos)
         end = pos + 9 + length
-        if opcode == OP_CHUNK:
+        if opcode == OP_CHUNK or pos == guard:
             if end > size and guard == size:
                 break  # the chunk the power cut interrupted
             report.chunks += 1
@@ -333,7 +339,8 @@ def _walk(buf, report: ReadReport) -> Iterator[list[RawMessage]]:
                 continue
             if messages:
                 yield messages
-        elif opcode not in _VALID_OPS or end > size or end > guard:
+        elif opcode not in _VALID_OPS or end > size or end > guard or (
+                opcode == OP_FOOTER and (length != 20 or buf[end:end + len(MAGIC)] != MAGIC)):
             if guard >= size:
                 break
             report.skipped_bytes += guard - pos
@@ -341,6 +348,8 @@ def _walk(buf, report: ReadReport) -> Iterator[list[RawMessage]]:
             continue
         elif opcode in (OP_SCHEMA, OP_CHANNEL) and summary_unchecked:
             pass  # copies of in-chunk records; messages left without their channel are counted
+        elif opcode == OP_MESSAGE and chunked:
+            report.skipped_bytes += end - pos
         elif opcode in (OP_SCHEMA, OP_CHANNEL, OP_MESSAGE):
             try:
                 messages = _messages(buf[pos:end], channels, report)
@@ -357,7 +366,7 @@ def _walk(buf, report: ReadReport) -> Iterator[list[RawMessage]]:
         elif opcode == OP_DATA_END:
             summary_unchecked = not _summary_crc_ok(buf)
         elif opcode == OP_FOOTER:
-            report.complete = buf[end:end + len(MAGIC)] == MAGIC
+            report.complete = True
             report.read_bytes = min(size, end + len(MAGIC))
             break
         report.read_bytes = end
