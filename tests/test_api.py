@@ -3,9 +3,9 @@
 import pandas as pd
 import pytest
 
-import analysis
-from analysis.vehicle import load_vehicle
-from analysis.virtual_truck import drive, load_scenario
+from haulprofile import analysis
+from haulprofile.analysis.vehicle import load_vehicle
+from haulprofile.analysis.virtual_truck import drive, load_scenario
 
 
 @pytest.mark.parametrize("name", analysis.__all__)

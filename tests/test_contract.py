@@ -6,8 +6,8 @@ import json
 import numpy as np
 from mcap.reader import make_reader
 
-from logger import contract
-from logger.writer import LogWriter
+from haulprofile import contract
+from haulprofile.logger.writer import LogWriter
 
 
 def test_dtypes_are_fixed_size():

@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from analysis.dem import MissingTileError, open_dem
-from analysis.dem.bilinear import bilinear_m
-from analysis.dem.srtm import SrtmDem, write_hgt
-from analysis.errors import UserError
+from haulprofile.analysis.dem import MissingTileError, open_dem
+from haulprofile.analysis.dem.bilinear import bilinear_m
+from haulprofile.analysis.dem.srtm import SrtmDem, write_hgt
+from haulprofile.analysis.errors import UserError
 
 
 def plane_m(lat, lon):

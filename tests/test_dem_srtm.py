@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from analysis.dem.srtm import MissingTileError, SrtmDem, read_hgt, tile_name, write_hgt
+from haulprofile.analysis.dem.srtm import MissingTileError, SrtmDem, read_hgt, tile_name, write_hgt
 
 
 def test_tile_names():

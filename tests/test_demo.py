@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 from mcap.reader import make_reader
 
-from analysis.cli import main
-from analysis.dem.srtm import SrtmDem
+from haulprofile.analysis.cli import main
+from haulprofile.analysis.dem.srtm import SrtmDem
 
 SCENARIO = """
 [scenario]

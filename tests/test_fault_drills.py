@@ -25,13 +25,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from logger import contract
-from logger.clock import Clock
-from logger.config import Config
-from logger.daemon import Daemon
-from logger.emulators.faults import JumpingClock, faulty_devices
-from logger.emulators.rig import emulation_config, run_daemon_for
-from logger.emulators.signals import TimeSeries, synthetic_drive
+from haulprofile import contract
+from haulprofile.logger.clock import Clock
+from haulprofile.logger.config import Config
+from haulprofile.logger.daemon import Daemon
+from haulprofile.logger.emulators.faults import JumpingClock, faulty_devices
+from haulprofile.logger.emulators.rig import emulation_config, run_daemon_for
+from haulprofile.logger.emulators.signals import TimeSeries, synthetic_drive
 
 FAULT_AT_S = 1.5
 RECOVERY_LIMIT_S = 5.0
@@ -132,7 +132,7 @@ def run_drill(tmp_path: Path, inject, duration_s: float = 6.0, configure=None, c
 
 
 def _check_survived(drill: Drill, files: list[Path]) -> None:
-    from analysis.ingest.logs import read_frames
+    from haulprofile.analysis.ingest.logs import read_frames
     assert drill.code == 0
     assert drill.marks["alive_after_drill"] == 1, "the watchdog would have stopped pinging"
     assert not [line for line in drill.log.said() if "stopped:" in line]

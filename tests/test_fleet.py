@@ -8,14 +8,14 @@ import pandas as pd
 import pytest
 import rainflow
 
-from analysis.fleet import (FleetSpec, LoadBins, SparseHistogram, log_statistics, read_counts, reduce_group,
+from haulprofile.analysis.fleet import (FleetSpec, LoadBins, SparseHistogram, log_statistics, read_counts, reduce_group,
                             run_fleet, sum_statistics)
-from analysis.fleet.virtual import virtual_fleet
-from analysis.loads import loads_of, resample_mean
-from analysis.loads.collectives import damage_equivalent_range, rainflow_cycles
-from analysis.markov import count_transitions, select_cycle
-from analysis.markov.synthetic import synthetic_drive
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis.fleet.virtual import virtual_fleet
+from haulprofile.analysis.loads import loads_of, resample_mean
+from haulprofile.analysis.loads.collectives import damage_equivalent_range, rainflow_cycles
+from haulprofile.analysis.markov import count_transitions, select_cycle
+from haulprofile.analysis.markov.synthetic import synthetic_drive
+from haulprofile.analysis.vehicle import load_vehicle
 
 VEHICLE = load_vehicle("rigid-18t")
 
@@ -71,7 +71,7 @@ def test_sum_of_logs_is_the_sum_of_their_statistics_in_path_order():
         assert total.totals[key] == pytest.approx(sum(p.totals[key] for p in parts))
     for name, histogram in total.histograms.items():
         assert histogram.total == pytest.approx(sum(p.histograms[name].total for p in parts))
-    from analysis.fleet import LogResult
+    from haulprofile.analysis.fleet import LogResult
     results = [LogResult(f"log-{i}", "g", p) for i, p in enumerate(parts)]
     shuffled = results[:]
     random.Random(3).shuffle(shuffled)
@@ -159,7 +159,7 @@ def test_dask_local_cluster_gives_the_serial_result(small_fleet, serial_run, tmp
 
 
 def test_torque_level_crossings_on_the_fixed_grid_equal_a_plain_count():
-    from analysis.fleet.statistics import _crossings
+    from haulprofile.analysis.fleet.statistics import _crossings
 
     torque = np.cumsum(np.random.default_rng(8).normal(0.0, 400.0, 2000))
     crossings = _crossings(torque, 500.0)

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from analysis.cli import main
-from analysis.markov.synthetic import synthetic_drive
+from haulprofile.analysis.cli import main
+from haulprofile.analysis.markov.synthetic import synthetic_drive
 
 
 def write_table(path, seed: int, duration_s: float = 900.0):
@@ -125,7 +125,7 @@ def test_unreachable_scheduler(tables, tmp_path, capsys, monkeypatch):
     pytest.importorskip("distributed")
     import socket
 
-    from analysis.fleet import runner
+    from haulprofile.analysis.fleet import runner
 
     monkeypatch.setattr(runner, "DASK_CONNECT_TIMEOUT", "1s")
     with socket.socket() as free:
@@ -159,8 +159,8 @@ def test_speed_only_table_gives_totals_and_says_what_is_missing(tmp_path, capsys
 
 
 def test_groups_of_the_same_directory_name_get_distinct_names(tmp_path):
-    from analysis.fleet import FleetSpec
-    from analysis.vehicle import load_vehicle
+    from haulprofile.analysis.fleet import FleetSpec
+    from haulprofile.analysis.vehicle import load_vehicle
 
     for parent in ("a", "b"):
         write_table(tmp_path / parent / "logs" / "drive.parquet", 1, 120.0)

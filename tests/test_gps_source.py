@@ -12,10 +12,10 @@ import tty
 import pynmea2
 import pytest
 
-from logger import contract
-from logger.clock import Clock
-from logger.emulators.gps import epoch_sentences, with_checksum
-from logger.sources.gps import GpsSource, nmea_checksum_ok, ubx_cfg_rate
+from haulprofile import contract
+from haulprofile.logger.clock import Clock
+from haulprofile.logger.emulators.gps import epoch_sentences, with_checksum
+from haulprofile.logger.sources.gps import GpsSource, nmea_checksum_ok, ubx_cfg_rate
 
 
 def through_pty(data: bytes, configure_rate_hz: float | None = None):

@@ -5,14 +5,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import road_load
-from analysis.dem.srtm import SrtmDem, write_hgt
-from analysis.errors import UserError
-from analysis.gradient import estimate_gradient, gradient_with_dem_fallback
-from analysis.gradient import grid as distance_grid
-from analysis.gradient import sources
-from analysis.kinematics import acceleration_mps2
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis import road_load
+from haulprofile.analysis.dem.srtm import SrtmDem, write_hgt
+from haulprofile.analysis.errors import UserError
+from haulprofile.analysis.gradient import estimate_gradient, gradient_with_dem_fallback
+from haulprofile.analysis.gradient import grid as distance_grid
+from haulprofile.analysis.gradient import sources
+from haulprofile.analysis.kinematics import acceleration_mps2
+from haulprofile.analysis.vehicle import load_vehicle
 
 LAT0, LON0 = 47.5, 11.02
 M_PER_DEG_LON = np.radians(1) * sources.EARTH_RADIUS_M * np.cos(np.radians(LAT0))

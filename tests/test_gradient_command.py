@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import cli, pipeline
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis import cli, pipeline
+from haulprofile.analysis.vehicle import load_vehicle
 from test_gradient import synthetic_drive, write_route_dem
 
 TRUTH = ["true_gradient_pct", "true_height_m", "true_mass_kg", "in_tunnel"]

@@ -5,9 +5,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.kinematics import acceleration_mps2, distance_m
+from haulprofile.analysis.kinematics import acceleration_mps2, distance_m
 
-virtual_truck = pytest.importorskip("analysis.virtual_truck")
+virtual_truck = pytest.importorskip("haulprofile.analysis.virtual_truck")
 
 SCENARIO_SEEDS = {"regional-tunnel": 0, "long-haul": 0, "urban-delivery": 0}
 
@@ -79,7 +79,7 @@ _DRIVES: dict = {}
 def virtual_drive_data(name: str, tmp_path_factory):
     """(signals table, truth, DEM) of a shipped scenario on its fixed seed, built once per session."""
     if name not in _DRIVES:
-        from analysis.dem import open_dem
+        from haulprofile.analysis.dem import open_dem
         drive = virtual_truck.drive(virtual_truck.load_scenario(name), seed=SCENARIO_SEEDS[name])
         directory = tmp_path_factory.mktemp(f"dem-{name}")
         virtual_truck.write_dem(drive, directory)
@@ -93,7 +93,7 @@ def scenario_data(request, tmp_path_factory):
 
 
 def test_gradient_meets_targets_outside_and_inside_the_tunnel(scenario_data):
-    from analysis.gradient import estimate_gradient
+    from haulprofile.analysis.gradient import estimate_gradient
     name, (signals, truth, dem) = scenario_data
     result = estimate_gradient(signals, dem)
     rmse = gradient_errors(result, truth)
@@ -106,14 +106,14 @@ def test_gradient_meets_targets_outside_and_inside_the_tunnel(scenario_data):
 
 
 def test_gradient_without_dem_is_barometric_and_still_on_target(scenario_data):
-    from analysis.gradient import estimate_gradient
+    from haulprofile.analysis.gradient import estimate_gradient
     name, (signals, truth, _) = scenario_data
     rmse = gradient_errors(estimate_gradient(signals, None), truth)
     assert rmse["outside"] <= 0.3, (name, rmse)
 
 
 def test_imu_gradient_is_worse_than_the_barometer_as_in_the_paper(scenario_data):
-    from analysis.gradient import estimate_gradient
+    from haulprofile.analysis.gradient import estimate_gradient
     name, (signals, truth, dem) = scenario_data
     grid = estimate_gradient(signals, dem).grid
     true = np.interp(grid["distance_m"], truth["distance_m"], truth["gradient_pct"])
@@ -123,8 +123,8 @@ def test_imu_gradient_is_worse_than_the_barometer_as_in_the_paper(scenario_data)
 
 
 def test_survives_a_dead_barometer_gps_jumps_and_a_gap_on_the_regional_drive(tmp_path_factory):
-    from analysis.gradient import estimate_gradient
-    from analysis.mass import estimate_mass
+    from haulprofile.analysis.gradient import estimate_gradient
+    from haulprofile.analysis.mass import estimate_mass
     signals, truth, dem = virtual_drive_data("regional-tunnel", tmp_path_factory)
     broken = signals.copy()
     n = len(broken)

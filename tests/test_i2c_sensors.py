@@ -9,15 +9,15 @@ import time
 import numpy as np
 import pytest
 
-from logger import contract
-from logger.clock import Clock
-from logger.emulators.sensors import HTS221_CALIBRATION, sensor_board
-from logger.emulators.signals import TimeSeries
-from logger.sources.i2c import lsm9ds1 as lsm
-from logger.sources.i2c.base import SensorMissing
-from logger.sources.i2c.hts221 import Calibration, Hts221
-from logger.sources.i2c.lps25hb import Lps25hb, pressure_pa, temperature_c
-from logger.sources.i2c.lsm9ds1 import Lsm9ds1, Lsm9ds1Magnetometer
+from haulprofile import contract
+from haulprofile.logger.clock import Clock
+from haulprofile.logger.emulators.sensors import HTS221_CALIBRATION, sensor_board
+from haulprofile.logger.emulators.signals import TimeSeries
+from haulprofile.logger.sources.i2c import lsm9ds1 as lsm
+from haulprofile.logger.sources.i2c.base import SensorMissing
+from haulprofile.logger.sources.i2c.hts221 import Calibration, Hts221
+from haulprofile.logger.sources.i2c.lps25hb import Lps25hb, pressure_pa, temperature_c
+from haulprofile.logger.sources.i2c.lsm9ds1 import Lsm9ds1, Lsm9ds1Magnetometer
 
 
 def board(columns=None, missing=()):
@@ -175,7 +175,7 @@ def test_lsm9ds1_in_real_time_counts_what_a_busy_machine_loses():
 
 
 def test_sample_clock_is_exact_when_reads_are_on_time():
-    from logger.sources.i2c.sample_clock import FifoSampleClock
+    from haulprofile.logger.sources.i2c.sample_clock import FifoSampleClock
     period = 1_000_000
     sample_clock = FifoSampleClock(period)
     out = []

@@ -8,9 +8,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import cli
-from analysis.ingest import ingest_logs, synthetic
-from analysis.ingest.synthetic import BIN_NS, can_frames, make_truth
+from haulprofile.analysis import cli
+from haulprofile.analysis.ingest import ingest_logs, synthetic
+from haulprofile.analysis.ingest.synthetic import BIN_NS, can_frames, make_truth
 
 EPOCH_NS = 1_700_000_000_000_000_000
 
@@ -50,8 +50,8 @@ def test_signals_table_input_passes_through(tmp_path):
     table.to_csv(path, index=False)
     frame, summary = ingest_logs([path])
     assert frame["own_column"].tolist() == list("abcde") and summary["source"] == "signals table"
-    from analysis.ingest import stage
-    from analysis.pipeline import RunContext
+    from haulprofile.analysis.ingest import stage
+    from haulprofile.analysis.pipeline import RunContext
 
     ctx = RunContext(inputs=[path], out_dir=tmp_path, say=lambda _m: None)
     stage(ctx)
@@ -79,8 +79,8 @@ def test_commands(tmp_path, capsys):
 
 
 def test_pipeline_stage(tmp_path):
-    from analysis.ingest import stage
-    from analysis.pipeline import RunContext
+    from haulprofile.analysis.ingest import stage
+    from haulprofile.analysis.pipeline import RunContext
 
     log = tmp_path / "log.mcap"
     with open(log, "wb") as stream:
@@ -95,11 +95,11 @@ def test_pipeline_stage(tmp_path):
 
 def test_stage_without_speed_says_so(tmp_path):
     """A log without any speed source: a one-line error naming what is missing, not a KeyError later."""
-    from analysis.errors import UserError
-    from analysis.ingest import stage
-    from analysis.pipeline import RunContext
-    from logger import contract
-    from logger.writer import LogWriter
+    from haulprofile.analysis.errors import UserError
+    from haulprofile.analysis.ingest import stage
+    from haulprofile.analysis.pipeline import RunContext
+    from haulprofile import contract
+    from haulprofile.logger.writer import LogWriter
 
     log = tmp_path / "baro-only.mcap"
     with open(log, "wb") as stream:
@@ -116,7 +116,7 @@ def test_stage_without_speed_says_so(tmp_path):
 
 @pytest.mark.parametrize("name", ["junk.mf4", "junk.blf", "junk.asc", "junk.log"])
 def test_unreadable_foreign_log_is_a_one_line_error(tmp_path, name):
-    from analysis.errors import UserError
+    from haulprofile.analysis.errors import UserError
 
     path = tmp_path / name
     path.write_bytes(bytes(range(256)) * 20)

@@ -4,17 +4,17 @@ import cantools
 import numpy as np
 import pytest
 
-from analysis.ingest import dbc as dbc_module
-from analysis.ingest import j1939_decode
-from logger import j1939
-from logger.contract import CAN_FLAG_EXTENDED, CAN_FRAME_DTYPE
+from haulprofile.analysis.ingest import dbc as dbc_module
+from haulprofile.analysis.ingest import j1939_decode
+from haulprofile.contract import j1939
+from haulprofile.contract import CAN_FLAG_EXTENDED, CAN_FRAME_DTYPE
 
 SOURCES = (0x00, 0x03, 0x0B, 0x17, 0x21)
 SINGLE_FRAME_PGNS = sorted({s.pgn for s in j1939.SPNS.values()} - set(j1939.PGN_LENGTH))
 
 
 def j1939_dbc_text() -> str:
-    """A J1939 DBC of every single-frame PGN in logger.j1939.SPNS (J1939-71 layouts), source 0xFE."""
+    """A J1939 DBC of every single-frame PGN in haulprofile.contract.j1939.SPNS (J1939-71 layouts), source 0xFE."""
     lines = ['VERSION ""', "", "NS_ :", "", "BS_:", "", "BU_:", ""]
     for pgn in SINGLE_FRAME_PGNS:
         frame_id = j1939.make_id(pgn, 0xFE) | 0x80000000
@@ -83,7 +83,7 @@ def test_single_frame_spns_match_cantools(database, random_frames):
 
 
 def test_scalar_reference_agrees(random_frames):
-    """The vectorised decoder and logger.j1939.decode_pgn (scalar reference) on the same frames."""
+    """The vectorised decoder and haulprofile.contract.j1939.decode_pgn (scalar reference) on the same frames."""
     decoded = j1939_decode.decode_block(random_frames[:3000])
     for pgn, result in decoded.items():
         frames = random_frames[:3000][[j1939.parse_id(int(i))[1] == pgn and f != 0 for i, f in

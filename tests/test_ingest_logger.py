@@ -3,15 +3,15 @@
 import numpy as np
 import pytest
 
-from analysis.ingest import ingest_logs
-from logger import j1939
+from haulprofile.analysis.ingest import ingest_logs
+from haulprofile.contract import j1939
 
 REFERENCE_NM = 2000.0
 
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
-    from logger.emulators import record_drive
+    from haulprofile.logger.emulators import record_drive
 
     t = np.arange(0, 12, 0.01)
     signals = {"time_s": t, "speed_mps": 10 + 5 * np.sin(t / 3), "engine_speed_rpm": 1200 + 100 * np.sin(t),

@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from analysis.errors import UserError
-from analysis.ingest import ingest_logs, iter_log_messages, read_frames, read_logs, synthetic
-from analysis.ingest.mcap_read import ReadReport, read_file
-from analysis.ingest.recover import recover
-from logger import contract, j1939
+from haulprofile.analysis.errors import UserError
+from haulprofile.analysis.ingest import ingest_logs, iter_log_messages, read_frames, read_logs, synthetic
+from haulprofile.analysis.ingest.mcap_read import ReadReport, read_file
+from haulprofile.analysis.ingest.recover import recover
+from haulprofile import contract
+from haulprofile.contract import j1939
 
 DURATION_S = 90.0
 
@@ -194,7 +195,7 @@ def test_not_a_log_is_a_one_line_error(tmp_path):
 
 def test_obd_responses_matched_to_requests(tmp_path):
     """An OBD-II-only vehicle: speed from PID 0x0D, torque from 0x62 × 0x63, unrequested answers dropped."""
-    from logger import obd
+    from haulprofile.contract import obd
     frames, t = [], synthetic.T0_MONO_NS
     for k in range(100):  # 10 s, each PID polled once per 100 ms bin
         for pid, value in ((0x0D, 36 + k % 5), (0x0C, 1200.25), (0x62, 40), (0x63, 1500)):
@@ -208,7 +209,7 @@ def test_obd_responses_matched_to_requests(tmp_path):
         records[k]["t_mono_ns"], records[k]["arbitration_id"], records[k]["flags"] = time, ident, flags
         records[k]["dlc"], records[k]["data"] = 8, np.frombuffer(data, np.uint8)
     path = tmp_path / "obd.mcap"
-    from logger.writer import LogWriter
+    from haulprofile.logger.writer import LogWriter
     with open(path, "wb") as stream:
         writer = LogWriter(stream)
         writer.write(contract.CAN_FRAMES, contract.pack(contract.CAN_FRAMES, records), t, t)
@@ -233,7 +234,7 @@ def test_j1939_vw_axle_sum_when_no_cvw(tmp_path):
         array[k]["t_mono_ns"], array[k]["arbitration_id"] = time, ident
         array[k]["flags"], array[k]["dlc"], array[k]["data"] = contract.CAN_FLAG_EXTENDED, 8, np.frombuffer(data, np.uint8)
     stream = io.BytesIO()
-    from logger.writer import LogWriter
+    from haulprofile.logger.writer import LogWriter
     writer = LogWriter(stream)
     writer.write(contract.CAN_FRAMES, contract.pack(contract.CAN_FRAMES, array), 0, 0)
     writer.close()
@@ -245,7 +246,7 @@ def test_j1939_vw_axle_sum_when_no_cvw(tmp_path):
 
 def test_a_short_silence_is_bridged_a_long_one_stays_a_gap():
     """Half a second without any message (a stalled batch) is held across; a missing second is a gap."""
-    from analysis.ingest.align import BinAccumulator
+    from haulprofile.analysis.ingest.align import BinAccumulator
 
     acc = BinAccumulator(10.0)
     time_ns = np.concatenate([np.arange(0, 20), np.arange(25, 40), np.arange(60, 80)]) * 100_000_000

@@ -4,8 +4,8 @@ import cantools
 import numpy as np
 import pytest
 
-from analysis.ingest import foreign, j1939_decode, read_logs
-from logger import j1939
+from haulprofile.analysis.ingest import foreign, j1939_decode, read_logs
+from haulprofile.contract import j1939
 
 RECORDINGS = {"css-j1939-idle-127s.MF4": 57_849, "css-j1939-tp-186s.MF4": 1_815}
 

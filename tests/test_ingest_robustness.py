@@ -12,16 +12,16 @@ from mcap.records import Chunk
 from mcap.stream_reader import breakup_chunk
 from mcap.data_stream import ReadDataStream
 
-from analysis.errors import UserError
-from analysis.ingest import ingest_logs, synthetic
-from analysis.ingest.mcap_read import ReadReport, read_buffer
+from haulprofile.analysis.errors import UserError
+from haulprofile.analysis.ingest import ingest_logs, synthetic
+from haulprofile.analysis.ingest.mcap_read import ReadReport, read_buffer
 
 ITERATIONS = 1000
 
 
 def _daemon_log(tmp_path) -> bytes:
-    from logger.config import Config
-    from logger.emulators import record_drive
+    from haulprofile.logger.config import Config
+    from haulprofile.logger.emulators import record_drive
 
     t = np.arange(0, 8, 0.01)
     config = Config()

@@ -8,12 +8,12 @@ sensor noise the scenario sets.
 import numpy as np
 import pytest
 
-from analysis.ingest import ingest_logs
-from analysis.vehicle import load_vehicle
-from analysis.virtual_truck import drive, load_scenario, write_mcap
-from analysis.virtual_truck import mcap_log
-from analysis.virtual_truck import sensors as sensor_models
-from logger import j1939
+from haulprofile.analysis.ingest import ingest_logs
+from haulprofile.analysis.vehicle import load_vehicle
+from haulprofile.analysis.virtual_truck import drive, load_scenario, write_mcap
+from haulprofile.analysis.virtual_truck import mcap_log
+from haulprofile.analysis.virtual_truck import sensors as sensor_models
+from haulprofile.contract import j1939
 
 BIN_NS = 100_000_000
 

@@ -2,7 +2,7 @@
 
 import pytest
 
-from logger import j1939, obd
+from haulprofile.contract import j1939, obd
 
 
 def test_eec1_layout():

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 import rainflow
 
-from analysis import road_load
-from analysis.loads.collectives import (damage_equivalent_range, level_crossings, level_edges, rainflow_cycles,
+from haulprofile.analysis import road_load
+from haulprofile.analysis.loads.collectives import (damage_equivalent_range, level_crossings, level_edges, rainflow_cycles,
                                         rainflow_matrix, residence_matrix, sample_durations_s, time_at_level,
                                         wheel_loads)
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis.vehicle import load_vehicle
 
 # ASTM E1049-85 (2017), section 5.4.4 / Fig. 6 example history and its rainflow count (range: cycles).
 ASTM_E1049_HISTORY = [-2, 1, -3, 5, -1, 3, -4, 4, -2]
@@ -108,7 +108,7 @@ def test_damage_equivalent_torque_of_a_sine_is_closed_form():
 
 
 def test_time_quantile_weights_samples_by_their_time():
-    from analysis.loads.summary import time_quantile
+    from haulprofile.analysis.loads.summary import time_quantile
     values = np.array([5.0, 1.0, 3.0, 2.0])
     durations = np.array([1.0, 1.0, 1.0, 7.0])
     assert time_quantile(values, durations, 0.5) == 2.0

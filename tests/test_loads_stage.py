@@ -4,10 +4,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.cli import main
-from analysis.loads import collectives_of, compare, stage
-from analysis.pipeline import RunContext
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis.cli import main
+from haulprofile.analysis.loads import collectives_of, compare, stage
+from haulprofile.analysis.pipeline import RunContext
+from haulprofile.analysis.vehicle import load_vehicle
 
 
 def drive(seconds: float, seed: int, mass_kg: float = 20_000.0) -> pd.DataFrame:

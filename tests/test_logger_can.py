@@ -16,12 +16,13 @@ import can
 import numpy as np
 import pytest
 
-from logger import contract, j1939, obd
-from logger.clock import Clock
-from logger.config import CanSection
-from logger.emulators.ecu import EcuEmulator
-from logger.emulators.signals import TimeSeries
-from logger.sources.can import CanSource, allowed_tx_ids
+from haulprofile import contract
+from haulprofile.contract import j1939, obd
+from haulprofile.logger.clock import Clock
+from haulprofile.logger.config import CanSection
+from haulprofile.logger.emulators.ecu import EcuEmulator
+from haulprofile.logger.emulators.signals import TimeSeries
+from haulprofile.logger.sources.can import CanSource, allowed_tx_ids
 
 SIGNALS = {
     "time_s": np.array([0.0, 100.0]),

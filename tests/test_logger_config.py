@@ -6,8 +6,8 @@ import dataclasses
 
 import pytest
 
-from logger import config as cfg
-from logger.sources.can import allowed_tx_ids
+from haulprofile.logger import config as cfg
+from haulprofile.logger.sources.can import allowed_tx_ids
 
 
 def test_example_is_valid_and_matches_the_defaults():

@@ -22,12 +22,13 @@ from mcap.exceptions import EndOfFile
 from mcap.records import Channel, Message
 from mcap.stream_reader import StreamReader
 
-import logger.daemon  # noqa: F401  (imported before forking: restarts then cost no imports)
-import logger.emulators.rig  # noqa: F401
-import logger.sources.can  # noqa: F401
-import logger.sources.gps  # noqa: F401
-import logger.sources.i2c.lsm9ds1  # noqa: F401  (imported for the forked children)
-from logger import cli, contract
+import haulprofile.logger.daemon  # noqa: F401  (imported before forking: restarts then cost no imports)
+import haulprofile.logger.emulators.rig  # noqa: F401
+import haulprofile.logger.sources.can  # noqa: F401
+import haulprofile.logger.sources.gps  # noqa: F401
+import haulprofile.logger.sources.i2c.lsm9ds1  # noqa: F401  (imported for the forked children)
+from haulprofile import contract
+from haulprofile.logger import cli
 
 KILLS = 20
 MAX_LOSS_S = 2.0
@@ -121,7 +122,7 @@ def test_sigterm_closes_the_file_with_its_summary(tmp_path):
     directory = tmp_path / "logs"
     config = tmp_path / "logger.toml"
     config.write_text(CONFIG.format(directory=directory.as_posix()))
-    process = subprocess.Popen([sys.executable, "-m", "logger.cli", "--config", str(config)],
+    process = subprocess.Popen([sys.executable, "-m", "haulprofile.logger.cli", "--config", str(config)],
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _wait_for_file(directory, set())
     time.sleep(1.2)
@@ -146,7 +147,7 @@ def test_sigterm_closes_the_file_with_its_summary(tmp_path):
 def test_bad_config_is_one_line_naming_the_key(tmp_path, text, key):
     config = tmp_path / "bad.toml"
     config.write_text(text)
-    result = subprocess.run([sys.executable, "-m", "logger.cli", "--config", str(config)],
+    result = subprocess.run([sys.executable, "-m", "haulprofile.logger.cli", "--config", str(config)],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()

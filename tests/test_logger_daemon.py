@@ -16,12 +16,12 @@ import socket
 import numpy as np
 import pytest
 
-from logger import contract
-from logger.clock import Clock
-from logger.config import Config
-from logger.daemon import Daemon
-from logger.emulators.rig import EmulatedDevices, emulation_config, record_drive, run_daemon_for
-from logger.emulators.signals import TimeSeries, synthetic_drive
+from haulprofile import contract
+from haulprofile.logger.clock import Clock
+from haulprofile.logger.config import Config
+from haulprofile.logger.daemon import Daemon
+from haulprofile.logger.emulators.rig import EmulatedDevices, emulation_config, record_drive, run_daemon_for
+from haulprofile.logger.emulators.signals import TimeSeries, synthetic_drive
 
 from test_logger_crash import read_linear
 

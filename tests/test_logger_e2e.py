@@ -14,10 +14,10 @@ import numpy as np
 import pynmea2
 import pytest
 
-from logger import contract
-from logger.config import Config
-from logger.emulators.rig import record_drive
-from logger.emulators.signals import from_streams
+from haulprofile import contract
+from haulprofile.logger.config import Config
+from haulprofile.logger.emulators.rig import record_drive
+from haulprofile.logger.emulators.signals import from_streams
 
 DRIVE_S = 600.0
 TIME_SCALE = 20.0
@@ -25,7 +25,7 @@ TIME_SCALE = 20.0
 
 @pytest.fixture(scope="module")
 def logged(tmp_path_factory):
-    virtual_truck = pytest.importorskip("analysis.virtual_truck")
+    virtual_truck = pytest.importorskip("haulprofile.analysis.virtual_truck")
     scenario = virtual_truck.load_scenario("regional-tunnel")
     drive = virtual_truck.drive(scenario, virtual_truck.scenario_vehicle(scenario), seed=3)
     columns = from_streams(drive.sensors)
@@ -39,7 +39,7 @@ def logged(tmp_path_factory):
     out = tmp_path_factory.mktemp("e2e")
     path, daemon, devices = record_drive(columns, out, duration_s=DRIVE_S, time_scale=TIME_SCALE, config=config,
                                          return_rig=True)
-    ingest = pytest.importorskip("analysis.ingest.logs")
+    ingest = pytest.importorskip("haulprofile.analysis.ingest.logs")
     return ingest.read_frames([path]), daemon, devices, columns
 
 

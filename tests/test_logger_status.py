@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from logger import cli
-from logger.config import Config
-from logger.emulators.rig import record_drive
-from logger.emulators.signals import synthetic_drive
-from logger.readback import last_diagnostics
+from haulprofile.logger import cli
+from haulprofile.logger.config import Config
+from haulprofile.logger.emulators.rig import record_drive
+from haulprofile.logger.emulators.signals import synthetic_drive
+from haulprofile.logger.readback import last_diagnostics
 
 
 def test_status_of_a_log_directory(tmp_path, capsys):
@@ -30,7 +30,7 @@ def test_status_of_a_log_directory(tmp_path, capsys):
 
 
 def test_current_marker_names_the_file_being_written(tmp_path):
-    from logger.storage import LogDirectory, StorageOptions
+    from haulprofile.logger.storage import LogDirectory, StorageOptions
     directory = LogDirectory(StorageOptions(tmp_path, min_free_bytes=0))
     first = directory.open()
     assert (tmp_path / ".current").read_text() == first.name + "\n"

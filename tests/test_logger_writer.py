@@ -12,9 +12,10 @@ from mcap.reader import make_reader
 from mcap.records import Message
 from mcap.stream_reader import StreamReader
 
-from logger import contract
-from logger.storage import LogDirectory, StorageOptions, log_files
-from logger.writer import LogWriter
+from haulprofile import contract
+from haulprofile.contract.naming import log_files
+from haulprofile.logger.storage import LogDirectory, StorageOptions
+from haulprofile.logger.writer import LogWriter
 
 SECOND = 1_000_000_000
 

@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from analysis.markov import ClassWidths, TransitionCounts, build_chain, count_transitions, generate
-from analysis.markov import classes as cls
-from analysis.markov.counting import _closures, physically_possible
+from haulprofile.analysis.markov import ClassWidths, TransitionCounts, build_chain, count_transitions, generate
+from haulprofile.analysis.markov import classes as cls
+from haulprofile.analysis.markov.counting import _closures, physically_possible
 
 WIDTHS = ClassWidths()
 

@@ -7,12 +7,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import cli
-from analysis.markov import (count_transitions, cycle_to_vdri, select_cycle, stage,
+from haulprofile.analysis import cli
+from haulprofile.analysis.markov import (count_transitions, cycle_to_vdri, select_cycle, stage,
                              vdri_to_time_cycle, write_cycle)
-from analysis.markov.synthetic import synthetic_drive
-from analysis.pipeline import RunContext
-from analysis.vecto import read_vdri
+from haulprofile.analysis.markov.synthetic import synthetic_drive
+from haulprofile.analysis.pipeline import RunContext
+from haulprofile.analysis.vecto import read_vdri
 
 VALID_VECTO_ROUTES = ["Construction", "HeavyUrban", "Suburban", "UrbanDelivery"]
 

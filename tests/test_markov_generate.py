@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from analysis.markov import TransitionCounts, build_chain, count_transitions, generate
-from analysis.markov import classes as cls
-from analysis.markov.counting import physically_possible
-from analysis.markov.generate import _path_statistics, _walk, path_statistics_reference, run_batch
-from analysis.markov.synthetic import synthetic_drive
+from haulprofile.analysis.markov import TransitionCounts, build_chain, count_transitions, generate
+from haulprofile.analysis.markov import classes as cls
+from haulprofile.analysis.markov.counting import physically_possible
+from haulprofile.analysis.markov.generate import _path_statistics, _walk, path_statistics_reference, run_batch
+from haulprofile.analysis.markov.synthetic import synthetic_drive
 
 
 @pytest.fixture(scope="module")
@@ -120,7 +120,7 @@ def test_update_counts_draws_without_replacement():
 
 
 def test_bad_requests_are_user_errors(chain):
-    from analysis.errors import UserError
+    from haulprofile.analysis.errors import UserError
     with pytest.raises(UserError, match="duration"):
         generate(chain, 1, 1)
     with pytest.raises(UserError, match="seed"):
@@ -130,7 +130,7 @@ def test_bad_requests_are_user_errors(chain):
 def test_random_stream_is_splitmix64():
     """First outputs of Vigna's splitmix64.c from state 0 (0xe220a8397b1dcdaf, 0x6e789e6aa1b965f4,
     0x06c45d188009454f), as doubles from their top 53 bits."""
-    from analysis.markov.generate import _uniform
+    from haulprofile.analysis.markov.generate import _uniform
     expected = [(x >> 11) * 2.0**-53 for x in (0xE220A8397B1DCDAF, 0x6E789E6AA1B965F4, 0x06C45D188009454F)]
     for kernel in (_uniform, _uniform.py_func):
         state = np.zeros(1, np.uint64)
@@ -140,7 +140,7 @@ def test_random_stream_is_splitmix64():
 
 @pytest.mark.parametrize("update", [False, True])
 def test_batch_kernel_equals_its_python_reference(chain, update):
-    from analysis.markov.generate import _batch
+    from haulprofile.analysis.markov.generate import _batch
     results = []
     for kernel in (_batch, _batch.py_func):
         stats = np.empty((4, 4, 4))

@@ -4,11 +4,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.markov import ClassWidths, build_chain, count_transitions, evaluate, resample_1hz, select_cycle
-from analysis.markov import classes as cls
-from analysis.markov.criteria import ALLOWANCE, IS_MASS, NAMES, deviations, scores
-from analysis.markov.generate import run_batch
-from analysis.markov.synthetic import synthetic_drive
+from haulprofile.analysis.markov import ClassWidths, build_chain, count_transitions, evaluate, resample_1hz, select_cycle
+from haulprofile.analysis.markov import classes as cls
+from haulprofile.analysis.markov.criteria import ALLOWANCE, IS_MASS, NAMES, deviations, scores
+from haulprofile.analysis.markov.generate import run_batch
+from haulprofile.analysis.markov.synthetic import synthetic_drive
 
 
 @pytest.fixture(scope="module")

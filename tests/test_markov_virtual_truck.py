@@ -9,9 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-virtual_truck = pytest.importorskip("analysis.virtual_truck")
+virtual_truck = pytest.importorskip("haulprofile.analysis.virtual_truck")
 
-from analysis.markov import build_chain, count_transitions, generate, select_cycle  # noqa: E402
+from haulprofile.analysis.markov import build_chain, count_transitions, generate, select_cycle  # noqa: E402
 
 NAMES = ("urban-delivery", "regional-tunnel", "long-haul")
 CANDIDATES = 200_000   # about 7 s per input; valid ones are 1 in 10^4 to 10^5 on the one-way drives
@@ -70,7 +70,7 @@ def test_statistics_of_many_candidates_converge_towards_the_input(truths):
 
 
 def test_a_generated_cycle_is_a_route_the_virtual_truck_drives(selections, tmp_path):
-    from analysis.markov import write_cycle
+    from haulprofile.analysis.markov import write_cycle
     cycle = selections["urban-delivery"].cycle
     write_cycle(cycle, tmp_path)
     (tmp_path / "generated.toml").write_text(

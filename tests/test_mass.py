@@ -4,12 +4,12 @@ a synthetic drive built with the vehicle model (payload change at a stop)."""
 import numpy as np
 import pytest
 
-from analysis.dem.srtm import SrtmDem
-from analysis.errors import UserError
-from analysis.gradient import estimate_gradient
-from analysis.mass import SegmentSettings, estimate_mass, kernels
-from analysis.mass.segments import segment_bounds
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis.dem.srtm import SrtmDem
+from haulprofile.analysis.errors import UserError
+from haulprofile.analysis.gradient import estimate_gradient
+from haulprofile.analysis.mass import SegmentSettings, estimate_mass, kernels
+from haulprofile.analysis.mass.segments import segment_bounds
+from haulprofile.analysis.vehicle import load_vehicle
 from test_gradient import synthetic_drive, write_route_dem
 
 

@@ -7,12 +7,12 @@ import pytest
 
 from test_gradient_virtual_truck import SCENARIO_SEEDS, virtual_drive_data
 
-virtual_truck = pytest.importorskip("analysis.virtual_truck")
+virtual_truck = pytest.importorskip("haulprofile.analysis.virtual_truck")
 
 
 def _estimate(name, tmp_path_factory, filter_settings=None):
-    from analysis.gradient import estimate_gradient
-    from analysis.mass import FilterSettings, estimate_mass
+    from haulprofile.analysis.gradient import estimate_gradient
+    from haulprofile.analysis.mass import FilterSettings, estimate_mass
     signals, truth, dem = virtual_drive_data(name, tmp_path_factory)
     signals = signals.assign(**estimate_gradient(signals, dem).samples)
     vehicle = virtual_truck.scenario_vehicle(virtual_truck.load_scenario(name))
@@ -75,7 +75,7 @@ def test_unexcited_segments_get_no_number_and_a_reason(estimates):
 
 
 def test_papers_filter_leaves_urban_drive_without_samples_and_says_so(tmp_path_factory):
-    from analysis.mass import FilterSettings
+    from haulprofile.analysis.mass import FilterSettings
     result, _ = _estimate("urban-delivery", tmp_path_factory, FilterSettings.paper())
     assert all(s["status"] == "no_excitation" and "pass the data filter" in s["reason"] for s in result.segments)
     assert np.isnan(result.columns["mass_kg"]).all()

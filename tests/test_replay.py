@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from logger import contract
-from logger.config import Config
-from logger.daemon import Daemon
-from logger.emulators.rig import record_drive
-from logger.emulators.signals import synthetic_drive
-from logger.readback import can_frames
+from haulprofile import contract
+from haulprofile.logger.config import Config
+from haulprofile.logger.daemon import Daemon
+from haulprofile.logger.emulators.rig import record_drive
+from haulprofile.logger.emulators.signals import synthetic_drive
+from haulprofile.logger.readback import can_frames
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
 import replay  # noqa: E402

@@ -9,9 +9,9 @@ import subprocess
 import pytest
 from PIL import Image
 
-from analysis.pipeline import RunContext, run
-from analysis.vehicle import load_vehicle
-from analysis.virtual_truck import drive, load_scenario, write_dem, write_mcap
+from haulprofile.analysis.pipeline import RunContext, run
+from haulprofile.analysis.vehicle import load_vehicle
+from haulprofile.analysis.virtual_truck import drive, load_scenario, write_dem, write_mcap
 
 
 @pytest.fixture(scope="module")

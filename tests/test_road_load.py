@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import road_load
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis import road_load
+from haulprofile.analysis.vehicle import load_vehicle
 
 
 @pytest.fixture

@@ -7,9 +7,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.cli import main
-from analysis.vehicle import load_vehicle
-from analysis.virtual_truck import drive, load_scenario, write_dem, write_mcap
+from haulprofile.analysis.cli import main
+from haulprofile.analysis.vehicle import load_vehicle
+from haulprofile.analysis.virtual_truck import drive, load_scenario, write_dem, write_mcap
 
 
 @pytest.fixture(scope="module")
@@ -91,7 +91,7 @@ def test_unreadable_log(tmp_path, capsys):
 
 
 def test_no_dem_tile_for_the_route(demo_inputs, tmp_path, capsys):
-    from analysis.dem.srtm import write_hgt
+    from haulprofile.analysis.dem.srtm import write_hgt
 
     elsewhere = tmp_path / "dem"
     write_hgt(elsewhere / "N10E010.hgt", np.zeros((1201, 1201)))
@@ -103,7 +103,7 @@ def test_no_dem_tile_for_the_route(demo_inputs, tmp_path, capsys):
 
 def test_vehicle_file_typo(demo_inputs, tmp_path, capsys):
     vehicle = tmp_path / "truck.toml"
-    text = (load_vehicle.__globals__["resources"].files("analysis.data.vehicles") / "rigid-18t.toml").read_text()
+    text = (load_vehicle.__globals__["resources"].files("haulprofile.analysis.data.vehicles") / "rigid-18t.toml").read_text()
     vehicle.write_text(text.replace("frontal_area_m2", "frontal_aera_m2"))
     code, _, err = run_cli(capsys, "run", demo_inputs / "logs", "--vehicle", vehicle, "--out", tmp_path / "o")
     assert code == 2 and "frontal_aera_m2" in one_line_error(err)

@@ -1,7 +1,7 @@
 import pandas as pd
 import pytest
 
-from analysis.signals import SignalsError, read_signals, write_signals
+from haulprofile.analysis.signals import SignalsError, read_signals, write_signals
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".parquet"])

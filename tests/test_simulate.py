@@ -6,10 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import road_load
-from analysis.simulate import DriverSettings, distance_cycle, read_cycle, simulate, time_cycle
-from analysis.simulate.cycle import SimulationInputError
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis import road_load
+from haulprofile.analysis.simulate import DriverSettings, distance_cycle, read_cycle, simulate, time_cycle
+from haulprofile.analysis.simulate.cycle import SimulationInputError
+from haulprofile.analysis.vehicle import load_vehicle
 
 KMH = 3.6
 
@@ -172,7 +172,7 @@ def test_bad_inputs_are_one_line_user_errors(rigid, tmp_path):
 
 
 def test_map_path_is_relative_to_vehicle_file_and_axle_ratio_defaults_to_vehicle(tmp_path, rigid):
-    from analysis.vehicle import load_vehicle as load
+    from haulprofile.analysis.vehicle import load_vehicle as load
     (tmp_path / "maps").mkdir()
     grid = [(n, t, 0.9) for n in (0, 4000) for t in (0, 2400)]
     pd.DataFrame(grid, columns=["speed_rpm", "torque_nm", "efficiency"]).to_csv(tmp_path / "maps" / "em.csv", index=False)

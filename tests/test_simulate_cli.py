@@ -5,11 +5,11 @@ import json
 import numpy as np
 import pandas as pd
 
-from analysis.cli import main
-from analysis.pipeline import RunContext
-from analysis.simulate import stage
-from analysis.vecto import write_vdri
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis.cli import main
+from haulprofile.analysis.pipeline import RunContext
+from haulprofile.analysis.simulate import stage
+from haulprofile.analysis.vecto import write_vdri
+from haulprofile.analysis.vehicle import load_vehicle
 
 
 def test_cli_simulates_a_vecto_cycle(shared_data, tmp_path, capsys):

@@ -5,10 +5,10 @@ import pandas as pd
 import pytest
 from scipy.interpolate import RegularGridInterpolator
 
-from analysis.simulate import DriverSettings, distance_cycle, time_cycle
-from analysis.simulate import kernel as K
-from analysis.simulate.model import kernel_arguments, pack_parameters
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis.simulate import DriverSettings, distance_cycle, time_cycle
+from haulprofile.analysis.simulate import kernel as K
+from haulprofile.analysis.simulate.model import kernel_arguments, pack_parameters
+from haulprofile.analysis.vehicle import load_vehicle
 
 
 @pytest.fixture(scope="module")

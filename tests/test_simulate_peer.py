@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.simulate import simulate, time_cycle
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis.simulate import simulate, time_cycle
+from haulprofile.analysis.vehicle import load_vehicle
 
 
 def test_positive_wheel_energy_agrees_with_fastsim_on_udds(monkeypatch):

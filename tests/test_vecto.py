@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from analysis.vecto import CycleFileError, read_vdri, write_vdri
+from haulprofile.analysis.vecto import CycleFileError, read_vdri, write_vdri
 
 
 @pytest.mark.parametrize("name", ["LongHaul", "RegionalDelivery", "UrbanDelivery"])

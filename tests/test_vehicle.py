@@ -1,6 +1,6 @@
 import pytest
 
-from analysis.vehicle import EXAMPLES, VehicleFileError, load_vehicle
+from haulprofile.analysis.vehicle import EXAMPLES, VehicleFileError, load_vehicle
 
 
 @pytest.mark.parametrize("name", list(EXAMPLES))

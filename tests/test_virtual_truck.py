@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis import road_load
-from analysis.dem.srtm import SrtmDem, read_hgt, tile_origin
-from analysis.virtual_truck import SCENARIOS, TRUTH_COLUMNS, drive, load_scenario, write_dem
-from analysis.virtual_truck.driver import simulate_kernel
-from analysis.virtual_truck.road import build_road
-from analysis.virtual_truck.truck import scenario_vehicle, simulate
+from haulprofile.analysis import road_load
+from haulprofile.analysis.dem.srtm import SrtmDem, read_hgt, tile_origin
+from haulprofile.analysis.virtual_truck import SCENARIOS, TRUTH_COLUMNS, drive, load_scenario, write_dem
+from haulprofile.analysis.virtual_truck.driver import simulate_kernel
+from haulprofile.analysis.virtual_truck.road import build_road
+from haulprofile.analysis.virtual_truck.truck import scenario_vehicle, simulate
 
 SHORT = """
 [scenario]
@@ -227,7 +227,7 @@ def test_a_vecto_cycle_becomes_a_route(shared_data, tmp_path):
     path.write_text(SHORT.split("[route]")[0] + f'[route]\nvdri = "{cycle.as_posix()}"\n')
     scenario = load_scenario(path)
     road = build_road(scenario, 0)
-    from analysis.vecto import read_vdri
+    from haulprofile.analysis.vecto import read_vdri
     vdri = read_vdri(cycle)
     assert road.length_m == pytest.approx(vdri["distance_m"].iloc[-1], abs=1.0)
     assert np.allclose(road.gradient_pct, np.interp(road.distance_m, vdri["distance_m"], vdri["gradient_pct"]))

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from logger import contract, j1939
-from analysis.virtual_truck import drive, load_scenario, write_mcap
-from analysis.virtual_truck.mcap_log import BOOT_OFFSET_NS
+from haulprofile import contract
+from haulprofile.contract import j1939
+from haulprofile.analysis.virtual_truck import drive, load_scenario, write_mcap
+from haulprofile.analysis.virtual_truck.mcap_log import BOOT_OFFSET_NS
 
 SHORT = """
 [scenario]

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from analysis.errors import UserError
-from analysis.virtual_truck import SCENARIOS, load_scenario
-from analysis.virtual_truck.scenario import ScenarioFileError
+from haulprofile.analysis.errors import UserError
+from haulprofile.analysis.virtual_truck import SCENARIOS, load_scenario
+from haulprofile.analysis.virtual_truck.scenario import ScenarioFileError
 
 GOOD = """
 [scenario]
@@ -57,7 +57,7 @@ def test_bad_files_give_one_line_naming_the_problem(tmp_path, change, words):
     path = tmp_path / "bad.toml"
     path.write_text(GOOD.replace(*change))
     with pytest.raises(UserError) as error:
-        from analysis.virtual_truck import drive
+        from haulprofile.analysis.virtual_truck import drive
         drive(load_scenario(path))
     message = str(error.value)
     assert "\n" not in message.strip()
@@ -73,8 +73,8 @@ def test_missing_file_names_the_shipped_scenarios(tmp_path):
 def test_a_vehicle_file_beside_the_scenario(tmp_path):
     from importlib import resources
 
-    from analysis.virtual_truck import scenario_vehicle
-    text = resources.files("analysis.data.vehicles").joinpath("tractor-40t.toml").read_text()
+    from haulprofile.analysis.virtual_truck import scenario_vehicle
+    text = resources.files("haulprofile.analysis.data.vehicles").joinpath("tractor-40t.toml").read_text()
     (tmp_path / "my-truck.toml").write_text(text.replace('name = "Tractor-semitrailer 40 t"', 'name = "mine"'))
     path = tmp_path / "mine.toml"
     path.write_text(GOOD.replace('vehicle = "rigid-18t"', 'vehicle = "my-truck.toml"'))

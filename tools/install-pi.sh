@@ -107,7 +107,7 @@ run networkctl reload
 echo "== configuration $CONFIG_DIR/logger.toml"
 run install -d -m 0755 "$CONFIG_DIR"
 if [[ $DRY_RUN -eq 1 || ! -f "$CONFIG_DIR/logger.toml" ]]; then
-    run install -m 0644 "$SOURCE/logger/logger.example.toml" "$CONFIG_DIR/logger.toml"
+    run install -m 0644 "$SOURCE/haulprofile/logger/logger.example.toml" "$CONFIG_DIR/logger.toml"
     run sed -i -e "s|^bitrate = [0-9]*|bitrate = $BITRATE|" \
         -e 's|^port = "/dev/ttyACM0"|port = "/dev/haulprofile-gps"|' "$CONFIG_DIR/logger.toml"
 else

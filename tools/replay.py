@@ -25,8 +25,8 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from logger import contract  # noqa: E402
-from logger.readback import can_frames  # noqa: E402
+from haulprofile import contract  # noqa: E402
+from haulprofile.logger.readback import can_frames  # noqa: E402
 
 SEND_RETRY_S = 0.001
 """Wait before re-sending a frame the interface refused (its transmit queue is full) [s]."""

@@ -7,8 +7,8 @@ needs no data; replace the first block by your own logs, DEM and vehicle file.
 import sys
 from pathlib import Path
 
-import analysis
-from analysis.virtual_truck import drive, load_scenario, write_dem, write_mcap
+from haulprofile import analysis
+from haulprofile.analysis.virtual_truck import drive, load_scenario, write_dem, write_mcap
 
 out = Path(sys.argv[1] if len(sys.argv) > 1 else "notebook-out")
 truck = drive(load_scenario("regional-tunnel"), analysis.load_vehicle("rigid-18t"), seed=1)

@@ -29,7 +29,7 @@ def mass_regression(n: int, seed: int = 0):
 def bench_rls_vs_padasip(quick: bool):
     import padasip
 
-    from analysis.mass import kernels
+    from haulprofile.analysis.mass import kernels
 
     n = 20_000 if quick else 100_000
     phi, y = mass_regression(n)
@@ -55,10 +55,10 @@ def bench_rls_vs_padasip(quick: bool):
 
 def long_drive(hours: float, rate_hz: float = 10.0):
     """A synthetic signals table and SRTM tiles for a drive along 47.5 N, cached in .bench-cache."""
-    from analysis import road_load
-    from analysis.dem.srtm import write_hgt
-    from analysis.kinematics import acceleration_mps2, distance_m
-    from analysis.vehicle import load_vehicle
+    from haulprofile.analysis import road_load
+    from haulprofile.analysis.dem.srtm import write_hgt
+    from haulprofile.analysis.kinematics import acceleration_mps2, distance_m
+    from haulprofile.analysis.vehicle import load_vehicle
 
     folder = CACHE_DIR / f"estimation-{hours:g}h"
     table = folder / "signals.parquet"
@@ -108,10 +108,10 @@ def long_drive(hours: float, rate_hz: float = 10.0):
 CHILD = """
 import json, resource, sys, time
 import pandas as pd
-from analysis.dem import open_dem
-from analysis.gradient import estimate_gradient
-from analysis.mass import estimate_mass
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis.dem import open_dem
+from haulprofile.analysis.gradient import estimate_gradient
+from haulprofile.analysis.mass import estimate_mass
+from haulprofile.analysis.vehicle import load_vehicle
 frame = pd.read_parquet(sys.argv[1])
 dem, vehicle = open_dem(sys.argv[2]), load_vehicle("rigid-18t")
 def run(part):

@@ -30,7 +30,7 @@ GROUPS = {"urban-rigid-18t": ("urban-delivery", "rigid-18t"), "long-haul-tractor
 
 def fleet_inputs(quick: bool) -> tuple[list[Path], list[str], Path]:
     """(group directories, vehicle names, DEM directory), generated on first use."""
-    from analysis.fleet.virtual import virtual_fleet
+    from haulprofile.analysis.fleet.virtual import virtual_fleet
 
     group_dirs, dem_dir = virtual_fleet(CACHE / ("quick" if quick else "full"), GROUPS, 3 if quick else 25,
                                         n_sections=5 if quick else None, workers=os.cpu_count() or 1,
@@ -46,8 +46,8 @@ def _cpu_s() -> float:
 
 def _run(group_dirs, vehicles, dem_dir, out_dir: Path, workers: int, candidates: int):
     """(wall time [s], CPU time of this process and its workers [s], the fleet result)."""
-    from analysis.fleet import FleetSpec, run_fleet
-    from analysis.vehicle import load_vehicle
+    from haulprofile.analysis.fleet import FleetSpec, run_fleet
+    from haulprofile.analysis.vehicle import load_vehicle
 
     spec = FleetSpec.of(group_dirs, [load_vehicle(v) for v in vehicles], dem_dir=dem_dir,
                         n_candidates=candidates, seed=0)
@@ -59,8 +59,8 @@ def _run(group_dirs, vehicles, dem_dir, out_dir: Path, workers: int, candidates:
 def _warm_up(group_dirs, vehicles, dem_dir, out_dir: Path) -> None:
     """One log per group through map and cycle in this process, untimed: imports, numba caches and
     the DEM reader are loaded before either timed run (the pool's workers fork from this process)."""
-    from analysis.fleet import LogTask, group_cycle, map_log
-    from analysis.vehicle import load_vehicle
+    from haulprofile.analysis.fleet import LogTask, group_cycle, map_log
+    from haulprofile.analysis.vehicle import load_vehicle
 
     for group_dir, vehicle in zip(group_dirs, vehicles):
         log = sorted(group_dir.glob("*.mcap"))[0]

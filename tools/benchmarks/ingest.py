@@ -27,7 +27,7 @@ PERIODIC_HZ = 100 + 20 + 10 + 5 + 10 + 10 + 1 + 7 / 5.0
 
 
 def _log(quick: bool) -> tuple[Path, float]:
-    from analysis.ingest import synthetic
+    from haulprofile.analysis.ingest import synthetic
 
     hours = 0.1 if quick else 10.0
     path = CACHE_DIR / f"ingest-{hours:g}h-v1.mcap"
@@ -46,7 +46,7 @@ def peak_rss_mb():
     with open("/proc/self/status") as status:
         return next(int(line.split()[1]) for line in status if line.startswith("VmHWM")) / 1024
 t0 = time.perf_counter()
-from analysis.ingest import ingest_logs
+from haulprofile.analysis.ingest import ingest_logs
 frame, summary = ingest_logs([sys.argv[1]])
 elapsed = time.perf_counter() - t0
 print(json.dumps({"seconds": elapsed, "rows": len(frame), "can_frames": summary["can_frames"],
@@ -79,7 +79,7 @@ def _fresh(code: str, path: Path) -> dict:
 
 def _j1939_database():
     import cantools
-    from logger import j1939
+    from haulprofile.contract import j1939
 
     lines = ['VERSION ""', "", "NS_ :", "", "BS_:", "", "BU_:", ""]
     for pgn in sorted({s.pgn for s in j1939.SPNS.values()} - set(j1939.PGN_LENGTH)):
@@ -93,8 +93,8 @@ def _j1939_database():
 
 def _frame_sample(path: Path, count: int) -> np.ndarray:
     """The first ``count`` CAN frames of the log."""
-    from analysis.ingest import iter_log_messages
-    from logger import contract
+    from haulprofile.analysis.ingest import iter_log_messages
+    from haulprofile import contract
 
     parts, have = [], 0
     for message in iter_log_messages([path]):
@@ -107,9 +107,9 @@ def _frame_sample(path: Path, count: int) -> np.ndarray:
 
 
 def bench_ingest(quick: bool):
-    from analysis.ingest import j1939_decode
-    from analysis.ingest.columns import build_table
-    from analysis.ingest.table import BLOCK_FRAMES, Ingest
+    from haulprofile.analysis.ingest import j1939_decode
+    from haulprofile.analysis.ingest.columns import build_table
+    from haulprofile.analysis.ingest.table import BLOCK_FRAMES, Ingest
 
     path, hours = _log(quick)
     ours = _fresh(_OURS, path)

@@ -27,14 +27,15 @@ from pathlib import Path
 import numpy as np
 from bench import CACHE_DIR, result
 
-from logger import contract, j1939
-from logger.clock import Clock
-from logger.config import Config
-from logger.daemon import Daemon
-from logger.emulators import sensors
-from logger.emulators.ecu import BAM_PERIOD_S, BROADCAST_PERIODS_S
-from logger.emulators.rig import EmulatedDevices, emulation_config, run_daemon_for
-from logger.emulators.signals import TimeSeries, synthetic_drive
+from haulprofile import contract
+from haulprofile.contract import j1939
+from haulprofile.logger.clock import Clock
+from haulprofile.logger.config import Config
+from haulprofile.logger.daemon import Daemon
+from haulprofile.logger.emulators import sensors
+from haulprofile.logger.emulators.ecu import BAM_PERIOD_S, BROADCAST_PERIODS_S
+from haulprofile.logger.emulators.rig import EmulatedDevices, emulation_config, run_daemon_for
+from haulprofile.logger.emulators.signals import TimeSeries, synthetic_drive
 
 TARGET_FRAMES_PER_S = 1500.0
 

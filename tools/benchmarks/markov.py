@@ -19,7 +19,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from analysis.markov.generate import GOLDEN, _mix, _path_statistics, _uniform
+from haulprofile.analysis.markov.generate import GOLDEN, _mix, _path_statistics, _uniform
 
 CACHE = Path(__file__).resolve().parents[1].parent / ".bench-cache"
 DENSE_LIMIT_BYTES = 4 * 1024**3
@@ -28,7 +28,7 @@ DENSE_LIMIT_BYTES = 4 * 1024**3
 def _input(hours: float) -> Path:
     path = CACHE / f"markov-input-{hours:g}h.parquet"
     if not path.exists():
-        from analysis.markov.synthetic import synthetic_drive
+        from haulprofile.analysis.markov.synthetic import synthetic_drive
         CACHE.mkdir(exist_ok=True)
         synthetic_drive(hours * 3600, seed=2026, kind="regional").to_parquet(path)
     return path
@@ -56,15 +56,15 @@ def _dense_batch(cum, start_state, start_cum, speed, gradient, mass, seed, n_ste
 
 def _dense_size(chain) -> tuple[int, int]:
     """States of the class grid spanned by the chain's states, and its matrix bytes (float64)."""
-    from analysis.markov import classes as cls
+    from haulprofile.analysis.markov import classes as cls
     v, g, m = cls.decode(chain.keys)
     n = int((v.max() + 1) * (g.max() - g.min() + 1) * (m.max() - m.min() + 1))
     return n, n * n * 8
 
 
 def _run_dense(chain, counts, duration_s, n_candidates, seed):
-    from analysis.markov import classes as cls
-    from analysis.markov.criteria import deviations, scores
+    from haulprofile.analysis.markov import classes as cls
+    from haulprofile.analysis.markov.criteria import deviations, scores
     v, g, m = cls.decode(chain.keys)
     n_g, n_m = g.max() - g.min() + 1, m.max() - m.min() + 1
     grid_of_state = (v * n_g + (g - g.min())) * n_m + (m - m.min())
@@ -88,8 +88,8 @@ def _run_dense(chain, counts, duration_s, n_candidates, seed):
 def child(kind: str, hours: float, mass_class_kg: float, n_candidates: int) -> dict:
     """One measurement in this process: wall seconds from the 1 Hz table to the selected cycle."""
     import pandas as pd
-    from analysis.markov import ClassWidths, build_chain, count_transitions, select_cycle
-    from analysis.markov.synthetic import synthetic_drive
+    from haulprofile.analysis.markov import ClassWidths, build_chain, count_transitions, select_cycle
+    from haulprofile.analysis.markov.synthetic import synthetic_drive
     warm = count_transitions(synthetic_drive(900, seed=1, kind="urban"), ClassWidths(5.0, 2.0, 5000.0))
     select_cycle(warm, 120, 4, seed=0)
     if kind == "dense":

@@ -5,8 +5,8 @@ import time
 
 import numpy as np
 
-from analysis import road_load
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis import road_load
+from haulprofile.analysis.vehicle import load_vehicle
 from bench import result
 
 

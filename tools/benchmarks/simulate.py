@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.simulate import DriverSettings, read_cycle, simulate, time_cycle
-from analysis.vehicle import load_vehicle
+from haulprofile.analysis.simulate import DriverSettings, read_cycle, simulate, time_cycle
+from haulprofile.analysis.vehicle import load_vehicle
 from bench import result
 
 SHARED_DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
@@ -126,7 +126,7 @@ def _virtual_truck_cycles(vehicle, quick: bool) -> list:
     """Each scenario driven by its own vehicle (speed, gradient, payload over time); another vehicle
     carries the same payload, clipped to its own maximum payload."""
     try:
-        from analysis.virtual_truck import SCENARIOS, drive, load_scenario, scenario_vehicle
+        from haulprofile.analysis.virtual_truck import SCENARIOS, drive, load_scenario, scenario_vehicle
     except ImportError as exc:
         print(f"virtual-truck scenarios skipped: {exc}")
         return []

@@ -5,10 +5,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from analysis.virtual_truck import drive, load_scenario, write_dem, write_mcap
-from analysis.virtual_truck.driver import simulate_kernel
-from analysis.virtual_truck.road import build_road
-from analysis.virtual_truck.truck import scenario_vehicle, simulate
+from haulprofile.analysis.virtual_truck import drive, load_scenario, write_dem, write_mcap
+from haulprofile.analysis.virtual_truck.driver import simulate_kernel
+from haulprofile.analysis.virtual_truck.road import build_road
+from haulprofile.analysis.virtual_truck.truck import scenario_vehicle, simulate
 from bench import result
 
 

@@ -1,0 +1,75 @@
+"""The ``analyze`` command: one table of subcommands, each a module with ``add_arguments`` and
+``run``. Modules are imported only when their command runs, so ``--help`` stays fast; a command
+whose module is not in this installation is not listed."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import sys
+
+from .errors import UserError
+
+COMMANDS: dict[str, tuple[str, str]] = {
+    "demo": ("haulprofile.analysis.commands.demo", "drive the virtual truck through logger and analysis into demo-out/"),
+    "run": ("haulprofile.analysis.commands.run", "run every analysis stage on logs or a signals table"),
+    "info": ("haulprofile.analysis.commands.info", "topics, duration, rates, gaps and coverage of logs"),
+    "signals": ("haulprofile.analysis.commands.signals", "decode and align logs into a signals table"),
+    "recover": ("haulprofile.analysis.commands.recover", "write a repaired, indexed copy of a cut MCAP log"),
+    "gradient": ("haulprofile.analysis.commands.gradient", "road height and gradient (DEM, barometer, IMU, fused)"),
+    "mass": ("haulprofile.analysis.commands.mass", "vehicle mass per segment (LS, RLS, Levenberg-Marquardt)"),
+    "cycle": ("haulprofile.analysis.commands.cycle", "representative driving cycle (Markov chain, Monte Carlo)"),
+    "loads": ("haulprofile.analysis.commands.loads", "load collectives at the wheel"),
+    "simulate": ("haulprofile.analysis.commands.simulate", "longitudinal simulation of the electric truck on a cycle"),
+    "fleet": ("haulprofile.analysis.commands.fleet", "many logs: map per log, reduce, cycles per vehicle group"),
+}
+
+
+def available_commands() -> dict[str, tuple[str, str]]:
+    return {name: spec for name, spec in COMMANDS.items() if importlib.util.find_spec(spec[0]) is not None}
+
+
+def build_parser(commands: dict[str, tuple[str, str]]) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="analyze", description="haulprofile analysis: truck logs to load profiles.")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (_, help_text) in commands.items():
+        sub.add_parser(name, help=help_text, add_help=False)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    commands = available_commands()
+    parser = build_parser(commands)
+    known, rest = parser.parse_known_args(argv)
+    if known.command is None:
+        parser.print_help()
+        return 2
+    module = importlib.import_module(commands[known.command][0])
+    sub = argparse.ArgumentParser(prog=f"analyze {known.command}", description=commands[known.command][1])
+    module.add_arguments(sub)
+    args = sub.parse_args(rest)
+    args.debug = known.debug
+    try:
+        return int(module.run(args) or 0)
+    except UserError as exc:
+        if known.debug:
+            raise
+        print(f"analyze {known.command}: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("analyze: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # a bug, not the user's input: one line, the traceback on --debug
+        if known.debug:
+            raise
+        print(f"analyze {known.command}: internal error: {type(exc).__name__}: {exc} "
+              f"(rerun with 'analyze --debug {known.command} ...' and report it)", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,120 @@
+"""CAN logs of other loggers as raw CAN record arrays (contract dtype), ready for the same decoding.
+
+candump ``.log``, Vector ``.asc`` and ``.blf`` through python-can's readers; CSS Electronics
+CANedge ``.mf4`` through asammdf, whole columns at a time. Timestamps become nanoseconds on the
+record's ``t_mono_ns``; the wall clock is returned beside them as (time, wall) pairs when the
+format knows it (epoch timestamps, MF4 start time).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from haulprofile.contract import CAN_FLAG_ERROR, CAN_FLAG_EXTENDED, CAN_FLAG_REMOTE, CAN_FLAG_TX, CAN_FRAME_DTYPE
+
+from ..errors import UserError
+
+PYTHON_CAN_SUFFIXES = {".log", ".asc", ".blf"}
+MF4_SUFFIXES = {".mf4"}
+SUFFIXES = PYTHON_CAN_SUFFIXES | MF4_SUFFIXES
+_EPOCH_2000_S = 946_684_800.0
+
+
+class ForeignLogError(UserError):
+    pass
+
+
+def is_foreign(path: str | Path) -> bool:
+    return Path(path).suffix.lower() in SUFFIXES
+
+
+def read_can_log(path: str | Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """(CAN records, (t_mono_ns, wall_ns) pairs) of a foreign CAN log."""
+    path = Path(path)
+    if path.suffix.lower() in MF4_SUFFIXES:
+        return read_mf4(path)
+    return read_python_can(path)
+
+
+def read_python_can(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    import can
+
+    rows = []
+    try:
+        with can.LogReader(str(path)) as reader:
+            for msg in reader:
+                flags = ((CAN_FLAG_EXTENDED if msg.is_extended_id else 0)
+                         | (CAN_FLAG_REMOTE if msg.is_remote_frame else 0)
+                         | (CAN_FLAG_ERROR if msg.is_error_frame else 0)
+                         | (0 if msg.is_rx else CAN_FLAG_TX))
+                data = bytes(msg.data[:8])
+                channel = msg.channel if isinstance(msg.channel, int) else 0
+                rows.append((int(round(msg.timestamp * 1e9)), msg.arbitration_id, flags, min(msg.dlc, 8),
+                             channel & 0xFF, 0, tuple(data.ljust(8, b"\x00"))))
+    except Exception as exc:  # noqa: BLE001 - python-can's parsers raise many types on damaged files
+        if not rows:
+            raise ForeignLogError(f"{path}: cannot read as a {path.suffix} CAN log ({exc})") from None
+        # keep what was read before the damage, as for a cut MCAP log
+    frames = np.array(rows, dtype=CAN_FRAME_DTYPE) if rows else np.zeros(0, CAN_FRAME_DTYPE)
+    return frames, _epoch_pairs(frames)
+
+
+def _epoch_pairs(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Timestamps after 2000-01-01 are taken as wall clock (candump and BLF write epoch times)."""
+    if len(frames) and frames["t_mono_ns"][0] / 1e9 > _EPOCH_2000_S:
+        t = frames["t_mono_ns"][[0, -1]].astype(np.int64)
+        return t, t.copy()
+    return np.zeros(0, np.int64), np.zeros(0, np.int64)
+
+
+def read_mf4(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """CAN data frames of every data group of a CANedge MF4 (``CAN_DataFrame.*`` channels)."""
+    from asammdf import MDF
+
+    try:
+        mdf = MDF(str(path))
+    except Exception as exc:  # asammdf raises many types for unreadable files
+        raise ForeignLogError(f"{path}: cannot read as MF4 ({type(exc).__name__}: {exc})") from None
+    try:
+        parts, start_ns = _mf4_frames(mdf)
+    except Exception as exc:  # noqa: BLE001 - asammdf raises many types on damaged files
+        raise ForeignLogError(f"{path}: cannot read the CAN frames of this MF4 ({type(exc).__name__}: {exc})") from None
+    finally:
+        mdf.close()
+    if not parts:
+        raise ForeignLogError(f"{path}: MF4 file has no CAN_DataFrame channels (not a CAN bus log)")
+    frames = np.concatenate(parts)
+    frames = frames[np.argsort(frames["t_mono_ns"], kind="stable")]
+    mono = frames["t_mono_ns"][[0, -1]].astype(np.int64)
+    return frames, (mono, mono + start_ns)
+
+
+def _mf4_frames(mdf) -> tuple[list[np.ndarray], int]:
+    """Record arrays of the CAN data groups and the recording start [ns since epoch]."""
+    parts = []
+    for index, group in enumerate(mdf.groups):
+        names = {c.name for c in group.channels}
+        if "CAN_DataFrame.ID" not in names:
+            continue
+        get = lambda name: mdf.get(name, group=index, raw=True)  # noqa: E731
+        ids = get("CAN_DataFrame.ID")
+        data = get("CAN_DataFrame.DataBytes").samples
+        dlc = get("CAN_DataFrame.DLC").samples.astype(np.uint8)
+        ide = get("CAN_DataFrame.IDE").samples.astype(bool) if "CAN_DataFrame.IDE" in names else None
+        channel = (get("CAN_DataFrame.BusChannel").samples.astype(np.uint8)
+                   if "CAN_DataFrame.BusChannel" in names else np.zeros(len(dlc), np.uint8))
+        frames = np.zeros(len(dlc), CAN_FRAME_DTYPE)
+        frames["t_mono_ns"] = np.round(ids.timestamps * 1e9).astype(np.uint64)
+        frames["arbitration_id"] = ids.samples.astype(np.uint32) & 0x1FFFFFFF
+        extended = ide if ide is not None else ids.samples.astype(np.uint32) > 0x7FF
+        frames["flags"] = np.where(extended, CAN_FLAG_EXTENDED, 0)
+        frames["dlc"] = np.minimum(dlc, 8)
+        frames["channel"] = channel
+        width = min(8, data.shape[1]) if data.ndim == 2 else 0
+        frames["data"][:, :width] = data[:, :width]
+        # bytes beyond the DLC are zero (contract)
+        frames["data"][np.arange(8)[None, :] >= frames["dlc"][:, None]] = 0
+        parts.append(frames)
+    return parts, int(mdf.start_time.timestamp() * 1e9)

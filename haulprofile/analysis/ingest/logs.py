@@ -1,0 +1,218 @@
+"""Logs in, messages out: MCAP files (whole or cut) and foreign CAN logs, in time order.
+
+Inputs are files or directories of them. MCAP files are ordered by the wall clock of their
+first message; the monotonic clock restarts at a reboot, so a file whose monotonic time runs
+backwards is shifted onto one continuous time line using the wall-clock distance between files.
+Every message's ``t_mono_ns`` below is on that continuous line.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator, NamedTuple
+
+import numpy as np
+
+from haulprofile import contract
+from haulprofile.contract.naming import log_name_parts
+
+from ..errors import UserError
+from . import foreign
+from .mcap_read import Channel, RawMessage, ReadReport, read_file, read_file_batches
+
+MCAP_SUFFIXES = {".mcap"}
+
+
+class LogError(UserError):
+    pass
+
+
+def expand(paths) -> list[Path]:
+    """Files of ``paths``; directories contribute their MCAP and foreign CAN logs (recursively)."""
+    if isinstance(paths, (str, Path)):
+        paths = [paths]
+    files: list[Path] = []
+    for raw in paths:
+        path = Path(raw)
+        if path.is_dir():
+            found = sorted(p for p in path.rglob("*") if p.is_file()
+                           and p.suffix.lower() in MCAP_SUFFIXES | foreign.SUFFIXES)
+            if not found:
+                raise LogError(f"{path}: directory holds no .mcap (or .log/.asc/.blf/.mf4) files")
+            files.extend(found)
+        elif path.is_file():
+            files.append(path)
+        else:
+            raise LogError(f"input {path} not found")
+    if not files:
+        raise LogError("no input logs given")
+    return files
+
+
+def is_mcap(path: Path) -> bool:
+    if path.suffix.lower() in MCAP_SUFFIXES:
+        return True
+    with open(path, "rb") as handle:
+        return handle.read(8) == b"\x89MCAP0\r\n"
+
+
+class LogMessage(NamedTuple):
+    """One message: topic, continuous monotonic time [ns], wall clock [ns], payload, channel."""
+
+    topic: str
+    t_mono_ns: int
+    log_time_ns: int
+    data: bytes
+    channel: Channel
+    file_index: int
+
+
+@dataclass
+class Timeline:
+    """Per-file shifts onto the continuous monotonic line [ns]."""
+
+    offsets_ns: dict[str, int] = field(default_factory=dict)
+    reports: list[ReadReport] = field(default_factory=list)
+
+
+def _first_message(path: Path):
+    try:
+        return next(iter(read_file(path, ReadReport(str(path)))), None)
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def order_mcap(files: list[Path]) -> list[tuple[Path, int, int]]:
+    """(path, first wall clock [ns], first monotonic [ns]) in the order the files were written.
+
+    Files of one logger (its names: one prefix, distinct sequence numbers, `logger.storage`) go by
+    their sequence number: a Raspberry Pi has no real-time clock and may log for hours with its
+    clock behind after a power cut, so a later file can carry an earlier wall clock. Other files
+    go by the wall clock of their first message; empty files last.
+    """
+    entries = []
+    for path in files:
+        first = _first_message(path)
+        if first is None:
+            entries.append((path, np.iinfo(np.int64).max, 0))
+        else:
+            entries.append((path, first.log_time_ns, first.publish_time_ns))
+    names = [log_name_parts(path) for path in files]
+    if names and all(names) and len({n[0] for n in names}) == 1 and len({n[1] for n in names}) == len(names):
+        sequence = {path: n[1] for path, n in zip(files, names)}
+        return sorted(entries, key=lambda e: sequence[e[0]])
+    return sorted(entries, key=lambda e: (e[1], str(e[0])))
+
+
+def iter_log_batches(paths, timeline: Timeline | None = None) -> Iterator[tuple[int, int, list[RawMessage]]]:
+    """(file index, time shift [ns], messages of one chunk) of the MCAP logs in ``paths``, in time order.
+
+    ``timeline`` (optional) receives each file's ReadReport and time shift. Foreign CAN logs
+    in ``paths`` are skipped here (see `read_frames`).
+    """
+    timeline = timeline if timeline is not None else Timeline()
+    files = [p for p in expand(paths) if is_mcap(p)]
+    offset = 0
+    last_mono = last_wall = None
+    for index, (path, first_wall, first_mono) in enumerate(order_mcap(files)):
+        if last_mono is not None and first_mono + offset < last_mono and first_wall != np.iinfo(np.int64).max:
+            offset = last_mono + max(first_wall - last_wall, 0) - first_mono
+        timeline.offsets_ns[str(path)] = offset
+        report = ReadReport(str(path))
+        timeline.reports.append(report)
+        for batch in read_file_batches(path, report):
+            latest = max(batch, key=_publish_time)
+            if last_mono is None or latest.publish_time_ns + offset > last_mono:
+                last_mono, last_wall = latest.publish_time_ns + offset, latest.log_time_ns
+            yield index, offset, batch
+
+
+def _publish_time(message: RawMessage) -> int:
+    return message.publish_time_ns
+
+
+def iter_log_messages(paths, timeline: Timeline | None = None) -> Iterator[LogMessage]:
+    """Every recoverable message of the MCAP logs in ``paths``, file after file in time order,
+    with ``t_mono_ns`` on the continuous time line (see `iter_log_batches`)."""
+    for index, offset, batch in iter_log_batches(paths, timeline):
+        for raw in batch:
+            yield LogMessage(raw.channel.topic, raw.publish_time_ns + offset, raw.log_time_ns, raw.data,
+                             raw.channel, index)
+
+
+@dataclass
+class LogArrays:
+    """A whole log in memory: raw CAN records, IMU records and decoded JSON records per topic."""
+
+    can: np.ndarray
+    imu: np.ndarray
+    json: dict[str, list[dict]]
+    channel_metadata: dict[str, dict]
+    timeline: Timeline
+    clock_pairs: tuple[np.ndarray, np.ndarray]
+
+    def json_table(self, topic: str):
+        """One JSON topic as a DataFrame (a column per field; ``t_mono_ns`` on the continuous line)."""
+        import pandas as pd
+
+        return pd.DataFrame.from_records(self.json.get(topic, []))
+
+
+def read_frames(paths) -> LogArrays:
+    """Everything of ``paths`` as arrays (contract dtypes, times on the continuous line [ns]).
+
+    For the report and the fleet stage; the signals table comes from `read_logs`, which streams.
+    """
+    timeline = Timeline()
+    can_parts, imu_parts = [], []
+    json_records: dict[str, list[dict]] = {}
+    metadata: dict[str, dict] = {}
+    mono_pairs, wall_pairs = [], []
+    for _, offset, batch in iter_log_batches(paths, timeline):
+        mono_pairs.append(batch[0].publish_time_ns + offset)
+        wall_pairs.append(batch[0].log_time_ns)
+        for message in batch:
+            topic = message.channel.topic
+            metadata.setdefault(topic, dict(message.channel.metadata))
+            if topic == contract.CAN_FRAMES.name:
+                can_parts.append(_shifted(decode_packed(contract.CAN_FRAMES, message), offset))
+            elif topic == contract.IMU.name:
+                imu_parts.append(_shifted(decode_packed(contract.IMU, message), offset))
+            elif message.channel.message_encoding == contract.JSON_ENCODING:
+                record = decode_json(message)
+                if record is not None:
+                    if isinstance(record.get("t_mono_ns"), int):
+                        record["t_mono_ns"] += offset
+                    json_records.setdefault(topic, []).append(record)
+    for path in expand(paths):
+        if not is_mcap(path):
+            frames, _ = foreign.read_can_log(path)
+            can_parts.append(frames)
+    can = np.concatenate(can_parts) if can_parts else np.zeros(0, contract.CAN_FRAME_DTYPE)
+    imu = np.concatenate(imu_parts) if imu_parts else np.zeros(0, contract.IMU_SAMPLE_DTYPE)
+    return LogArrays(can, imu, json_records, metadata, timeline,
+                     (np.array(mono_pairs, dtype=np.int64), np.array(wall_pairs, dtype=np.int64)))
+
+
+def _shifted(records: np.ndarray, shift: int) -> np.ndarray:
+    if shift == 0 or len(records) == 0:
+        return records
+    records = records.copy()
+    records["t_mono_ns"] += np.uint64(shift)
+    return records
+
+
+def decode_packed(topic: contract.Topic, message) -> np.ndarray:
+    """Record array of a packed message; an odd-sized (damaged) payload keeps its whole records."""
+    usable = len(message.data) - len(message.data) % topic.dtype.itemsize
+    return np.frombuffer(message.data, dtype=topic.dtype, count=usable // topic.dtype.itemsize)
+
+
+def decode_json(message) -> dict | None:
+    try:
+        record = json.loads(message.data)
+    except (ValueError, UnicodeDecodeError):
+        return None
+    return record if isinstance(record, dict) else None

@@ -1,0 +1,280 @@
+"""Logs to binned streams: read, decode block by block, reduce to output bins.
+
+CAN frames are gathered into blocks of `BLOCK_FRAMES` records (one ``np.frombuffer`` over the
+joined payloads), decoded with NumPy (J1939 SPNs per source address, OBD-II and transport
+protocol frames set aside for matching and reassembly at the end, a user's DBC), and reduced to
+output bins at once, so memory grows with the output, not with the log.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from haulprofile import contract
+from haulprofile.contract import j1939
+
+from . import align, j1939_decode, obd_decode
+from . import dbc as dbc_module
+
+BLOCK_FRAMES = 1 << 20
+"""CAN records decoded at once (24 MiB)."""
+BLOCK_IMU = 1 << 20
+LAST_KIND = {"current_gear", "selected_gear", "brake_switch", "clutch_switch", "axle_location"}
+ACCEL_SCALE_KEY = "accel_scale_mps2_per_lsb"
+
+
+JSON_BATCH = 20_000
+"""JSON messages of a topic parsed in one ``json.loads`` (of a JSON array of them)."""
+
+
+def _number(value) -> float:
+    return float(value) if value.__class__ in (int, float) else np.nan
+
+
+def _clock(value) -> int:
+    return value if value.__class__ is int and value >= 0 else -1
+
+
+@dataclass
+class _Json:
+    """Fields of one JSON topic; clock readings (``*_ns``) stay exact integers, -1 when absent."""
+
+    time_ns: list = field(default_factory=list)
+    fields: dict = field(default_factory=dict)
+    pending: list = field(default_factory=list)
+    offsets: list = field(default_factory=list)
+
+    def flush(self, names: tuple[str, ...]) -> None:
+        if not self.pending:
+            return
+        try:
+            records = json.loads(b"[" + b",".join(self.pending) + b"]")
+        except (ValueError, UnicodeDecodeError):
+            records = [_loads(p) for p in self.pending]
+        offsets = self.offsets
+        self.pending, self.offsets = [], []
+        keep = [k for k, r in enumerate(records) if r.__class__ is dict and r.get("t_mono_ns").__class__ is int]
+        self.time_ns.extend(records[k]["t_mono_ns"] + offsets[k] for k in keep)
+        for name in names:
+            convert = _clock if name.endswith("_ns") else _number
+            self.fields.setdefault(name, []).extend(convert(records[k].get(name)) for k in keep)
+
+    def arrays(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        dtype = np.int64 if name.endswith("_ns") else np.float64
+        return np.array(self.time_ns, dtype=np.int64), np.array(self.fields.get(name, []), dtype=dtype)
+
+
+def _loads(payload: bytes):
+    try:
+        return json.loads(payload)
+    except (ValueError, UnicodeDecodeError):
+        return None
+
+
+JSON_FIELDS = {
+    contract.BAROMETER.name: ("pressure_pa", "temperature_c"),
+    contract.HUMIDITY.name: ("relative_humidity_pct", "temperature_c"),
+    contract.GPS_FIX.name: ("latitude", "longitude", "altitude", "h_acc_m", "v_acc_m", "gps_time_utc_ns",
+                            "fix_quality"),
+    contract.TIME_SYNC.name: ("t_realtime_ns", "gps_time_utc_ns"),
+}
+
+
+class Ingest:
+    """Accumulates decoded, binned streams of one set of logs (`columns.build_table` names them)."""
+
+    def __init__(self, rate_hz: float = 10.0, database=None):
+        self.rate_hz = rate_hz
+        self.acc = align.BinAccumulator(rate_hz)
+        self.database = database
+        self.dbc_messages = dbc_module.messages(database) if database is not None else []
+        self.tp_parts: list[np.ndarray] = []
+        self.obd_parts: list[np.ndarray] = []
+        self.can_pending: list[bytes] = []
+        self.can_pending_records = 0
+        self.imu_pending: dict[float, list[bytes]] = {}
+        self.imu_pending_bytes = 0
+        self.json: dict[str, _Json] = {}
+        self.log_pairs: tuple[list, list] = ([], [])
+        self.topic_counts: dict[str, int] = {}
+        self.can_frames = 0
+        self.messages = 0
+        self.imu_samples = 0
+        self.notes: list[str] = []
+        self.tp_stats = j1939_decode.TpStats()
+        self.obd_stats = obd_decode.ObdStats()
+
+    # -- feeding -----------------------------------------------------------------------------
+    def feed_batch(self, batch, offset_ns: int) -> None:
+        """MCAP messages (`mcap_read.RawMessage`) whose times shift by ``offset_ns`` onto the continuous line."""
+        first = batch[0]
+        self.log_pairs[0].append(first.publish_time_ns + offset_ns)
+        self.log_pairs[1].append(first.log_time_ns)
+        self.messages += len(batch)
+        counts = self.topic_counts
+        can_topic, imu_topic = contract.CAN_FRAMES.name, contract.IMU.name
+        for message in batch:
+            topic = message.channel.topic
+            counts[topic] = counts.get(topic, 0) + 1
+            if topic == can_topic:
+                self._pend_can(message.data, offset_ns)
+            elif topic == imu_topic:
+                self._pend_imu(message, offset_ns)
+            elif topic in JSON_FIELDS:
+                stream = self.json.get(topic)
+                if stream is None:
+                    stream = self.json[topic] = _Json()
+                stream.pending.append(message.data)
+                stream.offsets.append(offset_ns)
+                if len(stream.pending) >= JSON_BATCH:
+                    stream.flush(JSON_FIELDS[topic])
+
+    def _pend_can(self, payload: bytes, offset_ns: int) -> None:
+        size = contract.CAN_FRAME_DTYPE.itemsize
+        payload = payload[:len(payload) - len(payload) % size]
+        if offset_ns:
+            records = np.frombuffer(payload, contract.CAN_FRAME_DTYPE).copy()
+            records["t_mono_ns"] += np.uint64(offset_ns)
+            payload = records.tobytes()
+        self.can_pending.append(payload)
+        self.can_pending_records += len(payload) // size
+        if self.can_pending_records >= BLOCK_FRAMES:
+            self.flush_can()
+
+    def flush_can(self) -> None:
+        if self.can_pending:
+            frames = np.frombuffer(b"".join(self.can_pending), contract.CAN_FRAME_DTYPE)
+            self.can_pending, self.can_pending_records = [], 0
+            self.feed_frames(frames)
+
+    def _pend_imu(self, message, offset_ns: int) -> None:
+        scale = message.channel.metadata.get(ACCEL_SCALE_KEY)
+        try:
+            scale = float(scale)
+        except (TypeError, ValueError):
+            if "imu-scale" not in self.notes:
+                self.notes.append("imu-scale")
+            return
+        size = contract.IMU_SAMPLE_DTYPE.itemsize
+        payload = message.data[:len(message.data) - len(message.data) % size]
+        if offset_ns:
+            records = np.frombuffer(payload, contract.IMU_SAMPLE_DTYPE).copy()
+            records["t_mono_ns"] += np.uint64(offset_ns)
+            payload = records.tobytes()
+        self.imu_pending.setdefault(scale, []).append(payload)
+        self.imu_pending_bytes += len(payload)
+        if self.imu_pending_bytes >= BLOCK_IMU * size:
+            self.flush_imu()
+
+    def flush_imu(self) -> None:
+        self.imu_pending_bytes = 0
+        for scale, pending in self.imu_pending.items():
+            if not pending:
+                continue
+            samples = np.frombuffer(b"".join(pending), contract.IMU_SAMPLE_DTYPE)
+            pending.clear()
+            self.imu_samples += len(samples)
+            t = samples["t_mono_ns"].astype(np.int64)
+            self.acc.mark_recorded(t)
+            accel = samples["accel_raw"].astype(np.float64) * scale
+            for axis, name in enumerate(("accel_x_mps2", "accel_y_mps2", "accel_z_mps2")):
+                self.acc.add(name, t, accel[:, axis])
+
+    def feed_frames(self, frames: np.ndarray) -> None:
+        """A block of raw CAN records (contract dtype, continuous monotonic time)."""
+        if len(frames) == 0:
+            return
+        self.can_frames += len(frames)
+        columns = j1939_decode.FrameColumns.of(frames)
+        self.acc.mark_recorded(columns.time_ns)
+        for decoded in j1939_decode.decode_block(frames, columns=columns).values():
+            self._add_decoded(decoded)
+        self.tp_parts.append(j1939_decode.tp_frames(frames, columns))
+        self.obd_parts.append(obd_decode.obd_frames(frames))
+        if self.database is not None:
+            for name, (t, values) in dbc_module.decode_frames(self.database, frames, self.dbc_messages).items():
+                self.acc.add(f"dbc:{name}", t, values)
+
+    def _add_decoded(self, decoded: j1939_decode.DecodedPgn) -> None:
+        for source in np.unique(decoded.source):
+            mask = decoded.source == source
+            t = decoded.time_ns[mask]
+            if decoded.pgn == j1939.PGN_VW:
+                location = decoded.values["axle_location"][mask]
+                weight = decoded.values["axle_weight_kg"][mask]
+                for axle in np.unique(location[np.isfinite(location)]):
+                    self.acc.add(f"axle_weight_kg#{int(axle)}@{int(source)}", t[location == axle],
+                                 weight[location == axle])
+                continue
+            for name, values in decoded.values.items():
+                self.acc.add(f"{name}@{int(source)}", t, values[mask], "last" if name in LAST_KIND else "mean")
+
+    # -- finishing ---------------------------------------------------------------------------
+    def finish_streams(self) -> None:
+        """Flush pending blocks; reassemble TP sessions; match OBD-II; bin the JSON topics."""
+        self.flush_can()
+        self.flush_imu()
+        for topic, stream in self.json.items():
+            stream.flush(JSON_FIELDS[topic])
+        tp = np.concatenate(self.tp_parts) if self.tp_parts else np.zeros(0, contract.CAN_FRAME_DTYPE)
+        tp_messages, self.tp_stats = j1939_decode.reassemble(tp)
+        self.tp_messages = tp_messages
+        for decoded in j1939_decode.decode_tp(tp_messages).values():
+            self._add_decoded(decoded)
+        if self.database is not None:
+            for name, (t, values) in dbc_module.decode_long(self.database, tp_messages).items():
+                self.acc.add(f"dbc:{name}", t, values)
+        obd = np.concatenate(self.obd_parts) if self.obd_parts else np.zeros(0, contract.CAN_FRAME_DTYPE)
+        decoded_obd, self.obd_stats = obd_decode.decode(obd)
+        for name, (t, values) in decoded_obd.items():
+            self.acc.add(f"obd:{name}", t, values)
+        for topic, stream in self.json.items():
+            t = np.array(stream.time_ns, dtype=np.int64)
+            self.acc.mark_recorded(np.sort(t))
+            prefix = {contract.BAROMETER.name: "baro", contract.HUMIDITY.name: "hum",
+                      contract.GPS_FIX.name: "gps", contract.TIME_SYNC.name: "sync"}[topic]
+            valid = np.ones(len(t), dtype=bool)
+            if topic == contract.GPS_FIX.name:
+                valid = stream.arrays("fix_quality")[1] != 0
+                t = self._fix_times(t, stream.arrays("gps_time_utc_ns")[1])
+            for name in JSON_FIELDS[topic]:
+                if name in ("gps_time_utc_ns", "t_realtime_ns", "fix_quality"):
+                    continue
+                values = stream.arrays(name)[1]
+                self.acc.add(f"{prefix}:{name}", t, np.where(valid, values, np.nan))
+
+    def _sync_gps_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """(monotonic, GPS UTC) pairs of /time/sync [ns]."""
+        if contract.TIME_SYNC.name not in self.json:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        t, utc = self.json[contract.TIME_SYNC.name].arrays("gps_time_utc_ns")
+        return t[utc >= 0], utc[utc >= 0]
+
+    def _fix_times(self, received_ns: np.ndarray, utc_ns: np.ndarray) -> np.ndarray:
+        """Monotonic time of each fix's epoch (its GPS UTC through /time/sync), not of its arrival;
+        the arrival time where the fix or the sync lacks GPS time."""
+        mono, utc = self._sync_gps_pairs()
+        if len(mono) == 0:
+            return received_ns
+        order = np.argsort(utc)
+        offset = (utc - mono)[order]
+        known = utc_ns >= 0
+        out = received_ns.copy()
+        relative = np.interp(utc_ns[known], utc[order], (offset - offset[0]).astype(np.float64))
+        out[known] = utc_ns[known] - offset[0] - np.round(relative).astype(np.int64)
+        return out
+
+    def clock_pairs(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(mono, wall) pairs, best first: GPS UTC of /time/sync, of fixes (arrival time), realtime, log_time."""
+        pairs = [self._sync_gps_pairs()]
+        if contract.GPS_FIX.name in self.json:
+            t, utc = self.json[contract.GPS_FIX.name].arrays("gps_time_utc_ns")
+            pairs.append((t[utc >= 0], utc[utc >= 0]))
+        if contract.TIME_SYNC.name in self.json:
+            t, real = self.json[contract.TIME_SYNC.name].arrays("t_realtime_ns")
+            pairs.append((t[real >= 0], real[real >= 0]))
+        pairs.append((np.array(self.log_pairs[0], dtype=np.int64), np.array(self.log_pairs[1], dtype=np.int64)))
+        return pairs

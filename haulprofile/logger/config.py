@@ -1,0 +1,271 @@
+"""The daemon's one TOML file, read into dataclasses; a bad key is a one-line error naming it.
+
+Every section and key, with its default, is documented in ``docs/logger.md`` and shown in
+``haulprofile/logger/logger.example.toml``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from haulprofile.contract import obd
+
+
+class ConfigError(Exception):
+    """A problem with the configuration file, said in one line naming the key."""
+
+
+@dataclass
+class LoggerSection:
+    directory: str = "/var/lib/haulprofile/logs"
+    prefix: str = "haulprofile"
+    queue_size: int = 4096
+    time_scale: float = 1.0
+    """Emulation only: emulated seconds per real second (all periods are in emulated time)."""
+    watchdog: bool = True
+
+
+@dataclass
+class StorageSection:
+    rotate_size_mb: float = 256.0
+    rotate_interval_s: float = 3600.0
+    chunk_size_kb: float = 256.0
+    chunk_interval_s: float = 1.0
+    compression: str = "zstd"
+    fsync: bool = True
+    min_free_mb: float = 512.0
+    on_low_space: str = "delete_oldest"
+
+
+@dataclass
+class ObdSection:
+    enabled: bool = True
+    rate_hz: float = 30.0
+    pids: list[int] = field(default_factory=lambda: list(obd.DEFAULT_POLL_PIDS))
+    pids_per_request: int = 1
+    addressing: str = "11bit"
+    timeout_s: float = 0.1
+    failed_rounds_before_probe: int = 3
+    probe_interval_s: float = 2.0
+
+
+@dataclass
+class J1939Section:
+    enabled: bool = True
+    source_address: int = 0xF9
+    request_pgns: list[int] = field(default_factory=lambda: [65251, 65258])
+    request_destination: int = 0xFF
+    request_interval_s: float = 10.0
+    answer_rts: bool = True
+
+
+@dataclass
+class CanSection:
+    enabled: bool = True
+    interface: str = "socketcan"
+    channel: str = "can0"
+    bitrate: int = 250000
+    listen_only: bool = False
+    receive_interval_s: float = 0.02
+    batch_interval_s: float = 0.2
+    obd: ObdSection = field(default_factory=ObdSection)
+    j1939: J1939Section = field(default_factory=J1939Section)
+
+
+@dataclass
+class Lps25hbSection:
+    enabled: bool = True
+    address: int = 0x5C
+    odr_hz: float = 25.0
+
+
+@dataclass
+class Hts221Section:
+    enabled: bool = True
+    address: int = 0x5F
+    odr_hz: float = 12.5
+
+
+@dataclass
+class Lsm9ds1Section:
+    enabled: bool = True
+    address_ag: int = 0x6B
+    address_m: int = 0x1E
+    odr_hz: float = 952.0
+    accel_range_g: int = 4
+    gyro_range_dps: int = 245
+    magnetometer: bool = True
+    mag_odr_hz: float = 10.0
+
+
+@dataclass
+class I2cSection:
+    enabled: bool = True
+    bus: int = 1
+    lps25hb: Lps25hbSection = field(default_factory=Lps25hbSection)
+    hts221: Hts221Section = field(default_factory=Hts221Section)
+    lsm9ds1: Lsm9ds1Section = field(default_factory=Lsm9ds1Section)
+
+
+@dataclass
+class GpsSection:
+    enabled: bool = True
+    port: str = "/dev/ttyACM0"
+    baudrate: int = 9600
+    configure_rate: bool = False
+    rate_hz: float = 10.0
+
+
+@dataclass
+class EmulationSection:
+    """Run the device emulators inside the daemon (tests, demo, crash drills); never on a truck."""
+
+    enabled: bool = False
+    signals: str = "synthetic"
+    """``synthetic`` or the path of an ``.npz`` of time series (``time_s`` plus signal columns)."""
+    can_channel: str = "haulprofile-emulated"
+    j1939_broadcast: bool = True
+
+
+@dataclass
+class Config:
+    logger: LoggerSection = field(default_factory=LoggerSection)
+    storage: StorageSection = field(default_factory=StorageSection)
+    can: CanSection = field(default_factory=CanSection)
+    i2c: I2cSection = field(default_factory=I2cSection)
+    gps: GpsSection = field(default_factory=GpsSection)
+    emulation: EmulationSection = field(default_factory=EmulationSection)
+
+
+_CHOICES = {
+    "storage.compression": ("zstd", "lz4", "none"),
+    "storage.on_low_space": ("delete_oldest", "pause"),
+    "can.obd.addressing": ("11bit", "29bit"),
+}
+_POSITIVE = {"logger.queue_size", "logger.time_scale", "storage.rotate_size_mb", "storage.rotate_interval_s",
+             "storage.chunk_size_kb", "storage.chunk_interval_s", "can.batch_interval_s", "can.obd.rate_hz",
+             "can.obd.timeout_s", "can.obd.probe_interval_s", "can.obd.failed_rounds_before_probe",
+             "can.j1939.request_interval_s", "i2c.lps25hb.odr_hz", "i2c.hts221.odr_hz", "i2c.lsm9ds1.odr_hz",
+             "i2c.lsm9ds1.mag_odr_hz", "gps.baudrate", "gps.rate_hz", "can.bitrate"}
+
+
+def _convert(key: str, value, annotation):
+    """Check ``value`` against the field's annotation; ints are accepted for floats."""
+    origin = typing.get_origin(annotation)
+    if origin is list:
+        (item_type,) = typing.get_args(annotation)
+        if not isinstance(value, list):
+            raise ConfigError(f"config: {key} must be a list, got {value!r}")
+        return [_convert(f"{key}[{i}]", v, item_type) for i, v in enumerate(value)]
+    if annotation is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"config: {key} must be true or false, got {value!r}")
+        return value
+    if annotation is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"config: {key} must be an integer, got {value!r}")
+        return value
+    if annotation is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"config: {key} must be a number, got {value!r}")
+        return float(value)
+    if annotation is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"config: {key} must be a string, got {value!r}")
+        return value
+    raise TypeError(annotation)
+
+
+def _build(cls, data: dict, prefix: str):
+    hints = typing.get_type_hints(cls)
+    names = {f.name for f in dataclasses.fields(cls)}
+    for key in data:
+        if key not in names:
+            where = f"[{prefix}]" if prefix else "top level"
+            raise ConfigError(f"config: unknown key {prefix + '.' if prefix else ''}{key} in {where}; "
+                              f"known: {', '.join(sorted(names))}")
+    kwargs = {}
+    for f in dataclasses.fields(cls):
+        if f.name not in data:
+            continue
+        key = f"{prefix}.{f.name}" if prefix else f.name
+        value = data[f.name]
+        if dataclasses.is_dataclass(hints[f.name]):
+            if not isinstance(value, dict):
+                raise ConfigError(f"config: {key} must be a table [{key}]")
+            kwargs[f.name] = _build(hints[f.name], value, key)
+            continue
+        value = _convert(key, value, hints[f.name])
+        if key in _CHOICES and value not in _CHOICES[key]:
+            raise ConfigError(f"config: {key} must be one of {', '.join(_CHOICES[key])}, got {value!r}")
+        if key in _POSITIVE and not value > 0:
+            raise ConfigError(f"config: {key} must be > 0, got {value!r}")
+        kwargs[f.name] = value
+    return cls(**kwargs)
+
+
+MAX_RECEIVE_INTERVAL_S = 0.05
+"""Longest CAN receive cadence: an ISO-TP flow control must follow a first frame within N_Bs
+(75 ms in ISO 15765-4), and frames waiting in the socket buffer must not overflow it [s]."""
+
+
+def _check(config: Config) -> None:
+    if not 0.0 <= config.can.receive_interval_s <= MAX_RECEIVE_INTERVAL_S:
+        raise ConfigError(f"config: can.receive_interval_s must be 0 to {MAX_RECEIVE_INTERVAL_S:g} s "
+                          f"(flow control within ISO 15765-4's N_Bs), got {config.can.receive_interval_s!r}")
+    if not 1 <= config.can.obd.pids_per_request <= 6:
+        raise ConfigError("config: can.obd.pids_per_request must be 1 to 6 (SAE J1979)")
+    for pid in config.can.obd.pids:
+        if pid not in obd.PIDS:
+            raise ConfigError(f"config: can.obd.pids has {pid:#04x}, not one of the known PIDs "
+                              f"{', '.join(f'{p:#04x}' for p in obd.PIDS)}")
+    for key, value in (("can.j1939.source_address", config.can.j1939.source_address),
+                       ("can.j1939.request_destination", config.can.j1939.request_destination)):
+        if not 0 <= value <= 0xFF:
+            raise ConfigError(f"config: {key} must be 0 to 255, got {value}")
+    for pgn in config.can.j1939.request_pgns:
+        if not 0 <= pgn <= 0x3FFFF:
+            raise ConfigError(f"config: can.j1939.request_pgns has {pgn}, not an 18-bit PGN")
+    if config.i2c.lsm9ds1.odr_hz not in (14.9, 59.5, 119.0, 238.0, 476.0, 952.0):
+        raise ConfigError("config: i2c.lsm9ds1.odr_hz must be one of 14.9, 59.5, 119, 238, 476, 952")
+    if config.i2c.lsm9ds1.accel_range_g not in (2, 4, 8, 16):
+        raise ConfigError("config: i2c.lsm9ds1.accel_range_g must be 2, 4, 8 or 16")
+    if config.i2c.lsm9ds1.gyro_range_dps not in (245, 500, 2000):
+        raise ConfigError("config: i2c.lsm9ds1.gyro_range_dps must be 245, 500 or 2000")
+    if config.i2c.lps25hb.odr_hz not in (1.0, 7.0, 12.5, 25.0):
+        raise ConfigError("config: i2c.lps25hb.odr_hz must be 1, 7, 12.5 or 25")
+    if config.i2c.lsm9ds1.mag_odr_hz not in (0.625, 1.25, 2.5, 5.0, 10.0, 20.0, 40.0, 80.0):
+        raise ConfigError("config: i2c.lsm9ds1.mag_odr_hz must be one of 0.625, 1.25, 2.5, 5, 10, 20, 40, 80")
+    if config.i2c.hts221.odr_hz not in (1.0, 7.0, 12.5):
+        raise ConfigError("config: i2c.hts221.odr_hz must be 1, 7 or 12.5")
+    if config.logger.time_scale != 1.0 and not config.emulation.enabled:
+        raise ConfigError("config: logger.time_scale other than 1 needs [emulation] enabled = true")
+
+
+def from_dict(data: dict) -> Config:
+    config = _build(Config, data, "")
+    _check(config)
+    return config
+
+
+def example_path() -> Path:
+    """The example configuration shipped with the package."""
+    return Path(__file__).with_name("logger.example.toml")
+
+
+def load(path: str | Path) -> Config:
+    """Read and check a configuration file; raises `ConfigError` with a one-line message."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(f"config: cannot read {path}: {exc.strerror}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"config: {path} is not valid TOML: {exc}") from None
+    return from_dict(data)

@@ -1,0 +1,231 @@
+"""The log directory: file names with boot id and wall-clock time, rotation, free-space watermark.
+
+File name: ``<prefix>_<boot id, 8 hex>_<UTC yyyymmddThhmmssZ>_<sequence 4 digits>.mcap``. The
+sequence counts up per boot id, so a restarted daemon never reopens an existing file.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+
+from haulprofile.contract.naming import log_files, log_name_parts
+
+from .writer import LogWriter
+
+CURRENT_MARKER = ".current"
+
+
+def boot_id() -> str:
+    """First 8 hex digits of the kernel's boot id (random per process when not on Linux)."""
+    try:
+        return Path("/proc/sys/kernel/random/boot_id").read_text().strip().replace("-", "")[:8]
+    except OSError:
+        return uuid.uuid4().hex[:8]
+
+
+SEQUENCE_FILE = ".sequence"
+"""The last sequence number used in a log directory, kept so numbers never repeat or go back."""
+
+
+def next_sequence(directory: Path, prefix: str) -> int:
+    """One more than any sequence number used in ``directory`` (files or `SEQUENCE_FILE`); stored."""
+    marker = Path(directory) / SEQUENCE_FILE
+    try:
+        last = int(marker.read_text().strip())
+    except (OSError, ValueError):
+        last = -1
+    sequence = max([last] + [log_name_parts(path)[1] for path in log_files(directory, prefix)]) + 1
+    partial = marker.with_name(marker.name + ".partial")
+    try:
+        partial.write_text(f"{sequence}\n")
+        os.replace(partial, marker)
+    except OSError:
+        pass  # a full disk: the names of the files still carry the order
+    return sequence
+
+
+class BackgroundFsync:
+    """``fsync(fd)`` in one worker thread on a duplicate of the descriptor (safe after close)."""
+
+    def __init__(self):
+        from concurrent.futures import ThreadPoolExecutor
+        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="fsync")
+        self.errors = 0
+
+    def _sync(self, fd: int) -> None:
+        try:
+            os.fsync(fd)
+        except OSError:
+            self.errors += 1
+        finally:
+            os.close(fd)
+
+    def __call__(self, fd: int) -> None:
+        self._executor.submit(self._sync, os.dup(fd))
+
+    def wait(self) -> None:
+        self._executor.submit(lambda: None).result()
+
+
+@dataclass
+class StorageOptions:
+    directory: Path
+    prefix: str = "haulprofile"
+    rotate_size_bytes: int = 256 * 1024 * 1024
+    rotate_interval_s: float = 3600.0
+    chunk_size_bytes: int = 256 * 1024
+    chunk_interval_s: float = 1.0
+    compression: str = "zstd"
+    fsync: bool = True
+    min_free_bytes: int = 512 * 1024 * 1024
+    on_low_space: str = "delete_oldest"
+    """``delete_oldest``: remove the oldest closed logs; ``pause``: stop writing until space returns."""
+
+
+class LogDirectory:
+    """Owns the current `LogWriter`; opens, rotates and closes files; enforces free space."""
+
+    def __init__(self, options: StorageOptions, channel_metadata: dict | None = None,
+                 header_metadata: dict[str, str] | None = None, fsync=None):
+        """``fsync``: a callable ``fsync(fd)`` to use instead of a blocking ``os.fsync``."""
+        self.options = options
+        self._fsync = (fsync or True) if options.fsync else False
+        self.directory = Path(options.directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self.boot_id = boot_id()
+        self.channel_metadata = channel_metadata or {}
+        self.header_metadata = header_metadata or {}
+        self.writer: LogWriter | None = None
+        self.path: Path | None = None
+        self._stream = None
+        self._opened_mono_s = 0.0
+        self.files_written: list[Path] = []
+        self.deleted: list[Path] = []
+        self.paused = False
+        self.messages: list[str] = []
+        self.free_space_probe = lambda directory: shutil.disk_usage(directory).free
+        """Free bytes [B] of the file system holding ``directory``; tests hand in a fake."""
+        self._resume_free_bytes = options.min_free_bytes
+        self.write_failures = 0
+
+    def _next_path(self) -> Path:
+        sequence = next_sequence(self.directory, self.options.prefix)
+        utc = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+        return self.directory / f"{self.options.prefix}_{self.boot_id}_{utc}_{sequence:04d}.mcap"
+
+    def open(self) -> Path:
+        """Start a new file (closing the current one with its summary)."""
+        self.close()
+        self.path = self._next_path()
+        self._stream = open(self.path, "xb")
+        self.writer = LogWriter(self._stream, chunk_size=self.options.chunk_size_bytes,
+                                compression=self.options.compression, channel_metadata=self.channel_metadata,
+                                chunk_interval_s=self.options.chunk_interval_s, fsync=self._fsync)
+        if self.header_metadata:
+            self.writer.write_metadata("haulprofile.logger", dict(self.header_metadata))
+            self.writer.flush()
+        self._opened_mono_s = time.monotonic()
+        self.files_written.append(self.path)
+        self._mark_current(self.path.name)
+        return self.path
+
+    @property
+    def current_marker(self) -> Path:
+        """``.current`` in the log directory: the name of the file being written (absent when none
+        is), so copying tools (rsync ``--exclude``) can leave that one for later."""
+        return self.directory / CURRENT_MARKER
+
+    def _mark_current(self, name: str | None) -> None:
+        try:
+            if name is None:
+                self.current_marker.unlink(missing_ok=True)
+                return
+            temporary = self.directory / f"{CURRENT_MARKER}.tmp"
+            temporary.write_text(name + "\n")
+            os.replace(temporary, self.current_marker)
+        except OSError:
+            pass  # a full disk must not stop logging for a convenience file
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
+            self._stream.close()
+            self.writer = None
+            self._stream = None
+            self._mark_current(None)
+
+    def rotate_if_due(self) -> bool:
+        """Rotate by size or age of the current file; True if a new file was started."""
+        if self.writer is None or self._stream is None:
+            return False
+        too_big = self._stream.tell() >= self.options.rotate_size_bytes
+        too_old = time.monotonic() - self._opened_mono_s >= self.options.rotate_interval_s
+        if too_big or too_old:
+            self.open()
+            return True
+        return False
+
+    def free_bytes(self) -> int:
+        return self.free_space_probe(self.directory)
+
+    def write_failed(self, error: OSError) -> None:
+        """A write or flush of the current file failed (ENOSPC, EIO): close what can be closed and
+        pause until the file system has room for a few chunks more than the watermark."""
+        self.write_failures += 1
+        name = self.path.name if self.path else "?"
+        if self.writer is not None:
+            try:
+                self.writer.close()
+            except (OSError, ValueError):
+                pass
+            try:
+                self._stream.close()
+            except (OSError, ValueError):
+                pass
+            self.writer = None
+            self._stream = None
+            self._mark_current(None)
+        self.paused = True
+        try:
+            free = self.free_bytes()
+        except OSError:
+            free = 0
+        self._resume_free_bytes = max(self.options.min_free_bytes, free + 4 * self.options.chunk_size_bytes)
+        self.messages.append(f"writing {name} failed ({error}): file closed at its last complete chunk, "
+                             f"writing paused until {self._resume_free_bytes} bytes are free")
+
+    def enforce_free_space(self) -> bool:
+        """Apply the watermark; True if writing may go on. Adds a line to ``messages`` on action."""
+        free = self.free_bytes()
+        needed = self._resume_free_bytes if self.paused else self.options.min_free_bytes
+        if free >= needed:
+            if self.paused:
+                self.paused = False
+                self._resume_free_bytes = self.options.min_free_bytes
+                if self.writer is None:
+                    self.open()
+                self.messages.append(f"free space back to {free} bytes (new file {self.path.name}): writing resumed")
+            return True
+        if self.options.on_low_space == "delete_oldest":
+            for old in log_files(self.directory, self.options.prefix):
+                if old == self.path:
+                    continue
+                size = old.stat().st_size
+                os.remove(old)
+                self.deleted.append(old)
+                self.messages.append(f"free space {free} < {self.options.min_free_bytes} bytes: deleted {old.name}")
+                free += size
+                if free >= self.options.min_free_bytes:
+                    return True
+            if self.free_bytes() >= self.options.min_free_bytes:
+                return True
+        if not self.paused:
+            self.paused = True
+            self.messages.append(f"free space {free} < {self.options.min_free_bytes} bytes: writing paused")
+            self.close()
+        return False
