@@ -17,6 +17,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", type=Path, default=Path("gradient-out"), help="output directory")
     parser.add_argument("--spacing", type=float, default=10.0, help="distance grid spacing [m] (default 10)")
     parser.add_argument("--no-figure", action="store_true", help="skip the figure")
+    parser.add_argument("--gradient-method", choices=("smoother", "paper"), default="smoother",
+                        help="gradient_pct from the Kalman smoother (default) or the paper's fusion (8)")
 
 
 def signals_for(inputs, say, out_dir: Path, vehicle=None, dem_dir=None, options=None) -> RunContext:
@@ -40,7 +42,7 @@ def run(args) -> int:
     from ..gradient.figure import draw_sources
 
     ctx = signals_for(args.inputs, print, args.out, dem_dir=args.dem)
-    result = gradient_with_dem_fallback(ctx.signals, args.dem, GradientSettings(spacing_m=args.spacing), print)
+    result = gradient_with_dem_fallback(ctx.signals, args.dem, GradientSettings(spacing_m=args.spacing, method=args.gradient_method), print)
     for note in result.notes:
         print(f"note: {note}")
     args.out.mkdir(parents=True, exist_ok=True)

@@ -21,6 +21,8 @@ def add_arguments(parser) -> None:
                         help="the real total mass [kg], if weighed, for the figure: one value, or one per segment")
     parser.add_argument("--forgetting-factor", type=float, default=0.9985, help="lambda of RLS and LM (default 0.9985)")
     parser.add_argument("--no-figure", action="store_true", help="skip the figure")
+    parser.add_argument("--gradient-method", choices=("smoother", "paper"), default="smoother",
+                        help="gradient_pct from the Kalman smoother (default) or the paper's fusion (8)")
 
 
 def format_segments(segments: list[dict]) -> str:
@@ -43,7 +45,8 @@ def run(args) -> int:
     from ..mass.figure import draw_estimates
 
     vehicle = load_vehicle(args.vehicle)
-    ctx = signals_for(args.inputs, print, args.out, vehicle=vehicle, dem_dir=args.dem)
+    ctx = signals_for(args.inputs, print, args.out, vehicle=vehicle, dem_dir=args.dem,
+                      options={"gradient": {"method": args.gradient_method}})
     if "gradient_pct" not in ctx.signals.columns:
         gradient_stage(ctx)
     result = estimate_mass(ctx.signals, vehicle, segment_settings=SegmentSettings(forgetting_factor=args.forgetting_factor))

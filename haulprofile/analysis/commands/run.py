@@ -29,6 +29,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
     parser.add_argument("--payload-kg", type=float, help="payload of the simulated electric truck [kg]")
     parser.add_argument("--no-cache", action="store_true", help="rerun every stage (default: reuse unchanged ones)")
+    parser.add_argument("--gradient-method", choices=("smoother", "paper"), default="smoother",
+                        help="gradient_pct from the Kalman smoother (default) or the paper's fusion (8)")
     output = parser.add_mutually_exclusive_group()
     output.add_argument("--quiet", action="store_true", help="print only errors")
     output.add_argument("--json", action="store_true", help="print the summary as JSON on stdout, nothing else")
@@ -39,6 +41,8 @@ def options_from(args) -> dict:
                                                               "n_candidates": args.candidates, "seed": args.seed}}
     if args.dbc is not None:
         options["ingest"]["dbc"] = str(args.dbc)
+    if args.gradient_method != "smoother":
+        options["gradient"] = {"method": args.gradient_method}
     if args.payload_kg is not None:
         options["simulate"] = {"payload_kg": args.payload_kg}
     return options

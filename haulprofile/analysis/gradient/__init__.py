@@ -1,5 +1,6 @@
 """Road gradient (paper §2.2.1, equations (5)-(8)): map-matching on a DEM, barometric height,
-IMU, and their accuracy-weighted fusion on a distance grid.
+IMU, the paper's accuracy-weighted fusion (8), and a Kalman smoother over distance that fuses all
+of them with data-estimated noise levels (the default ``gradient_pct``).
 
 Public: `estimate_gradient(frame, dem, settings) -> GradientResult`, `GradientSettings`, and the
 pipeline `stage(ctx)` which adds ``height_m``, ``gradient_pct`` and each source's columns.
@@ -54,7 +55,9 @@ def stage(ctx) -> None:
         "grid_spacing_m": settings.spacing_m,
         "sources": [s for s, c in (("map", "gradient_map_pct"), ("baro", "gradient_baro_pct"),
                                    ("imu", "gradient_imu_pct")) if c in grid.columns],
+        "method": settings.method,
         "mean_map_weight": float(np.mean(grid["weight_map"])),
+        "smoother": result.smoother,
         "map_sigma_m": result.map_sigma_m,
         "gradient_pct": {"mean": float(np.nanmean(gradient)), "min": float(np.nanmin(gradient)),
                          "max": float(np.nanmax(gradient))},
