@@ -157,6 +157,7 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     out["gradient_smooth_std_pct"] = 100 * smoothed.gradient_std
     out["baro_drift_m"] = smoothed.drift_m if bin_baro is not None else np.nan
     out["imu_bias_mps2"] = smoothed.imu_bias_mps2 if imu_excess is not None else np.nan
+    out["imu_bias_std_mps2"] = smoothed.imu_bias_std_mps2 if imu_excess is not None else np.nan
     out["map_gated"] = smoothed.map_gated
     for name, weight in smoothed.weights.items():
         out[f"weight_smooth_{name}"] = weight

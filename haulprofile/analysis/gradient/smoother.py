@@ -68,6 +68,7 @@ class SmootherResult:
     gradient_std: np.ndarray
     drift_m: np.ndarray
     imu_bias_mps2: np.ndarray
+    imu_bias_std_mps2: np.ndarray
     dem_error_m: np.ndarray
     map_gated: np.ndarray
     weights: dict[str, np.ndarray]
@@ -203,7 +204,8 @@ class GradientSmoother:
         weights = self._weights(r, p, have)
         return SmootherResult(
             height_m=x[:, kalman.H], gradient=x[:, kalman.GAMMA], gradient_std=np.sqrt(p[:, kalman.GAMMA, kalman.GAMMA]),
-            drift_m=x[:, kalman.DRIFT], imu_bias_mps2=x[:, kalman.BIAS], dem_error_m=x[:, kalman.DEM_ERROR],
+            drift_m=x[:, kalman.DRIFT], imu_bias_mps2=x[:, kalman.BIAS],
+            imu_bias_std_mps2=np.sqrt(p[:, kalman.BIAS, kalman.BIAS]), dem_error_m=x[:, kalman.DEM_ERROR],
             map_gated=self.gated.copy(), weights=weights,
             noise={"curvature_psd": self.curvature_psd, "baro_sigma_m": float(np.sqrt(np.nanmedian(r[:, kalman.BARO]))) if have[kalman.BARO] else None,
                    "imu_sigma_mps2": float(np.sqrt(np.nanmedian(r[:, kalman.IMU]))) if have[kalman.IMU] else None,
