@@ -128,8 +128,9 @@ def _predict(x, p, spacing, dt, phi, q_c, q_r, q_b, dem_var):
 
 
 @numba.njit(cache=True)
-def smooth(z, r, dt, params, x0, p0):
-    """`smooth_reference` as a numba kernel (same arguments and results)."""
+def smooth(z, r, dt, params, x0, p0, backward=True):
+    """`smooth_reference` as a numba kernel (same arguments and results); ``backward=False``
+    stops after the forward filter (filtered states; innovations for a likelihood)."""
     spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g = (params[0], params[1], params[2], params[3], params[4],
                                                       params[5], params[6])
     n = len(dt)
@@ -190,17 +191,79 @@ def smooth(z, r, dt, params, x0, p0):
         p_filt[i] = p
     x_s = x_filt.copy()
     p_s = p_filt.copy()
+    if not backward:
+        return x_s, p_s, innovation, innovation_var
     fp = np.empty((ns, ns))
+    chol = np.empty((ns, ns))
+    c = np.empty((ns, ns))
+    cd = np.empty((ns, ns))
+    dx = np.empty(ns)
+    dp = np.empty((ns, ns))
     for i in range(n - 2, -1, -1):
         dti = dt[i + 1]
-        fp[:, :] = p_filt[i]  # F P_filt (rows)
+        for a in range(ns):  # F P_filt (rows)
+            for b in range(ns):
+                fp[a, b] = p_filt[i, a, b]
         for j in range(ns):
             fp[H, j] += spacing * fp[GAMMA, j]
             fp[DRIFT, j] += dti * fp[RATE, j]
             fp[DEM_ERROR, j] *= phi
-        c = np.linalg.solve(p_pred[i + 1], fp).T
-        dx = x_s[i + 1] - x_pred[i + 1]
-        dp = p_s[i + 1] - p_pred[i + 1]
-        x_s[i] = x_filt[i] + c @ dx
-        p_s[i] = p_filt[i] + c @ dp @ c.T
+        # C^T = P_pred^-1 F P_filt by Cholesky (P_pred is symmetric positive definite)
+        _cholesky(p_pred[i + 1], chol)
+        _cholesky_solve(chol, fp, c)
+        for a in range(ns):
+            dx[a] = x_s[i + 1, a] - x_pred[i + 1, a]
+            for b in range(ns):
+                dp[a, b] = p_s[i + 1, a, b] - p_pred[i + 1, a, b]
+        for a in range(ns):  # c holds C^T: C[a, k] = c[k, a]
+            acc = 0.0
+            for k in range(ns):
+                acc += c[k, a] * dx[k]
+            x_s[i, a] = x_filt[i, a] + acc
+            for b in range(ns):
+                acc = 0.0
+                for k in range(ns):
+                    acc += c[k, a] * dp[k, b]
+                cd[a, b] = acc
+        for a in range(ns):
+            for b in range(ns):
+                acc = 0.0
+                for k in range(ns):
+                    acc += cd[a, k] * c[k, b]
+                p_s[i, a, b] = p_filt[i, a, b] + acc
     return x_s, p_s, innovation, innovation_var
+
+
+@numba.njit(cache=True)
+def _cholesky(a, out):
+    """Lower Cholesky factor of the symmetric positive definite ``a`` into ``out``."""
+    n = a.shape[0]
+    for i in range(n):
+        for j in range(i + 1):
+            acc = a[i, j]
+            for k in range(j):
+                acc -= out[i, k] * out[j, k]
+            if i == j:
+                out[i, i] = np.sqrt(max(acc, 1e-300))
+            else:
+                out[i, j] = acc / out[j, j]
+        for j in range(i + 1, n):
+            out[i, j] = 0.0
+
+
+@numba.njit(cache=True)
+def _cholesky_solve(chol, rhs, out):
+    """out = A^-1 rhs for A = chol chol^T, column by column."""
+    n = chol.shape[0]
+    y = np.empty(n)
+    for col in range(rhs.shape[1]):
+        for i in range(n):
+            acc = rhs[i, col]
+            for k in range(i):
+                acc -= chol[i, k] * y[k]
+            y[i] = acc / chol[i, i]
+        for i in range(n - 1, -1, -1):
+            acc = y[i]
+            for k in range(i + 1, n):
+                acc -= chol[k, i] * out[k, col]
+            out[i, col] = acc / chol[i, i]

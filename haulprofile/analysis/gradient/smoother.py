@@ -160,13 +160,13 @@ class GradientSmoother:
         p0 = np.diag([100.0 ** 2, 0.1 ** 2, 100.0 ** 2, 0.01 ** 2, 0.5 ** 2, self.dem_sigma_m ** 2])
         return x0, p0
 
-    def run(self, r: np.ndarray, use=(True, True, True, True)):
+    def run(self, r: np.ndarray, use=(True, True, True, True), backward=True):
         z = self.m.z.copy()
         for column, on in enumerate(use):
             if not on:
                 z[:, column] = np.nan
         x0, p0 = self._prior(z)
-        return kalman.smooth(z, r, self.m.dt_s, self._params(), x0, p0)
+        return kalman.smooth(z, r, self.m.dt_s, self._params(), x0, p0, backward)
 
     def estimate(self) -> SmootherResult:
         m, s = self.m, self.s
@@ -190,10 +190,9 @@ class GradientSmoother:
                 var = _residual_var(residual / np.sqrt(imu_scale))
                 if np.isfinite(var):
                     r[:, kalman.IMU] = max(var, 1e-6) * imu_scale
-                x, _, _, _ = self.run(r, use=(True, False, True, True))
             if s.curvature_psd is None:
                 self.curvature_psd = self._most_likely_curvature(r)
-                x, _, _, _ = self.run(r, use=(True, False, True, True))
+            x, _, _, _ = self.run(r, use=(True, False, True, True))
             reference = x[:, kalman.H] if (have[kalman.BARO] or have[kalman.GPS]) else None
         if have[kalman.DEM]:
             self._dem_model(reference)
@@ -219,7 +218,7 @@ class GradientSmoother:
         best, best_ll = self.curvature_psd, -np.inf
         for candidate in self.s.curvature_candidates:
             self.curvature_psd = candidate
-            _, _, nu, var = self.run(r, use=(True, False, True, True))
+            _, _, nu, var = self.run(r, use=(True, False, True, True), backward=False)
             ll = -0.5 * np.nansum(np.log(var) + nu ** 2 / var)
             if ll > best_ll:
                 best, best_ll = candidate, ll

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from ..road_load import G_MPS2
@@ -32,6 +33,8 @@ class JointSettings:
     where an unmodelled force (air compressor, fan, PTO, unflagged braking) breaks the balance
     get weight 0."""
     iterations: int = 40
+    tolerance: float = 1e-7
+    """Largest relative parameter step at which the iteration stops (1e-7 of a mass is a gram)."""
     block_s: float = 30.0
     """Length of the residual blocks of the covariance [s]: residuals of 10 Hz data are
     correlated over seconds (smoothing, gusts, gradient error), not over blocks."""
@@ -72,6 +75,51 @@ class JointFit:
     notes: list[str] = field(default_factory=list)
 
 
+@numba.njit(cache=True)
+def _residual(force, excess, cos_angle, aero, seg, theta, n_seg):
+    """F - m_j (psi + g c_r cos) - c_d A q per sample [N]."""
+    c_r, cda = theta[n_seg], theta[n_seg + 1]
+    out = np.empty(len(force))
+    for k in range(len(force)):
+        out[k] = force[k] - theta[seg[k]] * (excess[k] + G_MPS2 * c_r * cos_angle[k]) - cda * aero[k]
+    return out
+
+
+@numba.njit(cache=True)
+def _biweight(residual, limit):
+    """Tukey biweight (1 - (r/limit)²)² inside the limit, 0 outside."""
+    out = np.empty(len(residual))
+    for k in range(len(residual)):
+        u = residual[k] / limit
+        out[k] = (1 - u * u) ** 2 if abs(u) < 1 else 0.0
+    return out
+
+
+@numba.njit(cache=True)
+def _normal_equations(excess, instrument, cos_angle, aero, seg, theta, n_seg, weights, residual):
+    """Gauss-Newton normal matrix sum w z_k j_k^T (instrument rows z, Jacobian columns j) and
+    right-hand side sum w z_k r_k over all samples, parameters (m_1..m_J, c_r, c_d A)."""
+    n_p = n_seg + 2
+    full = np.zeros((n_p, n_p))
+    rhs = np.zeros(n_p)
+    c_r = theta[n_seg]
+    for k in range(len(excess)):
+        w = weights[k]
+        if w == 0.0:
+            continue
+        j = seg[k]
+        rolling = G_MPS2 * c_r * cos_angle[k]
+        column = (excess[k] + rolling, theta[j] * G_MPS2 * cos_angle[k], aero[k])
+        row = (instrument[k] + rolling, column[1], column[2])
+        index = (j, n_seg, n_seg + 1)
+        for a in range(3):
+            wa = w * row[a]
+            rhs[index[a]] += wa * residual[k]
+            for b in range(3):
+                full[index[a], index[b]] += wa * column[b]
+    return full, rhs
+
+
 def _solve(force, excess, cos_angle, aero, seg, n_seg, theta, free, settings, weights=None, prior=None,
            instrument=None):
     """Robust Gauss-Newton (iteratively reweighted, Tukey biweight on the residual scale); with
@@ -79,7 +127,6 @@ def _solve(force, excess, cos_angle, aero, seg, n_seg, theta, free, settings, we
     errors are independent of its noise) the normal equations are the instrumental-variable ones
     Z^T W r = 0, so the noise of ``excess`` does not bias the masses low. Returns theta, weights,
     the normal matrix of the free parameters, residuals, the mass regressor and its instrument."""
-    n_p = n_seg + 2
     theta = theta.copy()
     fixed_weights = weights is not None
     weights = np.ones(len(force)) if weights is None else weights
@@ -87,31 +134,12 @@ def _solve(force, excess, cos_angle, aero, seg, n_seg, theta, free, settings, we
     free_idx = np.flatnonzero(free)
     normal = np.eye(len(free_idx))
     for _ in range(settings.iterations):
-        masses, c_r, cda = theta[:n_seg], theta[n_seg], theta[n_seg + 1]
-        regressor = excess + G_MPS2 * c_r * cos_angle
-        residual = force - masses[seg] * regressor - cda * aero
+        residual = _residual(force, excess, cos_angle, aero, seg, theta, n_seg)
         if not fixed_weights:
-            scale = 1.4826 * np.median(np.abs(residual - np.median(residual)))
-            u = residual / (settings.robust_tuning * max(scale, 1e-9))
-            weights = np.where(np.abs(u) < 1, (1 - u * u) ** 2, 0.0)
-        d_cr = masses[seg] * G_MPS2 * cos_angle
-        columns = [regressor, d_cr, aero]
-        rows = [instrument + G_MPS2 * c_r * cos_angle, d_cr, aero]
-        full = np.zeros((n_p, n_p))
-        index = [None, n_seg, n_seg + 1]
-        for a in range(3):
-            for b in range(3):
-                per_segment = np.bincount(seg, weights=weights * rows[a] * columns[b], minlength=n_seg)
-                if a == 0 and b == 0:
-                    full[np.arange(n_seg), np.arange(n_seg)] = per_segment
-                elif a == 0:
-                    full[:n_seg, index[b]] = per_segment
-                elif b == 0:
-                    full[index[a], :n_seg] = per_segment
-                else:
-                    full[index[a], index[b]] = per_segment.sum()
-        rhs_parts = [np.bincount(seg, weights=weights * r * residual, minlength=n_seg) for r in rows]
-        rhs = np.concatenate([rhs_parts[0], [rhs_parts[1].sum(), rhs_parts[2].sum()]])
+            sample = residual[::max(1, len(residual) // 50_000)]  # a robust scale needs no more
+            scale = 1.4826 * np.median(np.abs(sample - np.median(sample)))
+            weights = _biweight(residual, settings.robust_tuning * max(scale, 1e-9))
+        full, rhs = _normal_equations(excess, instrument, cos_angle, aero, seg, theta, n_seg, weights, residual)
         if prior is not None:
             centre, precision = prior
             full += np.diag(precision)
@@ -119,12 +147,11 @@ def _solve(force, excess, cos_angle, aero, seg, n_seg, theta, free, settings, we
         normal = full[np.ix_(free_idx, free_idx)]
         step = np.linalg.solve(normal, rhs[free_idx])
         theta[free_idx] += step
-        if np.max(np.abs(step) / np.maximum(np.abs(theta[free_idx]), 1e-9)) < 1e-10:
+        if np.max(np.abs(step) / np.maximum(np.abs(theta[free_idx]), 1e-9)) < settings.tolerance:
             break
-    masses, c_r, cda = theta[:n_seg], theta[n_seg], theta[n_seg + 1]
-    regressor = excess + G_MPS2 * c_r * cos_angle
-    residual = force - masses[seg] * regressor - cda * aero
-    return theta, weights, normal, residual, regressor, instrument + G_MPS2 * c_r * cos_angle
+    c_r = theta[n_seg]
+    residual = _residual(force, excess, cos_angle, aero, seg, theta, n_seg)
+    return theta, weights, normal, residual, excess + G_MPS2 * c_r * cos_angle, instrument + G_MPS2 * c_r * cos_angle
 
 
 def _block_covariance(normal, free_idx, n_seg, seg, block, weights, residual, instrument_row, theta, cos_angle,
