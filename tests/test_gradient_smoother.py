@@ -38,6 +38,9 @@ def test_kernel_equals_reference_and_recovers_the_gradient():
     slow = kalman.smooth_reference(*args)
     for a, b in zip(fast, slow):
         np.testing.assert_allclose(a, b, rtol=1e-7, atol=1e-9)
+    forward = kalman.smooth(*args, False)
+    np.testing.assert_allclose(forward[0][-1], fast[0][-1], rtol=1e-9)  # RTS starts at the last filtered state
+    np.testing.assert_array_equal(forward[2], fast[2])
     x, p = fast[0], fast[1]
     assert np.sqrt(np.mean((x[:, kalman.GAMMA] - gamma) ** 2)) < 0.002
     assert abs(np.median(x[:, kalman.BIAS]) - 0.2) < 0.02

@@ -160,3 +160,79 @@ def bench_gradient_and_mass_long_drive(quick: bool):
 
 
 BENCHMARKS = [bench_rls_vs_padasip, bench_gradient_and_mass_long_drive]
+
+
+def bench_estimation_accuracy(quick: bool):
+    """Gradient RMSE (smoother, paper fusion (8), barometer only, map only) and mass error per
+    segment (old LS, joint with the accelerometer, after calibration with one weighing) on the
+    shipped virtual-truck scenarios, as they are ('ideal') and in the imperfect world of the tests
+    (DEM with 5 m correlated error and a bridge, 1.5 hPa drift, IMU pitch 1.5° + bias, torque gain
+    +3 %, c_r of the vehicle file +15 %)."""
+    tests = Path(__file__).resolve().parents[2] / "tests"
+    sys.path.insert(0, str(tests))
+    from imperfect_world import ErroneousDem, Imperfections, imperfect_signals, mismatched_vehicle, on_grid
+    from test_gradient_virtual_truck import signals_from_drive
+
+    from haulprofile.analysis import virtual_truck
+    from haulprofile.analysis.dem import open_dem
+    from haulprofile.analysis.gradient import estimate_gradient
+    from haulprofile.analysis.mass import estimate_mass
+
+    lines = []
+    for name in ["regional-tunnel"] if quick else ["regional-tunnel", "long-haul", "urban-delivery"]:
+        folder = CACHE_DIR / f"accuracy-{name}"
+        table = folder / "signals.parquet"
+        if not table.is_file():
+            drive = virtual_truck.drive(virtual_truck.load_scenario(name), seed=0)
+            virtual_truck.write_dem(drive, folder / "dem")
+            signals_from_drive(drive).to_parquet(table)
+            drive.truth.to_parquet(folder / "truth.parquet")
+        signals, truth = pd.read_parquet(table), pd.read_parquet(folder / "truth.parquet")
+        dem = open_dem(folder / "dem")
+        vehicle = virtual_truck.scenario_vehicle(virtual_truck.load_scenario(name))
+        imperfections = Imperfections()
+        for world in ("ideal", "imperfect"):
+            if world == "imperfect":
+                signals, dem = imperfect_signals(signals, imperfections), ErroneousDem(dem, truth, imperfections)
+                vehicle = mismatched_vehicle(vehicle, imperfections)
+            gradient = estimate_gradient(signals, dem)
+            grid = gradient.grid
+            s = grid["distance_m"].to_numpy()
+            true_gradient = on_grid(grid, truth, "gradient_pct")
+            tunnel = on_grid(grid, truth, "in_tunnel") > 0.5
+            bridge = (np.abs(s - imperfections.bridge_at_m) < imperfections.bridge_length_m / 2
+                      if world == "imperfect" else np.zeros(len(s), bool))
+            rmse = {}
+            for column in ("gradient_smooth_pct", "gradient_paper_pct", "gradient_baro_pct", "gradient_map_pct"):
+                error = grid[column].to_numpy() - true_gradient
+                rmse[column] = {where: round(float(np.sqrt(np.nanmean(error[mask] ** 2))), 3)
+                                for where, mask in (("outside", ~tunnel & ~bridge), ("tunnel", tunnel),
+                                                    ("bridge", bridge)) if mask.any()}
+            frame = signals.assign(**gradient.samples)
+            mass = estimate_mass(frame, vehicle)
+            time_s, true_mass = truth["time_s"].to_numpy(), truth["mass_kg"].to_numpy()
+            true = [true_mass[(time_s >= seg["start_s"]) & (time_s <= seg["end_s"])][0] for seg in mass.segments]
+            known = next((j for j, seg in enumerate(mass.segments) if seg["mass_kg"] is not None), None)
+            calibrated = estimate_mass(frame, vehicle, known_masses={known: float(true[known])}) if known is not None else None
+
+            def errors(segments, key):
+                return [round(100 * (seg[key] / m - 1), 2) for seg, m in zip(segments, true) if seg.get(key) is not None]
+
+            covered = [abs(seg["mass_kg"] - m) <= 2 * seg["mass_uncertainty_kg"]
+                       for seg, m in zip(mass.segments, true) if seg.get("mass_kg") is not None]
+            lines.append(result(f"estimation_accuracy_{name}_{world}", rmse["gradient_smooth_pct"]["outside"], "%-pt RMSE",
+                                "paper fusion (8)", rmse["gradient_paper_pct"]["outside"], gradient_rmse=rmse,
+                                mass_error_pct={"ls_old": errors(mass.segments, "mass_ls_kg"),
+                                                "joint_imu": errors(mass.segments, "mass_imu_kg"),
+                                                "joint_gradient": errors(mass.segments, "mass_gradient_kg"),
+                                                "final": errors(mass.segments, "mass_kg"),
+                                                "final_after_one_weighing": (errors(calibrated.segments, "mass_kg")
+                                                                             if calibrated else None)},
+                                truth_within_2_sigma=f"{sum(covered)}/{len(covered)}",
+                                road_load={k: v["value"] for k, v in mass.road_load.items()
+                                           if isinstance(v, dict) and "value" in v},
+                                map_gated_km=gradient.smoother["map_gated_km"]))
+    return lines
+
+
+BENCHMARKS.append(bench_estimation_accuracy)
