@@ -81,7 +81,7 @@ def test_smoother_beats_barometer_and_paper_fusion_on_an_imperfect_world(world):
     assert abs(result.smoother["imu_bias_mps2"] - clean - injected_bias) < 0.02
     weights = grid[[f"weight_smooth_{n}" for n in ("baro", "map", "imu", "gps")]].to_numpy()
     np.testing.assert_allclose(weights.sum(axis=1), 1.0, atol=1e-9)
-    assert np.all(grid["weight_smooth_map"].to_numpy()[bridge] < 1e-3)
+    assert np.all(grid["weight_smooth_map"].to_numpy()[bridge] < 0.02)  # only from beyond the gated stretch
 
 
 @pytest.mark.parametrize("drop, note", [

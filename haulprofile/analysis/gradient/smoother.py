@@ -28,9 +28,11 @@ class SmootherSettings:
     physics of roads and sensors (``docs/estimation.md``)."""
 
     curvature_psd: float | None = None
-    """Gradient random walk [1/m]; None: chosen per drive among ``curvature_candidates`` by the
-    likelihood of the barometer/IMU/GPS innovations (how hilly the road is, from the data)."""
-    curvature_candidates: tuple[float, ...] = (1e-8, 3e-8, 1e-7, 3e-7, 1e-6, 3e-6)
+    """Gradient random walk [1/m]; None: chosen per drive among ``curvature_candidates`` (how
+    hilly the road is, from the data): with an IMU, the one whose barometer/GPS-only gradient best
+    predicts the accelerometer (independent noise, so this is the gradient's own error); without,
+    by the likelihood of the barometer/GPS innovations."""
+    curvature_candidates: tuple[float, ...] = (3e-9, 1e-8, 3e-8, 1e-7, 3e-7, 1e-6, 3e-6)
     """1e-6 is one sigma of a 1 %-point change per 100 m (a 10 km vertical curve)."""
     drift_rate_psd: float = 1e-8
     """Barometric drift-rate random walk [m²/s³]: a 1 hPa/h front building up over an hour."""
@@ -191,7 +193,8 @@ class GradientSmoother:
                 if np.isfinite(var):
                     r[:, kalman.IMU] = max(var, 1e-6) * imu_scale
             if s.curvature_psd is None:
-                self.curvature_psd = self._most_likely_curvature(r)
+                self.curvature_psd = (self._curvature_by_imu(r, imu_scale) if have[kalman.IMU] and
+                                      (have[kalman.BARO] or have[kalman.GPS]) else self._most_likely_curvature(r))
             x, _, _, _ = self.run(r, use=(True, False, True, True))
             reference = x[:, kalman.H] if (have[kalman.BARO] or have[kalman.GPS]) else None
         if have[kalman.DEM]:
@@ -211,6 +214,29 @@ class GradientSmoother:
                    "dem_sigma_m": self.dem_sigma_m if have[kalman.DEM] else None,
                    "dem_correlation_m": self.dem_correlation_m if have[kalman.DEM] else None},
             notes=self.notes)
+
+    def _curvature_by_imu(self, r, imu_scale):
+        """The curvature PSD whose barometer/GPS-only gradient best predicts the accelerometer:
+        the mean square of a_imu - dv/dt - g sin(gamma), high-passed over 2 km (the slow bias),
+        is the IMU's noise plus g² times the gradient's mean square error, since the two are
+        independent; searched upwards from the smallest candidate until it grows again."""
+        z = self.m.z[:, kalman.IMU]
+        ok = np.isfinite(z)
+        grid = np.arange(len(z))
+        window = max(3, int(self.s.gate_detrend_m / self.m.spacing_m) | 1)
+        best, best_score = self.curvature_psd, np.inf
+        for candidate in self.s.curvature_candidates:
+            self.curvature_psd = candidate
+            x, _, _, _ = self.run(r, use=(True, False, False, True))
+            gamma = x[:, kalman.GAMMA]
+            residual = z - G_MPS2 * gamma / np.sqrt(1 + gamma ** 2)
+            filled = np.interp(grid, grid[ok], residual[ok])
+            high = residual - uniform_filter1d(filled, window, mode="nearest")
+            score = float(np.sum((high[ok] ** 2) / imu_scale[ok]) / np.sum(1 / imu_scale[ok]))
+            if score >= best_score:
+                break
+            best, best_score = candidate, score
+        return best
 
     def _most_likely_curvature(self, r):
         """The curvature PSD among the candidates with the largest likelihood of the map-free
