@@ -99,6 +99,16 @@ def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = Fi
     wheel_torque = road_load.wheel_torque_from_engine_nm(engine_torque, engine_rpm, speed, vehicle.wheel_radius_m,
                                                          vehicle.driveline_efficiency)
     wheel_force = road_load.wheel_force_from_torque_n(wheel_torque, vehicle.wheel_radius_m)
+    if vehicle.total_ratios:
+        # with the clutch closed the ratio is one of the gearbox's: engine speed and wheel speed
+        # come from different messages sampled at different instants, and their quotient carries
+        # that timing error into the force in proportion to the acceleration (+0.5 % mass on the
+        # virtual truck); samples not near any gear are dropped by the shift rule below
+        ratios = np.asarray(vehicle.total_ratios)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            measured = (2 * np.pi * engine_rpm / 60.0) * vehicle.wheel_radius_m / speed
+            nearest = ratios[np.argmin(np.abs(np.nan_to_num(measured, nan=-1.0)[:, None] / ratios[None, :] - 1), axis=1)]
+            wheel_force = np.where(np.isfinite(measured), wheel_force * nearest / measured, np.nan)
     # the same centred window that made accel_mps2 from wheel speed, so both sides of (1) match in time
     y = _centred_mean(wheel_force, window) - road_load.aero_force_n(speed, vehicle.drag_coefficient,
                                                                      vehicle.frontal_area_m2)
