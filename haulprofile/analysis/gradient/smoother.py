@@ -182,9 +182,13 @@ class GradientSmoother:
             r[:, kalman.IMU] = 0.5 ** 2 * imu_scale
         if have[kalman.GPS]:
             r[:, kalman.GPS] = (s.gps_sigma_factor * np.fmax(m.v_acc_m, 1.0)) ** 2
-        # pass 1, without the map: the reference the map is checked against; the IMU noise from it
+        # the road's curvature PSD first (needs no IMU noise level), then pass 1 without the map:
+        # the reference the map is checked against, and the IMU's noise from its residual
         reference = None
         if have[kalman.BARO] or have[kalman.IMU]:
+            if s.curvature_psd is None:
+                self.curvature_psd = (self._curvature_by_imu(r, imu_scale) if have[kalman.IMU] and
+                                      (have[kalman.BARO] or have[kalman.GPS]) else self._most_likely_curvature(r))
             x, _, _, _ = self.run(r, use=(True, False, True, True))
             if have[kalman.IMU]:
                 gamma = x[:, kalman.GAMMA]
@@ -192,10 +196,6 @@ class GradientSmoother:
                 var = _residual_var(residual / np.sqrt(imu_scale))
                 if np.isfinite(var):
                     r[:, kalman.IMU] = max(var, 1e-6) * imu_scale
-            if s.curvature_psd is None:
-                self.curvature_psd = (self._curvature_by_imu(r, imu_scale) if have[kalman.IMU] and
-                                      (have[kalman.BARO] or have[kalman.GPS]) else self._most_likely_curvature(r))
-            x, _, _, _ = self.run(r, use=(True, False, True, True))
             reference = x[:, kalman.H] if (have[kalman.BARO] or have[kalman.GPS]) else None
         if have[kalman.DEM]:
             self._dem_model(reference)
