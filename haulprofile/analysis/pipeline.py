@@ -53,7 +53,7 @@ STAGES: list[tuple[str, str, str]] = [
 DEPENDS_ON: dict[str, dict] = {
     "ingest": {"options": ("ingest",)},
     "gradient": {"options": ("gradient",), "dem": True},
-    "mass": {"options": ("mass", "mass_filter"), "vehicle": True},
+    "mass": {"options": ("mass", "mass_filter", "mass_joint", "known_mass"), "vehicle": True},
     "cycle": {"options": ("cycle",)},
     "loads": {"options": ("loads",), "vehicle": True},
     "simulate": {"options": ("simulate",), "vehicle": True},
