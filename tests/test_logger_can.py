@@ -212,9 +212,9 @@ def test_j1939_rts_addressed_to_the_logger_is_answered_with_cts_and_ack():
     assert j1939.decode_pgn(j1939.PGN_EC1, data)["engine_reference_torque_nm"] == 2300.0
 
 
-def test_real_canedge_recording_replayed_is_logged_frame_for_frame(shared_data):
+def test_real_canedge_recording_replayed_is_logged_frame_for_frame(data_dir):
     asammdf = pytest.importorskip("asammdf")
-    mdf = asammdf.MDF(str(shared_data / "real-can" / "css-j1939-tp-186s.MF4"))
+    mdf = asammdf.MDF(str(data_dir / "real-can" / "css-j1939-tp-186s.MF4"))
     recorded = []
     for index, group in enumerate(mdf.groups):
         if "CAN_DataFrame.ID" not in {c.name for c in group.channels}:

@@ -53,8 +53,8 @@ def test_written_files_round_trip(selection, tmp_path):
 
 
 @pytest.mark.parametrize("name", ["LongHaul", "Urban", "Construction"])
-def test_real_vecto_cycle_as_time_trace(shared_data, name):
-    vdri = read_vdri(shared_data / "vecto-cycles" / f"{name}.vdri")
+def test_real_vecto_cycle_as_time_trace(data_dir, name):
+    vdri = read_vdri(data_dir / "vecto-cycles" / f"{name}.vdri")
     trace = vdri_to_time_cycle(vdri)
     s, v, stop = (vdri[c].to_numpy() for c in ("distance_m", "target_speed_mps", "stop_time_s"))
     moving_speed = np.where(v > 0, v, [v[i + 1:][v[i + 1:] > 0][0] if np.any(v[i + 1:] > 0) else 1.0
@@ -82,8 +82,8 @@ def _driven(trace, accel_mps2=0.6, decel_mps2=0.8):
 
 
 @pytest.mark.parametrize("name", VALID_VECTO_ROUTES)
-def test_real_vecto_routes_as_measured_input_give_valid_cycles(shared_data, name):
-    measured = _driven(vdri_to_time_cycle(read_vdri(shared_data / "vecto-cycles" / f"{name}.vdri")))
+def test_real_vecto_routes_as_measured_input_give_valid_cycles(data_dir, name):
+    measured = _driven(vdri_to_time_cycle(read_vdri(data_dir / "vecto-cycles" / f"{name}.vdri")))
     assert measured["mass_kg"].nunique() > 1
     selection = select_cycle(count_transitions(measured), 1800, 10_000, seed=1)
     assert selection.criteria.valid, selection.criteria.statement()

@@ -56,8 +56,8 @@ def test_energy_balance_closes_on_hilly_cycle_with_stops(rigid):
     assert result.summary["friction_brake_energy_kwh"] > 0, "the -5 % descent must need the friction brake"
 
 
-def test_energy_balance_closes_on_vecto_regional_delivery(rigid, shared_data):
-    cycle = read_cycle(shared_data / "vecto-cycles" / "RegionalDelivery.vdri", rigid)
+def test_energy_balance_closes_on_vecto_regional_delivery(rigid, data_dir):
+    cycle = read_cycle(data_dir / "vecto-cycles" / "RegionalDelivery.vdri", rigid)
     result = simulate(cycle, rigid)
     battery = result.trace["battery_energy_j"].sum()
     assert energy_balance_terms(result, rigid) == pytest.approx(battery, rel=1e-3)
@@ -95,10 +95,10 @@ def test_stop_of_n_seconds_gives_n_seconds_at_standstill(rigid, stop_s):
     assert tr["distance_m"].iloc[-1] + tr["step_distance_m"].iloc[-1] == pytest.approx(3000.0, abs=60 / KMH * 0.1)
 
 
-def test_driver_never_exceeds_target_beyond_tolerance(rigid, shared_data):
+def test_driver_never_exceeds_target_beyond_tolerance(rigid, data_dir):
     settings = DriverSettings()
     cycles = [distance_cycle(HILLY_WITH_STOPS, 26_000.0, "hilly")]
-    cycles += [read_cycle(shared_data / "vecto-cycles" / f"{name}.vdri", rigid) for name in ("LongHaul", "Urban")]
+    cycles += [read_cycle(data_dir / "vecto-cycles" / f"{name}.vdri", rigid) for name in ("LongHaul", "Urban")]
     for cycle in cycles:
         result = simulate(cycle, rigid, settings=settings)
         overspeed = result.trace["speed_mps"] - result.trace["target_speed_mps"]

@@ -12,9 +12,9 @@ from haulprofile.analysis.vecto import write_vdri
 from haulprofile.analysis.vehicle import load_vehicle
 
 
-def test_cli_simulates_a_vecto_cycle(shared_data, tmp_path, capsys):
+def test_cli_simulates_a_vecto_cycle(data_dir, tmp_path, capsys):
     out = tmp_path / "sim"
-    code = main(["simulate", str(shared_data / "vecto-cycles" / "Construction.vdri"), "--vehicle", "tractor-40t",
+    code = main(["simulate", str(data_dir / "vecto-cycles" / "Construction.vdri"), "--vehicle", "tractor-40t",
                  "--aux-power-w", "5000", "--out", str(out)])
     assert code == 0
     summary = json.loads((out / "summary.json").read_text())

@@ -5,8 +5,8 @@ from haulprofile.analysis.vecto import CycleFileError, read_vdri, write_vdri
 
 
 @pytest.mark.parametrize("name", ["LongHaul", "RegionalDelivery", "UrbanDelivery"])
-def test_real_vecto_cycles_round_trip(shared_data, tmp_path, name):
-    cycle = read_vdri(shared_data / "vecto-cycles" / f"{name}.vdri")
+def test_real_vecto_cycles_round_trip(data_dir, tmp_path, name):
+    cycle = read_vdri(data_dir / "vecto-cycles" / f"{name}.vdri")
     assert cycle["distance_m"].is_monotonic_increasing
     assert (cycle.loc[cycle["stop_time_s"] > 0, "target_speed_mps"] == 0).all()
     back = read_vdri(write_vdri(cycle, tmp_path / "c.vdri"))

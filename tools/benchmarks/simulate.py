@@ -12,7 +12,7 @@ from haulprofile.analysis.simulate import DriverSettings, read_cycle, simulate, 
 from haulprofile.analysis.vehicle import load_vehicle
 from bench import result
 
-SHARED_DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
+TEST_DATA = Path(__file__).resolve().parents[2] / "tests" / "data"
 MASS_KG = 18_000.0
 
 
@@ -106,7 +106,7 @@ def bench_energy_per_km(quick: bool):
     """Closing note: battery and wheel kWh/km of the example vehicles (half payload on VECTO
     cycles, the scenario's own mass on virtual-truck drives)."""
     lines = []
-    vecto = SHARED_DATA / "vecto-cycles"
+    vecto = TEST_DATA / "vecto-cycles"
     names = ["RegionalDelivery"] if quick else ["RegionalDelivery", "LongHaul"]
     for vehicle_name in ("rigid-18t", "tractor-40t"):
         vehicle = load_vehicle(vehicle_name)
