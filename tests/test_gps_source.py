@@ -134,7 +134,10 @@ def test_gst_gives_horizontal_and_vertical_accuracy(data_dir):
     fix = next(f for f in _fixes(items) if f["h_acc_m"] is not None)
     assert fix["h_acc_m"] == math.hypot(float(gst.std_dev_latitude), float(gst.std_dev_longitude))
     assert fix["v_acc_m"] == float(gst.std_dev_altitude)
-    assert fix["position_covariance"][0] == fix["h_acc_m"] ** 2
+    # foxglove.LocationFix: covariance in east, north, up; GST's longitude sigma is east, latitude north
+    assert float(gst.std_dev_latitude) != float(gst.std_dev_longitude)
+    assert fix["position_covariance"][0] == float(gst.std_dev_longitude) ** 2
+    assert fix["position_covariance"][4] == float(gst.std_dev_latitude) ** 2
     assert fix["position_covariance"][8] == fix["v_acc_m"] ** 2
     assert fix["position_covariance_type"] == 2
 

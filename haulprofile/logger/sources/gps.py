@@ -111,6 +111,7 @@ class Epoch:
                                          _float(msg.std_dev_altitude))
             if lat_err is not None and lon_err is not None:
                 f["h_acc_m"] = math.hypot(lat_err, lon_err)
+                f["east_north_sigma_m"] = (lon_err, lat_err)
             f["v_acc_m"] = alt_err
         elif kind == "GSA":
             f["hdop"] = f.get("hdop") or _float(msg.hdop)
@@ -136,7 +137,7 @@ class Epoch:
                 f["utc"].microsecond * 1000
         return contract.location_fix(
             self.t_mono_ns, gps_ns if gps_ns is not None else wall_time_ns, f["latitude"], f["longitude"],
-            f["altitude"], f.get("h_acc_m"), f.get("v_acc_m"), gps_time_utc_ns=gps_ns,
+            f["altitude"], f.get("h_acc_m"), f.get("v_acc_m"), f.get("east_north_sigma_m"), gps_time_utc_ns=gps_ns,
             speed_mps=f.get("speed_mps"), course_deg=f.get("course_deg"), fix_quality=f["fix_quality"],
             satellites=f.get("satellites", 0), hdop=f.get("hdop"))
 
