@@ -6,7 +6,8 @@ The pipeline's last stage. Chapters come from what the stages left in ``ctx.summ
 
 from __future__ import annotations
 
-from .chapters import cycle_section, gradient_section, loads_section, mass_section, simulation_section
+from .chapters import (cycle_section, gradient_section, loads_section, mass_section, simulation_section,
+                       simulation_skipped_section)
 from .drive import drive_section
 from .html import Section, render
 
@@ -17,9 +18,12 @@ CHAPTERS = [("gradient", gradient_section), ("mass", mass_section), ("cycle", cy
 def build_report(signals, summary: dict, out_dir, title: str = "haulprofile report") -> str:
     sections: list[Section] = [drive_section(signals, summary)]
     missing = []
+    skipped = summary.get("skipped", {})
     for key, chapter in CHAPTERS:
         if key in summary:
             sections.append(chapter(summary, out_dir))
+        elif key == "simulation" and skipped.get("simulation"):
+            sections.append(simulation_skipped_section(skipped["simulation"]))
         else:
             missing.append(key)
     lead = (f"{len(summary.get('ingest', {}).get('inputs', [])) or 'the'} input(s), "

@@ -14,40 +14,68 @@ __all__ = ["DriverSettings", "SimCycle", "SimulationInputError", "SimulationResu
            "distance_cycle", "read_cycle", "simulate", "stage", "time_cycle"]
 
 
+MIN_DISTANCE_KM = 0.1
+"""Below this a drive gives no meaningful energy per km: the simulation is skipped, saying so."""
+MEASURED_KEYS = ("cycle", "distance_km", "duration_s", "mean_mass_kg", "battery_kwh_per_km",
+                 "wheel_positive_kwh_per_km", "recuperated_at_wheel_kwh", "missed_target_s")
+
+
 def stage(ctx) -> None:
     """Pipeline stage: simulate on ``cycle.vdri`` in the output directory if the cycle stage wrote
-    one, else on the measured drive as a time-based cycle; outputs into ``simulation/``.
+    one (and on the measured drive beside it, ``summary["simulation"]["measured_drive"]``), else on
+    the measured drive as a time-based cycle; outputs into ``simulation/``. Why it was skipped goes
+    to ``summary["skipped"]["simulation"]``.
     ``ctx.options["simulate"]`` may set ``payload_kg``, ``aux_power_w``, ``epto_power_w``, ``obc_power_w``."""
     from .output import write_outputs
 
     vehicle = ctx.vehicle
     if vehicle is None or vehicle.electric_powertrain is None:
-        ctx.say("simulate: skipped, the vehicle file has no [electric_powertrain] table")
-        return
-    mass = default_mass_kg(vehicle, ctx.options.get("simulate", {}).get("payload_kg"))
+        return _skip(ctx, "the vehicle file has no [electric_powertrain] table")
+    options = ctx.options.get("simulate", {})
+    mass = default_mass_kg(vehicle, options.get("payload_kg"))
+    measured = None
+    if ctx.signals is not None and not missing_for(ctx.signals, ["time_s", "speed_mps"]):
+        columns = [c for c in ("time_s", "speed_mps", "gradient_pct", "mass_kg") if c in ctx.signals.columns]
+        measured = time_cycle(ctx.signals[columns], mass, "measured drive")
+        if missing_for(ctx.signals, ["gradient_pct"]):
+            ctx.say("simulate: no gradient_pct in the signals, the measured drive is simulated as flat")
     vdri = ctx.out_dir / "cycle.vdri"
     if vdri.is_file():
         frame = read_vdri(vdri)
         cycle = distance_cycle(frame, _cycle_mass(ctx, frame, mass), "generated cycle")
-    elif ctx.signals is not None and not missing_for(ctx.signals, ["time_s", "speed_mps"]):
-        columns = [c for c in ("time_s", "speed_mps", "gradient_pct", "mass_kg") if c in ctx.signals.columns]
-        cycle = time_cycle(ctx.signals[columns], mass, "measured drive")
-        if missing_for(ctx.signals, ["gradient_pct"]):
-            ctx.say("simulate: no gradient_pct in the signals, the measured drive is simulated as flat")
+    elif measured is not None:
+        cycle = measured
     else:
-        ctx.say("simulate: skipped, no cycle.vdri and no time_s/speed_mps signals")
-        return
+        return _skip(ctx, "no cycle.vdri and no time_s/speed_mps signals")
+
+    def run(on):
+        return simulate(on, vehicle, aux_power_w=options.get("aux_power_w"),
+                        epto_power_w=options.get("epto_power_w", 0.0), obc_power_w=options.get("obc_power_w", 0.0))
+
     try:
-        result = simulate(cycle, vehicle, aux_power_w=ctx.options.get("simulate", {}).get("aux_power_w"),
-                          epto_power_w=ctx.options.get("simulate", {}).get("epto_power_w", 0.0),
-                          obc_power_w=ctx.options.get("simulate", {}).get("obc_power_w", 0.0))
+        result = run(cycle)
     except SimulationInputError as exc:
-        ctx.say(f"simulate: skipped, {exc}")
-        return
+        return _skip(ctx, str(exc))
+    if not result.summary["distance_km"] >= MIN_DISTANCE_KM:
+        return _skip(ctx, f"the {cycle.name} covers {result.summary['distance_km']:.2f} km (the truck hardly "
+                          f"moved): no energy per km to give")
+    if cycle is not measured and measured is not None:
+        try:
+            drive = run(measured).summary
+        except SimulationInputError as exc:
+            ctx.say(f"simulate: measured drive not simulated, {exc}")
+        else:
+            if drive["distance_km"] >= MIN_DISTANCE_KM:
+                result.summary["measured_drive"] = {key: drive[key] for key in MEASURED_KEYS}
     write_outputs(result, ctx.out_dir / "simulation")
     ctx.summary["simulation"] = result.summary
     ctx.say(f"simulate: {result.summary['cycle']}, {result.summary['battery_kwh_per_km']:.3f} kWh/km at the "
             f"battery, {result.summary['missed_target_intervals']} interval(s) below target")
+
+
+def _skip(ctx, reason: str) -> None:
+    ctx.summary.setdefault("skipped", {})["simulation"] = reason
+    ctx.say(f"simulate: skipped, {reason}")
 
 
 def _cycle_mass(ctx, vdri_frame, fallback_kg: float):
