@@ -1,10 +1,13 @@
 """Real J1939 recordings (CANedge MF4, see tests/data/real-can/README.md) through the ingest."""
 
+from pathlib import Path
+
 import cantools
 import numpy as np
 import pytest
 
-from haulprofile.analysis.ingest import foreign, j1939_decode, read_logs
+from haulprofile.analysis.cli import main
+from haulprofile.analysis.ingest import foreign, ingest_logs, j1939_decode, read_logs
 from haulprofile.contract import j1939
 
 RECORDINGS = {"css-j1939-idle-127s.MF4": 57_849, "css-j1939-tp-186s.MF4": 1_815}
@@ -127,3 +130,42 @@ def test_idle_recording_signals(data_dir):
     assert table["engine_speed_rpm"].between(640, 660).all()
     assert table["time_s"].iloc[0] == 0 and np.allclose(np.diff(table["time_s"]), 0.1)
     assert table["wall_time_ns"].iloc[0] // 10**9 > 1_600_000_000  # 2021, from the MF4 start time
+
+
+@pytest.mark.parametrize("name", ["css-j1939-tp-186s.MF4", "css-j1939-idle-127s.MF4"])
+@pytest.mark.parametrize("share", [0.3, 0.5, 0.77])
+def test_a_cut_canedge_file_is_said_to_be_cut(data_dir, tmp_path, name, share):
+    data = (data_dir / "real-can" / name).read_bytes()
+    cut = tmp_path / name
+    cut.write_bytes(data[:int(len(data) * share)])
+    said = []
+    table, summary = ingest_logs([cut], say=said.append)
+    assert table["time_s"].iloc[-1] < 0.9 * read_logs([data_dir / "real-can" / name])["time_s"].iloc[-1]
+    assert len(summary["warnings"]) == 1 and "cut short" in summary["warnings"][0]
+    assert said == [f"warning: {summary['warnings'][0]}"]
+
+
+@pytest.mark.parametrize("name", ["css-j1939-tp-186s.MF4", "css-j1939-idle-127s.MF4"])
+def test_whole_canedge_files_are_not_called_cut(data_dir, name):
+    _, summary = ingest_logs([data_dir / "real-can" / name])
+    assert summary["warnings"] == []
+
+
+def test_a_cut_finalised_mf4_is_said_to_be_cut(data_dir, tmp_path):
+    asammdf = pytest.importorskip("asammdf")
+    with asammdf.MDF(str(data_dir / "real-can" / "css-j1939-tp-186s.MF4")) as mdf:
+        finalised = Path(mdf.save(str(tmp_path / "finalised.mf4"), overwrite=True))
+    assert finalised.read_bytes()[:8] == b"MDF     " and foreign.cut_short(finalised) is None
+    cut = tmp_path / "cut.mf4"
+    cut.write_bytes(finalised.read_bytes()[:len(finalised.read_bytes()) // 2])
+    assert "cut short" in foreign.cut_short(cut)
+
+
+def test_analyze_info_warns_once_on_a_cut_mf4(data_dir, tmp_path, capsys):
+    data = (data_dir / "real-can" / "css-j1939-tp-186s.MF4").read_bytes()
+    cut = tmp_path / "cut.MF4"
+    cut.write_bytes(data[:len(data) // 2])
+    assert main(["info", str(cut)]) == 0
+    out, err = capsys.readouterr()
+    lines = [line for line in (out + err).splitlines() if "cut short" in line]
+    assert len(lines) == 1 and lines[0].startswith("warning: cut.MF4: MF4 file cut short")

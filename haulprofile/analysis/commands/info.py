@@ -16,8 +16,11 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    _, summary = ingest_logs(args.inputs, dbc=args.dbc, progress=sys.stderr.isatty(),
-                             say=lambda msg: print(msg, file=sys.stderr))
+    def say(msg: str) -> None:
+        if args.json or not msg.startswith("warning: "):  # the summary below lists the warnings once
+            print(msg, file=sys.stderr)
+
+    _, summary = ingest_logs(args.inputs, dbc=args.dbc, progress=sys.stderr.isatty(), say=say)
     if args.json:
         print(json.dumps(summary, indent=2, default=str))
         return 0

@@ -70,6 +70,7 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
         damage = "; ".join(f"{Path(r.path).name}: {r.warning()}" for r in timeline.reports if r.warning())
         raise LogError(f"{exc}" + (f" ({damage})" if damage else "")) from None
     warnings = [w for w in (r.warning() for r in timeline.reports) if w]
+    warnings += [w for w in map(foreign.cut_short, other) if w]
     if "imu-scale" in ingest.notes:
         warnings.append("IMU channel metadata has no accel_scale_mps2_per_lsb: accel_x/y/z_mps2 left out")
     for line in warnings:

@@ -8,6 +8,7 @@ format knows it (epoch timestamps, MF4 start time).
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +37,18 @@ def read_can_log(path: str | Path) -> tuple[np.ndarray, tuple[np.ndarray, np.nda
     if path.suffix.lower() in MF4_SUFFIXES:
         return read_mf4(path)
     return read_python_can(path)
+
+
+def cut_short(path: str | Path) -> str | None:
+    """Why a foreign log is cut short (a truncated MF4), or None if nothing shows it."""
+    path = Path(path)
+    if path.suffix.lower() in MF4_SUFFIXES:
+        from .mf4_check import truncation
+
+        reason = truncation(path)
+        if reason:
+            return f"{path.name}: MF4 file cut short, {reason}: the recording went on beyond what is read"
+    return None
 
 
 def read_python_can(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
@@ -70,7 +83,17 @@ def _epoch_pairs(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def read_mf4(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
-    """CAN data frames of every data group of a CANedge MF4 (``CAN_DataFrame.*`` channels)."""
+    """CAN data frames of every data group of a CANedge MF4 (``CAN_DataFrame.*`` channels); what
+    asammdf would log about a damaged file is left out (the error or `cut_short` says it once)."""
+    log = logging.getLogger("asammdf")
+    disabled, log.disabled = log.disabled, True
+    try:
+        return _read_mf4(path)
+    finally:
+        log.disabled = disabled
+
+
+def _read_mf4(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
     from asammdf import MDF
 
     try:
@@ -80,7 +103,11 @@ def read_mf4(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
     try:
         parts, start_ns = _mf4_frames(mdf)
     except Exception as exc:  # noqa: BLE001 - asammdf raises many types on damaged files
-        raise ForeignLogError(f"{path}: cannot read the CAN frames of this MF4 ({type(exc).__name__}: {exc})") from None
+        parts = _cut_mf4_frames(path)
+        if parts is None:
+            raise ForeignLogError(f"{path}: cannot read the CAN frames of this MF4 ({type(exc).__name__}: {exc})") \
+                from None
+        parts, start_ns = parts
     finally:
         mdf.close()
     if not parts:
@@ -89,6 +116,28 @@ def read_mf4(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
     frames = frames[np.argsort(frames["t_mono_ns"], kind="stable")]
     mono = frames["t_mono_ns"][[0, -1]].astype(np.int64)
     return frames, (mono, mono + start_ns)
+
+
+def _cut_mf4_frames(path: Path) -> tuple[list[np.ndarray], int] | None:
+    """The frames of a cut MF4 that asammdf cannot read as it is: a copy ending after a whole
+    record (a CAN frame and its data bytes are two records, so a few ends are tried)."""
+    import tempfile
+
+    from asammdf import MDF
+
+    from .mf4_check import whole_prefixes
+
+    with tempfile.TemporaryDirectory() as folder:
+        for length in whole_prefixes(path)[:4]:
+            copy = Path(folder) / path.name
+            with open(path, "rb") as source, open(copy, "wb") as target:
+                target.write(source.read(length))
+            try:
+                with MDF(str(copy)) as mdf:
+                    return _mf4_frames(mdf)
+            except Exception:  # noqa: BLE001,S112 - asammdf raises many types; the next end may read
+                continue
+    return None
 
 
 def _mf4_frames(mdf) -> tuple[list[np.ndarray], int]:
