@@ -50,9 +50,11 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
         return frame, {"inputs": [str(p) for p in tables], "rows": len(frame), "source": "signals table"}
     mcap_files = [p for p in files if is_mcap(p)]
     other = [p for p in files if p not in mcap_files]
-    unknown = [p for p in other if not foreign.is_foreign(p)]
+    kinds = {p: foreign.kind(p) for p in other}
+    unknown = [p for p in other if kinds[p] is None]
     if unknown:
-        raise LogError(f"{unknown[0]}: not an MCAP log, a .log/.asc/.blf/.mf4 CAN log or a signals table")
+        raise LogError(f"{unknown[0]}: not an MCAP log, a candump/ASC/BLF/MF4 CAN log, an NMEA/UBX GPS log "
+                       f"or a signals table")
     if mcap_files and other:
         raise LogError("give either MCAP logs or other loggers' CAN logs, not both in one run")
     database = dbc_module.load(dbc) if dbc is not None else None
@@ -62,7 +64,10 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
         if mcap_files:
             _feed_mcap(ingest, mcap_files, timeline, bar)
         for path in other:
-            _feed_foreign(ingest, path, bar)
+            if kinds[path] == "gnss":
+                _feed_gnss(ingest, path, bar)
+            else:
+                _feed_foreign(ingest, path, bar)
     ingest.finish_streams()
     try:
         frame, summary = build_table(ingest)
@@ -111,6 +116,28 @@ def _feed_foreign(ingest: Ingest, path: Path, bar) -> None:
     bar.update(path.stat().st_size)
 
 
+def _feed_gnss(ingest: Ingest, path: Path, bar) -> None:
+    """A GPS-only receiver log: its fixes as ``/gps/fix`` records on their UTC time line."""
+    from haulprofile import contract
+
+    from .gnss import read_fixes
+    from .table import JSON_FIELDS, _Json
+
+    fixes = read_fixes(path)
+    if not fixes:
+        raise LogError(f"{path}: NMEA/UBX GPS log without a single position fix")
+    stream = ingest.json.setdefault(contract.GPS_FIX.name, _Json())
+    for fix in fixes:
+        stream.pending.append(contract.encode_json(fix))
+        stream.offsets.append(0)
+    stream.flush(JSON_FIELDS[contract.GPS_FIX.name])
+    dated = [f["t_mono_ns"] for f in fixes if f.get("gps_time_utc_ns") is not None]
+    ingest.log_pairs[0].extend(dated[:1] + dated[-1:])
+    ingest.log_pairs[1].extend(dated[:1] + dated[-1:])
+    ingest.topic_counts[str(path)] = len(fixes)
+    bar.update(path.stat().st_size)
+
+
 def read_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, progress: bool = False) -> pd.DataFrame:
     """The signals table of logs (columns of `analysis.signals`; absent sources, absent columns).
 
@@ -132,7 +159,7 @@ def stage(ctx) -> None:
                                  say=ctx.say)
     if "speed_mps" not in frame.columns:
         raise UserError("the logs hold no vehicle speed (neither J1939 CCVS1 wheel-based speed nor OBD-II "
-                        "PID 0x0D): log the vehicle's CAN bus, or give a signals table with speed_mps")
+                        "PID 0x0D nor GPS speed): log the vehicle's CAN bus, or give a signals table with speed_mps")
     ctx.signals = frame
     ctx.summary["ingest"] = summary
     if "rate_hz" in summary:

@@ -92,6 +92,8 @@ def build_table(ingest) -> tuple[pd.DataFrame, dict]:
     if wall is not None:
         table["wall_time_ns"] = wall
     speed = c.pick("speed_mps", "wheel_speed_kmh", "obd:vehicle_speed_kmh", KMH)
+    if speed is None:  # no CAN speed: the receiver's speed over ground (RMC/VTG, NAV-PVT)
+        speed = c.pick("speed_mps", None, "gps:speed_mps")
     columns = {
         "engine_speed_rpm": c.pick("engine_speed_rpm", "engine_speed_rpm", "obd:engine_speed_rpm"),
         "driver_demand_torque_pct": c.pick("driver_demand_torque_pct", "driver_demand_torque_pct",

@@ -1,4 +1,5 @@
-"""CAN logs of other loggers as raw CAN record arrays (contract dtype), ready for the same decoding.
+"""CAN logs of other loggers as raw CAN record arrays (contract dtype), ready for the same decoding;
+which kind of log a file is, by its content (`kind`), GPS-only receiver logs included (`gnss`).
 
 candump ``.log``, Vector ``.asc`` and ``.blf`` through python-can's readers; CSS Electronics
 CANedge ``.mf4`` through asammdf, whole columns at a time. Timestamps become nanoseconds on the
@@ -19,7 +20,9 @@ from ..errors import UserError
 
 PYTHON_CAN_SUFFIXES = {".log", ".asc", ".blf"}
 MF4_SUFFIXES = {".mf4"}
-SUFFIXES = PYTHON_CAN_SUFFIXES | MF4_SUFFIXES
+GNSS_SUFFIXES = {".nmea", ".ubx"}
+SUFFIXES = PYTHON_CAN_SUFFIXES | MF4_SUFFIXES | GNSS_SUFFIXES
+SNIFF_BYTES = 4096
 _EPOCH_2000_S = 946_684_800.0
 
 
@@ -27,14 +30,42 @@ class ForeignLogError(UserError):
     pass
 
 
+def kind(path: str | Path) -> str | None:
+    """What a foreign log holds, by its content first (a receiver's ``.log`` is no candump file):
+    ``"mf4"``, ``"blf"``, ``"gnss"`` (raw NMEA/UBX), ``"can"`` (candump, ASC by suffix), or None."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(SNIFF_BYTES)
+    except OSError:
+        return None
+    if head[:8] in (b"MDF     ", b"UnFinMF "):
+        return "mf4"
+    if head[:4] == b"LOGG":
+        return "blf"
+    from .gnss import looks_like_gnss
+
+    if looks_like_gnss(head):
+        return "gnss"
+    suffix = path.suffix.lower()
+    if suffix in MF4_SUFFIXES:
+        return "mf4"
+    if suffix in PYTHON_CAN_SUFFIXES:
+        return "can"
+    return None
+
+
 def is_foreign(path: str | Path) -> bool:
-    return Path(path).suffix.lower() in SUFFIXES
+    return kind(path) is not None
 
 
 def read_can_log(path: str | Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
-    """(CAN records, (t_mono_ns, wall_ns) pairs) of a foreign CAN log."""
+    """(CAN records, (t_mono_ns, wall_ns) pairs) of a foreign CAN log (no CAN records for a GNSS log)."""
     path = Path(path)
-    if path.suffix.lower() in MF4_SUFFIXES:
+    what = kind(path)
+    if what == "gnss":
+        return np.zeros(0, CAN_FRAME_DTYPE), (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    if what == "mf4":
         return read_mf4(path)
     return read_python_can(path)
 
@@ -42,7 +73,7 @@ def read_can_log(path: str | Path) -> tuple[np.ndarray, tuple[np.ndarray, np.nda
 def cut_short(path: str | Path) -> str | None:
     """Why a foreign log is cut short (a truncated MF4), or None if nothing shows it."""
     path = Path(path)
-    if path.suffix.lower() in MF4_SUFFIXES:
+    if kind(path) == "mf4":
         from .mf4_check import truncation
 
         reason = truncation(path)

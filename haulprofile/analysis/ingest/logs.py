@@ -40,7 +40,7 @@ def expand(paths) -> list[Path]:
             found = sorted(p for p in path.rglob("*") if p.is_file()
                            and p.suffix.lower() in MCAP_SUFFIXES | foreign.SUFFIXES)
             if not found:
-                raise LogError(f"{path}: directory holds no .mcap (or .log/.asc/.blf/.mf4) files")
+                raise LogError(f"{path}: directory holds no .mcap (or .log/.asc/.blf/.mf4/.nmea/.ubx) files")
             files.extend(found)
         elif path.is_file():
             files.append(path)
