@@ -52,3 +52,21 @@ def test_listen_only_empties_the_allow_list():
     config = cfg.from_dict({"can": {"listen_only": True}})
     assert allowed_tx_ids(config.can) == frozenset()
     assert allowed_tx_ids(cfg.Config().can)
+
+
+def test_the_wiring_guide_shows_configuration_the_logger_accepts():
+    """docs/raspberry-pi.md: its TOML snippets load, the Sense HAT's LSM9DS1 addresses among them, and
+    every MCP2515 overlay line names the crystal and the interrupt pin."""
+    import re
+    import tomllib
+    from pathlib import Path
+
+    guide = (Path(__file__).resolve().parents[1] / "docs" / "raspberry-pi.md").read_text()
+    snippets = [block for block in re.findall(r"```\n(.*?)```", guide, re.S) if block.lstrip().startswith("[i2c")]
+    assert snippets, "the Sense HAT's addresses are shown as a configuration snippet"
+    for snippet in snippets:
+        config = cfg.from_dict(tomllib.loads(snippet))
+        assert (config.i2c.lsm9ds1.address_ag, config.i2c.lsm9ds1.address_m) == (0x6A, 0x1C)
+    overlays = re.findall(r"dtoverlay=mcp2515-can0[^\s']*", guide)
+    assert len(overlays) >= 2
+    assert all(re.search(r"oscillator=\d{7,8}\b", o) and re.search(r"interrupt=\d+\b", o) for o in overlays)
