@@ -7,18 +7,17 @@ A long log is averaged into at most `MAX_POINTS` samples per signal so the page 
 
 from __future__ import annotations
 
-import html
 import json
 
 import numpy as np
 
-MAX_POINTS = 20_000
-"""Samples per signal embedded in the page (a one-day log at 10 Hz: one per 4.3 s)."""
+MAX_POINTS = 6_000
+"""Samples per signal embedded in the page (a one-day log: one per 14 s)."""
 
 _SCRIPT = r"""
 (function(){
-const root=document.currentScript.previousElementSibling, d=JSON.parse(root.dataset.series);
-const t=d.time_min, n=t.length; let x0=t[0], x1=t[n-1]; const full=[x0,x1];
+const data=document.currentScript.previousElementSibling, root=data.previousElementSibling, d=JSON.parse(data.textContent);
+const t=d.time_min||d.panels[0].lines[0].values.map((_,i)=>d.t0_min+i*d.dt_min), n=t.length; let x0=t[0], x1=t[n-1]; const full=[x0,x1];
 const panels=d.panels.map(p=>{const c=document.createElement('canvas');c.width=1000;c.height=150;
   c.style.width='100%';c.style.display='block';root.appendChild(c);return {p,c};});
 function lower(x){let a=0,b=n;while(a<b){const m=(a+b)>>1;if(t[m]<x)a=m+1;else b=m;}return a;}
@@ -79,14 +78,26 @@ def zoom_chart(time_s: np.ndarray, panels: list[tuple[str, list[tuple[str, np.nd
     """HTML of the chart: ``panels`` is [(axis label, [(line name, values, colour), …]), …]."""
     size = max(1, -(-len(time_s) // max_points))
 
-    def listed(values) -> list:
-        values = np.round(_averaged(np.asarray(values, dtype=float), size), 3)
-        return [None if not np.isfinite(v) else float(v) for v in values]
+    def listed(values, decimals: int) -> list:
+        values = np.round(_averaged(np.asarray(values, dtype=float), size), decimals)
+        return [None if not np.isfinite(v) else (int(v) if decimals == 0 else float(v)) for v in values]
 
-    data = {"time_min": listed(np.asarray(time_s, dtype=float) / 60.0),
-            "panels": [{"label": label, "lines": [{"name": name, "values": listed(values), "colour": colour}
-                                                   for name, values, colour in lines]}
-                       for label, lines in panels]}
-    payload = html.escape(json.dumps(data, separators=(",", ":"), allow_nan=False), quote=True)
-    return (f"<div class='zoom' data-series=\"{payload}\"></div>"
+    def decimals(lines) -> int:
+        """Enough for three significant digits of the panel's span."""
+        finite = np.concatenate([np.asarray(v, dtype=float)[np.isfinite(np.asarray(v, dtype=float))]
+                                 for _, v, _ in lines])
+        span = float(finite.max() - finite.min()) if finite.size else 1.0
+        span = span or 1.0
+        return int(min(max(2 - np.floor(np.log10(span)), 0), 4))
+
+    time_min = np.asarray(time_s, dtype=float)[::size] / 60.0  # each block at its first sample
+    steps = np.diff(time_min)
+    data = ({"t0_min": float(time_min[0]), "dt_min": float(steps[0])}
+            if len(steps) and np.allclose(steps, steps[0], rtol=1e-6, atol=1e-9)
+            else {"time_min": [round(float(t), 4) for t in time_min]})
+    data["panels"] = [{"label": label, "lines": [{"name": name, "values": listed(values, decimals(lines)),
+                                                   "colour": colour} for name, values, colour in lines]}
+                      for label, lines in panels]
+    payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+    return (f"<div class='zoom'></div><script type='application/json'>{payload}</script>"
             f"<script>{_SCRIPT}</script>")
