@@ -137,6 +137,22 @@ def hold(values: np.ndarray, recorded: np.ndarray, limit_bins: int) -> np.ndarra
     return out
 
 
+def interpolate(values: np.ndarray, recorded: np.ndarray, limit_bins: int) -> np.ndarray:
+    """Linear between two values at most ``limit_bins`` apart (a quantity that changes smoothly,
+    sampled slower than the table: GPS speed), else `hold`; never into unrecorded bins."""
+    out = hold(values, recorded, limit_bins)
+    known = np.flatnonzero(np.isfinite(values))
+    if known.size < 2:
+        return out
+    index = np.arange(len(values))
+    before = np.maximum.accumulate(np.where(np.isfinite(values), index, -1))
+    after = np.minimum.accumulate(np.where(np.isfinite(values), index, len(values))[::-1])[::-1]
+    inside = (before >= 0) & (after < len(values)) & (after - before <= limit_bins) & ~np.isfinite(values)
+    out[inside] = np.interp(index[inside], known, values[known])
+    out[~recorded] = np.nan
+    return out
+
+
 def hold_bins(period_s: float, rate_hz: float, max_hold_s: float = MAX_HOLD_S) -> int:
     """Bins to hold a stream sampled every ``period_s`` [s]: 1.5 periods, capped at ``max_hold_s``."""
     if not np.isfinite(period_s):

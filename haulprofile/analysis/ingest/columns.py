@@ -92,8 +92,11 @@ def build_table(ingest) -> tuple[pd.DataFrame, dict]:
     if wall is not None:
         table["wall_time_ns"] = wall
     speed = c.pick("speed_mps", "wheel_speed_kmh", "obd:vehicle_speed_kmh", KMH)
-    if speed is None:  # no CAN speed: the receiver's speed over ground (RMC/VTG, NAV-PVT)
-        speed = c.pick("speed_mps", None, "gps:speed_mps")
+    if speed is None and "gps:speed_mps" in acc.streams and acc.streams["gps:speed_mps"].n:
+        # no CAN speed: the receiver's speed over ground (RMC/VTG, NAV-PVT), linear between fixes
+        c.chosen["speed_mps"] = {"source": "gps", "key": "gps:speed_mps"}
+        speed = align.interpolate(acc.series("gps:speed_mps", c.first_bin, c.n), c.recorded,
+                                  align.hold_bins(acc.sample_period_s("gps:speed_mps"), c.rate_hz))
     columns = {
         "engine_speed_rpm": c.pick("engine_speed_rpm", "engine_speed_rpm", "obd:engine_speed_rpm"),
         "driver_demand_torque_pct": c.pick("driver_demand_torque_pct", "driver_demand_torque_pct",
