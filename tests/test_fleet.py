@@ -14,7 +14,7 @@ from haulprofile.analysis.fleet.virtual import virtual_fleet
 from haulprofile.analysis.loads import loads_of, resample_mean
 from haulprofile.analysis.loads.collectives import damage_equivalent_range, rainflow_cycles
 from haulprofile.analysis.markov import count_transitions, select_cycle
-from haulprofile.analysis.markov.synthetic import synthetic_drive
+from haulprofile.testing.drives import synthetic_drive
 from haulprofile.analysis.vehicle import load_vehicle
 
 VEHICLE = load_vehicle("rigid-18t")

@@ -11,7 +11,7 @@ from haulprofile.analysis.errors import UserError
 from haulprofile.analysis.markov import ClassWidths, count_transitions, resample_1hz
 from haulprofile.analysis.markov import classes as cls
 from haulprofile.analysis.markov.counting import enforce_physics, physically_possible, statistics_of
-from haulprofile.analysis.markov.synthetic import synthetic_drive
+from haulprofile.testing.drives import synthetic_drive
 
 
 @pytest.fixture(scope="module")

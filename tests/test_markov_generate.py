@@ -7,7 +7,7 @@ from haulprofile.analysis.markov import TransitionCounts, build_chain, count_tra
 from haulprofile.analysis.markov import classes as cls
 from haulprofile.analysis.markov.counting import physically_possible
 from haulprofile.analysis.markov.generate import _path_statistics, _walk, path_statistics_reference, run_batch
-from haulprofile.analysis.markov.synthetic import synthetic_drive
+from haulprofile.testing.drives import synthetic_drive
 
 
 @pytest.fixture(scope="module")

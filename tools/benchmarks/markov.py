@@ -28,7 +28,7 @@ DENSE_LIMIT_BYTES = 4 * 1024**3
 def _input(hours: float) -> Path:
     path = CACHE / f"markov-input-{hours:g}h.parquet"
     if not path.exists():
-        from haulprofile.analysis.markov.synthetic import synthetic_drive
+        from haulprofile.testing.drives import synthetic_drive
         CACHE.mkdir(exist_ok=True)
         synthetic_drive(hours * 3600, seed=2026, kind="regional").to_parquet(path)
     return path
@@ -89,7 +89,7 @@ def child(kind: str, hours: float, mass_class_kg: float, n_candidates: int) -> d
     """One measurement in this process: wall seconds from the 1 Hz table to the selected cycle."""
     import pandas as pd
     from haulprofile.analysis.markov import ClassWidths, build_chain, count_transitions, select_cycle
-    from haulprofile.analysis.markov.synthetic import synthetic_drive
+    from haulprofile.testing.drives import synthetic_drive
     warm = count_transitions(synthetic_drive(900, seed=1, kind="urban"), ClassWidths(5.0, 2.0, 5000.0))
     select_cycle(warm, 120, 4, seed=0)
     if kind == "dense":
