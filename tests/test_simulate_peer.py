@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from haulprofile.analysis.simulate import simulate, time_cycle
+from haulprofile.analysis.simulate import simulate_cycle, time_cycle
 from haulprofile.analysis.vehicle import load_vehicle
 
 
@@ -33,6 +33,6 @@ def test_positive_wheel_energy_agrees_with_fastsim_on_udds(monkeypatch):
     trace = udds.to_dict()
     cycle = time_cycle(pd.DataFrame({"time_s": trace["time_seconds"], "speed_mps": trace["speed_meters_per_second"],
                                      "gradient_pct": 100 * np.asarray(trace["grade"])}), MASS_KG)
-    ours = simulate(cycle, dataclasses.replace(rigid, electric_powertrain=ep))
+    ours = simulate_cycle(cycle, dataclasses.replace(rigid, electric_powertrain=ep))
     assert ours.summary["missed_target_intervals"] == 0
     assert ours.summary["wheel_positive_energy_kwh"] == pytest.approx(fastsim_kwh, rel=0.01)

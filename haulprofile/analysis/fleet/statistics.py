@@ -20,7 +20,7 @@ from ..loads.collectives import (EQUIVALENT_FREQUENCY_HZ, QUANTITIES, WOEHLER_EX
                                  rainflow_cycles, sample_durations_s)
 from ..markov import ClassWidths, TransitionCounts, count_transitions
 from ..markov.counting import CountingError
-from ..pipeline import jsonable
+from ..jsonable import jsonable
 from ..vehicle import Vehicle
 from .histograms import SparseHistogram
 

@@ -128,7 +128,7 @@ def kernel_arguments(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, ept
             p, ratios, map_speed, map_torque, map_eff, out)
 
 
-def simulate(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, epto_power_w=0.0, obc_power_w=0.0,
+def simulate_cycle(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, epto_power_w=0.0, obc_power_w=0.0,
              settings: DriverSettings = DriverSettings()) -> SimulationResult:
     """Drive ``vehicle``'s electric powertrain over ``cycle``. Powers [W] are constants or
     (time_s, power_w) series; auxiliary power defaults to the vehicle file's."""

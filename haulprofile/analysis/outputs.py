@@ -1,0 +1,107 @@
+"""The one output step: every file of a run, written after its stages, so that an interrupted run
+never poses as a finished one.
+
+The files are written into a hidden folder inside the output directory, then moved into place
+(a rename on the same file system); the earlier run's ``summary.json`` is removed before the first
+file is moved, and the new one is moved last. Interrupted while writing, the directory still holds
+the earlier run as it was; interrupted while moving, it holds no ``summary.json``. A full run also
+removes the files of stages that did not run this time, so nothing of an earlier run stays beside
+the new summary.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from .errors import UserError
+from .jsonable import jsonable
+
+SUMMARY = "summary.json"
+RUN_FILES = ("gradient.csv", "gradient.png", "mass.png", "cycle.csv", "cycle.parquet", "cycle.vdri", "cycle.png",
+             "loads", "simulation", "report.html", "signals.parquet")
+"""What a full run may write besides the summary; what it did not write this time is removed."""
+
+
+def _stage_files(ctx, staging: Path, full: bool) -> None:
+    from .gradient.stage import write_gradient
+    from .loads.stage import write_loads
+    from .markov.stage import write_cycle_files
+    from .mass.stage import write_mass
+
+    results, summary = ctx.results, ctx.summary
+    if results.gradient is not None:
+        summary["gradient"]["files"] = write_gradient(results.gradient, staging, ctx.figures)
+    if results.mass is not None:
+        summary["mass"]["files"] = write_mass(results.mass, ctx.signals, staging, ctx.figures,
+                                              ctx.options.mass.true_mass_kg)
+    if results.cycle is not None:
+        summary["cycle"]["files"] = write_cycle_files(results.cycle, staging, ctx.figures)
+    if results.loads is not None:
+        write_loads(results.loads, staging / ctx.subdirs["loads"])
+    if results.simulation is not None:
+        from .simulate.output import write_outputs as write_simulation
+
+        write_simulation(results.simulation, staging / ctx.subdirs["simulate"])
+    for name, content in ctx.json_files.items():
+        value = content(ctx)
+        if value is not None:
+            (staging / name).write_text(json.dumps(value, indent=2, default=jsonable))
+    from .signals import write_signals
+
+    if ctx.signals_name is not None and ctx.signals is not None:
+        write_signals(ctx.signals, staging / ctx.signals_name)
+    if full:
+        from .report import write_report
+
+        summary["stages"].append("report")
+        summary["report"] = write_report(ctx.signals, summary, staging, ctx.vehicle)
+        ctx.say(f"report: {ctx.out_dir / summary['report']}")
+        write_signals(ctx.signals, staging / "signals.parquet")
+        (staging / SUMMARY).write_text(json.dumps(summary, indent=2, default=jsonable))
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    elif path.exists() or path.is_symlink():
+        path.unlink()
+
+
+def write_outputs(ctx, full: bool) -> list[Path]:
+    """Write the files of the stages that ran (and, for a ``full`` run, the report, signals table and
+    summary) into ``ctx.out_dir``; returns the paths written, the summary last."""
+    out = ctx.out_dir
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} is a file, not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=".partial-", dir=out))
+    except OSError as exc:
+        raise UserError(f"cannot write into {out}: {exc.strerror}") from None
+    try:
+        _stage_files(ctx, staging, full)
+        names = sorted(p.name for p in staging.iterdir())
+        if not names:
+            return []
+        inputs = {p.resolve() for p in ctx.inputs if p.is_file()}
+        for name in names:
+            if (out / name).resolve() in inputs:
+                raise UserError(f"{out / name} is an input of this run; give another output")
+        (out / SUMMARY).unlink(missing_ok=True)
+        if full:
+            for name in RUN_FILES:
+                if name not in names:
+                    _remove(out / name)
+        moved = []
+        for name in [n for n in names if not (full and n == SUMMARY)] + ([SUMMARY] if full else []):
+            if (staging / name).is_dir():
+                _remove(out / name)
+            os.replace(staging / name, out / name)
+            moved.append(out / name)
+        return moved
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
