@@ -47,7 +47,7 @@ def test_interrupted_in_a_stage_after_the_cycle_leaves_the_earlier_run_as_it_was
     def interrupted(ctx):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(pipeline, "STAGES", [s._replace(run=interrupted) if s.name == "loads" else s
+    monkeypatch.setattr(pipeline, "STAGES", [pipeline.Stage("loads", interrupted) if s.name == "loads" else s
                                              for s in pipeline.STAGES])
     with pytest.raises(KeyboardInterrupt):
         run(RunContext(inputs=[table], out_dir=out, options={"cycle": {**CYCLE, "seed": 2}}, say=lambda _m: None))

@@ -19,7 +19,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from haulprofile.analysis.markov.generate import GOLDEN, _mix, _path_statistics, _uniform
+from haulprofile.analysis.markov.generate import GOLDEN, mix, path_statistics, uniform
 
 CACHE = Path(__file__).resolve().parents[1].parent / ".bench-cache"
 DENSE_LIMIT_BYTES = 4 * 1024**3
@@ -36,12 +36,12 @@ def _input(hours: float) -> Path:
 
 @numba.njit(cache=True)
 def _dense_batch(cum, start_state, start_cum, speed, gradient, mass, seed, n_steps, stats):
-    """Dense peer of `analysis.markov.generate._batch`: row ``cum[s]`` holds cumulative counts."""
+    """Dense peer of `analysis.markov.generate.batch`: row ``cum[s]`` holds cumulative counts."""
     path = np.empty(n_steps, np.int64)
     rng = np.empty(1, np.uint64)
     for i in range(stats.shape[0]):
-        rng[0] = _mix(np.uint64(seed) ^ _mix(np.uint64(i) + GOLDEN))
-        u = _uniform(rng) * start_cum[-1]
+        rng[0] = mix(np.uint64(seed) ^ mix(np.uint64(i) + GOLDEN))
+        u = uniform(rng) * start_cum[-1]
         j = 0
         while j < start_cum.shape[0] - 1 and start_cum[j] <= u:
             j += 1
@@ -49,9 +49,9 @@ def _dense_batch(cum, start_state, start_cum, speed, gradient, mass, seed, n_ste
         path[0] = s
         for k in range(1, n_steps):
             row = cum[s]
-            s = min(np.searchsorted(row, _uniform(rng) * row[-1], side="right"), row.shape[0] - 1)
+            s = min(np.searchsorted(row, uniform(rng) * row[-1], side="right"), row.shape[0] - 1)
             path[k] = s
-        _path_statistics(path, speed, gradient, mass, stats[i])
+        path_statistics(path, speed, gradient, mass, stats[i])
 
 
 def _dense_size(chain) -> tuple[int, int]:

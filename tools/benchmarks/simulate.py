@@ -40,7 +40,7 @@ def _fastsim_trace(fastsim, hours: float) -> dict:
             "speed_meters_per_second": np.concatenate([p[1] for p in pieces])[keep].tolist()}
 
 
-def _fastsim_vehicle(fastsim, vehicle):
+def fastsim_vehicle(fastsim, vehicle):
     """A FASTSim BEV with our road load (mass, c_d, A, c_r, r_dyn; no wheel inertia) and a
     powertrain large enough to follow the trace, as ours is in this comparison."""
     d = fastsim.Vehicle.from_resource("2022_Renault_Zoe_ZE50_R135.yaml").to_dict()
@@ -70,7 +70,7 @@ def bench_simulate_vs_fastsim(quick: bool):
     trace = _fastsim_trace(fastsim, hours)
     cycle = time_cycle(pd.DataFrame({"time_s": trace["time_seconds"], "speed_mps": trace["speed_meters_per_second"]}),
                        MASS_KG, "FASTSim UDDS+HWFET")
-    fs_vehicle = _fastsim_vehicle(fastsim, rigid)
+    fs_vehicle = fastsim_vehicle(fastsim, rigid)
     fs_cycle = fastsim.Cycle.from_dict({**fastsim.Cycle.from_resource("udds.csv").to_dict(), **trace,
                                         "grade": [0.0] * len(trace["time_seconds"]),
                                         "dist_meters": [], "elev_meters": [], "pwr_max_chrg_watts": [],
