@@ -49,7 +49,29 @@ def collectives_of(drives: dict[str, pd.DataFrame], vehicle: Vehicle,
                    common_rate: bool = True) -> dict[str, Collectives]:
     """Collectives of each named drive, on bins shared by all of them; with ``common_rate`` every
     drive is first averaged onto the coarsest drive's sample interval [choice: rainflow and level
-    crossings depend on the sampling rate, so only equal rates compare]."""
+    crossings depend on the sampling rate, so only equal rates compare].
+
+    Parameters
+    ----------
+    drives : dict of str to DataFrame
+        Name → drive with ``time_s`` [s], ``speed_mps`` [m/s], ``accel_mps2`` [m/s²],
+        ``gradient_pct`` [%], ``mass_kg`` [kg] (`NEEDED`).
+    vehicle : Vehicle
+        Wheel radius, driving resistances and rotating masses of the one vehicle model.
+    common_rate : bool
+        Average every drive onto the coarsest drive's sample interval first.
+
+    Returns
+    -------
+    dict of str to Collectives
+        Per drive: time at level of wheel force [N], torque [Nm], speed [rpm] and power [W], the
+        speed × torque residence [s], rainflow range/mean counts of the wheel torque, level
+        crossings and damage-equivalent torque ranges [Nm].
+
+    References
+    ----------
+    Wheel force from paper equations (1)-(4); rainflow counting per ASTM E1049.
+    """
     if common_rate and len(drives) > 1:
         period = max(median_step_s(frame) for frame in drives.values())
         drives = {name: (resample_mean(frame, period) if median_step_s(frame) < 0.99 * period else frame)

@@ -275,6 +275,25 @@ def count_transitions(signals, widths: cls.ClassWidths | None = None, close_loop
     ``close_loops`` **[choice]**: the truck's next drive starts from a standstill like the one it
     parked at (`closures`); without it, every drive's end is a dead end and, at fine mass classes,
     every payload is its own closed chain (docs/cycles.md).
+
+    Parameters
+    ----------
+    signals : DataFrame, mapping of arrays, or list of them
+        ``time_s`` [s], ``speed_mps`` [m/s], ``gradient_pct`` [%], ``mass_kg`` [kg].
+    widths : ClassWidths, optional
+        Class widths: speed [km/h], gradient [%], mass [kg]; default 1 km/h, 0.5 %, 100 kg.
+    close_loops : bool
+        Link each drive's end to a start from a like standstill.
+
+    Returns
+    -------
+    TransitionCounts
+        Sparse counts of (from state, to state), per-state moments and start counts; counts of
+        several logs add up with ``+``.
+
+    References
+    ----------
+    Paper §2.3: the 2D Markov chain of speed and combined gradient-and-mass classes.
     """
     widths = widths or cls.ClassWidths()
     items = signals if isinstance(signals, (list, tuple)) else [signals]
