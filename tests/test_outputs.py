@@ -112,8 +112,12 @@ def test_the_cache_keys_on_content_not_size_and_time(quick_stages, table, tmp_pa
         return ctx, said
 
     cached_run()
+    first = snapshot(out)
     _, said = cached_run()
-    assert "[kinematics] unchanged, from cache" in said
+    assert "[kinematics] unchanged, from cache" in said and "[cycle] unchanged, from cache" in said
+    again = snapshot(out)
+    assert {name: again[name] for name in ("cycle.csv", "cycle.vdri", "cycle.png")} == \
+        {name: first[name] for name in ("cycle.csv", "cycle.vdri", "cycle.png")}
     frame = pd.read_csv(table)
     stat = table.stat()
     size = stat.st_size

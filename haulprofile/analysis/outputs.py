@@ -26,26 +26,59 @@ RUN_FILES = ("gradient.csv", "gradient.png", "mass.png", "cycle.csv", "cycle.par
 """What a full run may write besides the summary; what it did not write this time is removed."""
 
 
+def _kept(ctx, stage: str, staging: Path, write):
+    """What ``write()`` returns (the names it wrote into ``staging``). A stage the run took from
+    the stage cache gets the files kept there when it last ran, instead of drawing them again; a
+    stage that ran keeps its files there for the next run."""
+    if ctx.cache_dir is None:
+        return write()
+    kept = ctx.cache_dir / stage / "files"
+    index = kept / "index.json"
+    if stage in ctx.from_cache and index.is_file():
+        record = json.loads(index.read_text())
+        for name in record["paths"]:
+            copy = shutil.copytree if (kept / name).is_dir() else shutil.copy2
+            copy(kept / name, staging / name)
+        return record["value"]
+    value = write()
+    paths = [name for name in (value.values() if isinstance(value, dict) else value)]
+    if kept.exists():
+        shutil.rmtree(kept)
+    kept.mkdir(parents=True)
+    for name in paths:
+        copy = shutil.copytree if (staging / name).is_dir() else shutil.copy2
+        copy(staging / name, kept / name)
+    index.write_text(json.dumps({"value": value, "paths": paths}))
+    return value
+
+
 def _stage_files(ctx, staging: Path, full: bool) -> None:
     from .gradient.stage import write_gradient
     from .loads.stage import write_loads
     from .markov.stage import write_cycle_files
     from .mass.stage import write_mass
+    from .simulate.output import write_outputs as write_simulation
 
     results, summary = ctx.results, ctx.summary
     if results.gradient is not None:
-        summary["gradient"]["files"] = write_gradient(results.gradient, staging, ctx.figures)
+        summary["gradient"]["files"] = _kept(ctx, "gradient", staging, lambda: write_gradient(
+            results.gradient, staging, ctx.figures))
     if results.mass is not None:
-        summary["mass"]["files"] = write_mass(results.mass, ctx.signals, staging, ctx.figures,
-                                              ctx.options.mass.true_mass_kg)
+        summary["mass"]["files"] = _kept(ctx, "mass", staging, lambda: write_mass(
+            results.mass, ctx.signals, staging, ctx.figures, ctx.options.mass.true_mass_kg))
     if results.cycle is not None:
-        summary["cycle"]["files"] = write_cycle_files(results.cycle, staging, ctx.figures)
-    if results.loads is not None:
-        write_loads(results.loads, staging / ctx.subdirs["loads"])
-    if results.simulation is not None:
-        from .simulate.output import write_outputs as write_simulation
+        summary["cycle"]["files"] = _kept(ctx, "cycle", staging, lambda: write_cycle_files(
+            results.cycle, staging, ctx.figures))
+    for stage, result, write in (("loads", results.loads, write_loads),
+                                 ("simulate", results.simulation, write_simulation)):
+        if result is not None:
+            folder = ctx.subdirs[stage]
 
-        write_simulation(results.simulation, staging / ctx.subdirs["simulate"])
+            def write_folder():
+                written = write(result, staging / folder)
+                return [folder] if folder else [Path(p).name for p in written]
+
+            _kept(ctx, stage, staging, write_folder)
     for name, content in ctx.json_files.items():
         value = content(ctx)
         if value is not None:

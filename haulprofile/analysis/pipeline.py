@@ -122,6 +122,10 @@ class RunContext:
     """Folder of the output directory for the loads and simulate files ("" for the folder itself)."""
     json_files: dict[str, Callable[["RunContext"], object]] = field(default_factory=dict)
     """Further JSON files of a command: file name → what to write (None: no file)."""
+    from_cache: set[str] = field(default_factory=set)
+    """Stages whose results this run took from the stage cache."""
+    cache_dir: Path | None = None
+    """The stage cache's folder, where the output step also keeps each stage's files."""
     signals_name: str | None = None
     """Write the signals table under this name (``.csv`` or ``.parquet``) after any run, not only
     as ``signals.parquet`` after the full run (``analyze signals -o``)."""
@@ -199,6 +203,8 @@ def run(ctx: RunContext, until: str | None = None, start: str | None = None, cac
         stages = [stage for stage in stages if stage.name != "ingest"]
     store = StageCache(ctx, stages) if cache and ctx.inputs else None
     done = store.restore() if store else 0
+    ctx.cache_dir = store.directory if store else None
+    ctx.from_cache = {stage.name for stage in stages[:done]}
     for stage in stages[:done]:
         ctx.say(f"[{stage.name}] unchanged, from cache")
     bar = _progress(stages[done:], progress)

@@ -5,7 +5,8 @@ stage says it reads them) the vehicle and the DEM tiles' bytes; the first key ha
 every input file and the package version. The key is of content, never of size and modification
 time: a log replaced by another of the same size and time stamp is read again. A stage whose key
 matches what is stored is not run: the signals table, summary and results after it are loaded
-instead (a pickle the run itself wrote into ``out_dir/.cache``).
+instead (a pickle the run itself wrote into ``out_dir/.cache``), and the output step copies the
+files it kept for that stage (``.cache/<stage>/files``) rather than drawing them again.
 """
 
 from __future__ import annotations
@@ -67,7 +68,8 @@ class StageCache:
         self.keys: dict[str, str] = {}
         previous = self._hash(["inputs", content_hash(ctx.inputs), _package_version()])
         for stage in self.stages:
-            parts = [previous, stage.name, getattr(ctx.options, stage.name, None)]
+            parts = [previous, stage.name, getattr(ctx.options, stage.name, None), ctx.figures, ctx.subdirs]
+            # figures and folders: the files kept for the stage depend on them
             if stage.reads_vehicle and ctx.vehicle is not None:
                 parts.append(asdict(ctx.vehicle))
             if stage.reads_dem and ctx.dem_dir is not None and ctx.dem_dir.exists():
