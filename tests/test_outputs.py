@@ -128,3 +128,11 @@ def test_the_cache_keys_on_content_not_size_and_time(quick_stages, table, tmp_pa
     ctx, said = cached_run()
     assert not any("from cache" in line for line in said)
     np.testing.assert_array_equal(ctx.signals["speed_mps"].to_numpy(), frame["speed_mps"].to_numpy())
+
+
+def test_a_partial_run_into_a_finished_run_leaves_no_summary_beside_its_files(quick_stages, table, tmp_path):
+    out = tmp_path / "out"
+    earlier_run(table, out)
+    run(RunContext(inputs=[table], out_dir=out, options={"cycle": {**CYCLE, "seed": 2}}, say=lambda _m: None),
+        until="cycle")
+    assert (out / "cycle.csv").is_file() and not (out / "summary.json").exists()

@@ -124,7 +124,8 @@ def write_outputs(ctx, full: bool) -> list[Path]:
         for name in names:
             if (out / name).resolve() in inputs:
                 raise UserError(f"{out / name} is an input of this run; give another output")
-        (out / SUMMARY).unlink(missing_ok=True)
+        if full or set(names) & set(RUN_FILES):
+            (out / SUMMARY).unlink(missing_ok=True)  # the folder no longer holds one finished run
         if full:
             for name in RUN_FILES:
                 if name not in names:
