@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import pickle
 import shutil
 from dataclasses import asdict, is_dataclass
@@ -92,6 +93,8 @@ class StageCache:
         if matched:
             last = self.directory / self.stages[matched - 1].name
             try:
+                if (last / "state.pickle").stat().st_uid != os.getuid():
+                    return 0  # a pickle runs code when loaded: only this user's own cache is read
                 with open(last / "state.pickle", "rb") as stream:
                     state = pickle.load(stream)
                 signals = pd.read_parquet(last / "signals.parquet") if (last / "signals.parquet").is_file() else None
