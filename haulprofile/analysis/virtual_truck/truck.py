@@ -11,6 +11,8 @@ from ..errors import UserError
 from ..vehicle import EXAMPLES, Vehicle, load_vehicle
 from . import sensors as sensor_models
 from .driver import OUTPUTS, simulate_kernel
+from .realism import IDEAL, Realism
+from .realism import realism as make_realism
 from .road import Road, build_road
 from .scenario import Scenario, ScenarioFileError
 
@@ -37,6 +39,7 @@ class VirtualDrive:
     states: pd.DataFrame
     truth: pd.DataFrame
     sensors: dict
+    realism: Realism = IDEAL
 
     @property
     def duration_s(self) -> float:
@@ -100,10 +103,15 @@ def simulate(scenario: Scenario, vehicle: Vehicle, road: Road, kernel=simulate_k
     return states
 
 
-def drive(scenario: Scenario, vehicle: Vehicle | None = None, seed: int = 0) -> VirtualDrive:
-    """Drive a scenario: deterministic for a seed (same seed, byte-identical outputs)."""
+def drive(scenario: Scenario, vehicle: Vehicle | None = None, seed: int = 0,
+          realism: str | Realism | None = None) -> VirtualDrive:
+    """Drive a scenario: deterministic for a seed (same seed, byte-identical outputs).
+
+    ``realism``: a level name (``ideal``, ``typical``, ``harsh``) or a `Realism`; None takes the
+    scenario's ``[realism]`` (ideal unless the file says otherwise)."""
     vehicle = vehicle if vehicle is not None else scenario_vehicle(scenario)
-    road = build_road(scenario, seed)
+    level = scenario.realism if realism is None else make_realism(realism)
+    road = build_road(scenario, seed, level)
     states = simulate(scenario, vehicle, road)
     distance = states["distance_m"].to_numpy()
     east, north = road.at(road.east_m, distance), road.at(road.north_m, distance)
@@ -117,5 +125,5 @@ def drive(scenario: Scenario, vehicle: Vehicle | None = None, seed: int = 0) -> 
     truth = states.iloc[::step][list(TRUTH_COLUMNS)].reset_index(drop=True)
     rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x5E45]))
     streams = sensor_models.make_sensors(states, road, scenario, vehicle, rng)
-    return VirtualDrive(scenario, vehicle, seed, road, states, truth, streams)
+    return VirtualDrive(scenario, vehicle, seed, road, states, truth, streams, level)
 
