@@ -92,7 +92,7 @@ _UPPER = {"dem_shift_cells": 3.0, "dem_void_fraction": 0.5, "imu_mount_pitch_deg
           "driveline_gear_spread": 0.2, "driveline_spin_loss_pct": 10.0}
 
 
-def realism(level: str | Realism = "ideal", **sizes) -> Realism:
+def realism_level(level: str | Realism = "ideal", **sizes) -> Realism:
     """The preset ``level`` with some error sizes replaced; a one-line `UserError` for an unknown
     level or size name, a negative size, or one beyond its sensible maximum."""
     if isinstance(level, Realism):

@@ -16,7 +16,7 @@ from pathlib import Path
 from ..errors import UserError
 from ..toml_tables import check_number, check_text, is_number, table_kwargs
 from ..vehicle import EXAMPLES as VEHICLE_EXAMPLES
-from .realism import IDEAL, Realism, realism
+from .realism import IDEAL, Realism, realism_level
 
 
 class ScenarioFileError(UserError):
@@ -201,7 +201,7 @@ def _realism(data, where: str) -> Realism:
     sizes = dict(data)
     level = sizes.pop("level", "ideal")
     try:
-        return realism(level, **sizes)
+        return realism_level(level, **sizes)
     except UserError as exc:
         raise ScenarioFileError(f"{where}: {exc}") from None
 
