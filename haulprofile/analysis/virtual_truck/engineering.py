@@ -25,6 +25,8 @@ PORTAL_COVER_M = 12.0
 ABUTMENT_FILL_M = 8.0
 """A bridge reaches out to where the fill is less than this [m]."""
 MIN_TUNNEL_M = 80.0
+EARTHWORK_M = 3.0
+"""Cut or fill beyond this [m] counts as a cutting or an embankment; less is at grade."""
 ROAD_HALF_WIDTH_M = 8.0
 SIDE_SLOPE = 1.5
 """Horizontal metres per metre of cut or fill (2:3 slopes)."""
@@ -89,8 +91,8 @@ def classify(cover_m: np.ndarray, step_m: float, forced_tunnel: np.ndarray) -> n
     tunnel |= forced_tunnel
     bridge = _grow(cover_m < -MAX_FILL_M, cover_m < -ABUTMENT_FILL_M) & ~tunnel
     out = np.full(cover_m.shape, AT_GRADE, np.int8)
-    out[cover_m > 0.5] = CUTTING
-    out[cover_m < -0.5] = EMBANKMENT
+    out[cover_m > EARTHWORK_M] = CUTTING
+    out[cover_m < -EARTHWORK_M] = EMBANKMENT
     out[bridge] = BRIDGE
     out[tunnel] = TUNNEL
     return out
