@@ -41,3 +41,29 @@ def test_typical_drive_is_harder_but_not_broken(ideal, typical):
     found = [abs(e) for e in typical["mass"]["exact"]["baro"]["mass_ls_kg"]]
     assert found and np.median(found) < 0.2
     assert "smoother" not in gradient or gradient["smoother"]["outside"] < 2.0
+
+
+def test_the_new_estimator_is_used_when_the_gradient_stage_offers_it(monkeypatch, tmp_path):
+    import dataclasses
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from haulprofile.analysis import dem, gradient
+    from haulprofile.analysis.virtual_truck import accuracy
+
+    @dataclasses.dataclass(frozen=True)
+    class Settings:
+        gradient_method: str = "smoother"
+
+    def estimate(signals, _dem, settings):
+        column = {"paper": "gradient_pct", "smoother": "gradient_smooth_pct"}[settings.gradient_method]
+        return SimpleNamespace(samples={column: np.full(len(signals), 1.0 if column == "gradient_pct" else 2.0)})
+
+    signals = pd.DataFrame({"time_s": [0.0, 0.1], "gradient_pct": [5.0, 5.0]})
+    assert list(accuracy._gradient_columns(signals, tmp_path).columns) == ["time_s", "gradient_pct"]
+    monkeypatch.setattr(gradient, "GradientSettings", Settings)
+    monkeypatch.setattr(gradient, "estimate_gradient", estimate)
+    monkeypatch.setattr(dem, "open_dem", lambda _directory: None)
+    out = accuracy._gradient_columns(signals, tmp_path)
+    assert list(out["gradient_pct"]) == [1.0, 1.0] and list(out["gradient_smooth_pct"]) == [2.0, 2.0]

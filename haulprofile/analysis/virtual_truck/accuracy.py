@@ -21,7 +21,9 @@ from .truth import GRID_SPACING_M, truth_grid
 
 METHODS = {"fusion": "gradient_pct", "baro": "gradient_baro_pct", "map": "gradient_map_pct",
            "smoother": "gradient_smooth_pct"}
-"""Method name -> gradient column; ``smoother`` is used when the gradient stage writes it."""
+"""Method name -> gradient column. ``fusion`` is the paper's (8): the default run's
+``gradient_pct``, or the run with ``gradient_method="paper"`` where that exists; ``smoother`` is
+used when the gradient stage writes it (by default or with ``gradient_method="smoother"``)."""
 CATEGORIES = {"outside": ("at grade", "embankment"), "cutting": ("cutting",), "bridge": ("bridge",),
               "tunnel": ("tunnel",)}
 MIN_BINS = 5
@@ -120,14 +122,32 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
     return out
 
 
-def _smoother_samples(signals, dem_dir: Path) -> dict | None:
-    """The new estimator's columns if the gradient settings offer it and the default run did not."""
+def _method_samples(signals, dem_dir: Path, method: str) -> dict | None:
+    """The gradient columns with ``GradientSettings(gradient_method=method)``, if the settings
+    offer that choice (the estimator of the issue "Estimation that holds on real terrain")."""
     from ..dem import open_dem
+    from ..errors import UserError
     from ..gradient import GradientSettings, estimate_gradient
     if "gradient_method" not in {f.name for f in dataclasses.fields(GradientSettings)}:
         return None
-    result = estimate_gradient(signals, open_dem(dem_dir), GradientSettings(gradient_method="smoother"))
-    return result.samples if METHODS["smoother"] in result.samples else None
+    try:
+        settings = GradientSettings(gradient_method=method)
+        return estimate_gradient(signals, open_dem(dem_dir), settings).samples
+    except (TypeError, ValueError, UserError):
+        return None
+
+
+def _gradient_columns(signals, dem_dir: Path):
+    """The default run's columns, with the paper's fusion (8) as ``gradient_pct`` and the smoother's
+    ``gradient_smooth_pct`` added when the gradient stage can be asked for them by name."""
+    paper = _method_samples(signals, dem_dir, "paper")
+    if paper is not None and METHODS["fusion"] in paper:
+        signals = signals.assign(**{METHODS["fusion"]: paper[METHODS["fusion"]]})
+    if METHODS["smoother"] not in signals.columns:
+        smooth = _method_samples(signals, dem_dir, "smoother")
+        if smooth is not None and METHODS["smoother"] in smooth:
+            signals = signals.assign(**{METHODS["smoother"]: smooth[METHODS["smoother"]]})
+    return signals
 
 
 def run_case(case: Case) -> dict:
@@ -146,11 +166,7 @@ def run_case(case: Case) -> dict:
         ctx = RunContext(inputs=[root / "logs"], out_dir=root / "out", vehicle=virtual.vehicle,
                          dem_dir=root / "dem", say=lambda _msg: None, figures=False)
         run(ctx, until="gradient")
-        signals = ctx.signals
-        if METHODS["smoother"] not in signals.columns:
-            extra = _smoother_samples(signals, root / "dem")
-            if extra is not None:
-                signals = signals.assign(**{METHODS["smoother"]: extra[METHODS["smoother"]]})
+        signals = _gradient_columns(ctx.signals, root / "dem")
     methods = {name: column for name, column in METHODS.items() if column in signals.columns}
     rng = np.random.default_rng(case.seed)
     vehicles = {"exact": virtual.vehicle, "datasheet": mismatched_vehicle(virtual.vehicle, rng)}
