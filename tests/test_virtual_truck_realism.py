@@ -104,7 +104,8 @@ def test_sensors_carry_the_injected_errors(typical):
     wheel = s["wheel_speed"]
     true = np.interp(wheel["time_s"], truth["time_s"], truth["speed_mps"])
     fast = true > 10
-    assert np.median(wheel["speed_mps"][fast] / true[fast]) == pytest.approx(1 + injected["wheel_speed_scale"], abs=2e-3)
+    ratio = np.median(wheel["speed_mps"][fast] / true[fast])
+    assert ratio == pytest.approx(1 + injected["wheel_speed_scale"], abs=2e-3)
     imu = s["imu"]
     standing = np.interp(imu["time_s"], truth["time_s"], truth["stop"].astype(float)) > 0.99
     flat_pitch = np.degrees(np.arcsin(np.median(imu["accel_x_mps2"][standing][:200]) / G_MPS2))
@@ -124,11 +125,35 @@ def test_truth_files_explain_the_drive(typical, tmp_path):
     assert len(grid) == int(typical.road.length_m // 10)
     assert set(grid["structure"]) >= {"tunnel"} and set(grid["structure"]) <= set(eng.STRUCTURES)
     step = np.diff(grid["road_height_m"])
-    assert np.allclose(step / 10 * 100, 0.5 * (grid["gradient_pct"][1:].to_numpy() + grid["gradient_pct"][:-1].to_numpy()),
-                       atol=0.05)
+    gradient = grid["gradient_pct"].to_numpy()
+    assert np.allclose(step / 10 * 100, 0.5 * (gradient[1:] + gradient[:-1]), atol=0.05)
     mass = pd.read_csv(paths["truth-mass.csv"])
     assert len(mass) >= 2 and mass["mass_kg"].iloc[0] == typical.truth["mass_kg"].iloc[0]
     errors = json.loads(paths["truth-errors.json"].read_text())
     assert errors["realism_level"] == "typical"
     for key in ("dem_correlated_m", "imu_mount_pitch_deg", "wheel_speed_scale", "torque_report_gain", "wind_speed_mps"):
         assert key in errors
+
+
+def test_wind_enters_the_road_load_and_the_kernel_matches_its_reference(scenario):
+    from haulprofile.analysis import road_load
+    from haulprofile.analysis.virtual_truck.driver import simulate_kernel
+    from haulprofile.analysis.virtual_truck.road import build_road
+    from haulprofile.analysis.virtual_truck.truck import scenario_vehicle, simulate
+    road = build_road(scenario, 2, realism_level("typical"))
+    vehicle = scenario_vehicle(scenario)
+    wind = 6.0 * np.sin(road.distance_m / 700.0)
+    compiled = simulate(scenario, vehicle, road, head_wind_mps=wind)
+    reference = simulate(scenario, vehicle, road, kernel=simulate_kernel.py_func, head_wind_mps=wind)
+    for column in compiled.columns:
+        assert np.allclose(compiled[column].to_numpy(float), reference[column].to_numpy(float),
+                           rtol=1e-9, atol=1e-6), column
+    moving = (compiled["speed_mps"] > 1.0).to_numpy()
+    v = compiled["speed_mps"].to_numpy()[moving]
+    air = v + road.at(wind, compiled["distance_m"].to_numpy()[moving])
+    calm = road_load.wheel_force_n(v, compiled["accel_mps2"].to_numpy()[moving],
+                                   compiled["gradient_pct"].to_numpy()[moving], compiled["mass_kg"].to_numpy()[moving],
+                                   vehicle)
+    drag = 0.5 * road_load.AIR_DENSITY_KGPM3 * vehicle.drag_coefficient * vehicle.frontal_area_m2
+    expected = calm + drag * (air * np.abs(air) - v * v)
+    assert np.allclose(expected, compiled["wheel_force_n"].to_numpy()[moving], rtol=1e-6, atol=1e-3)

@@ -64,8 +64,10 @@ def summarise(results: list[dict]) -> list[dict]:
                 mass = {}
                 for key in MASS_KEYS:
                     errors = [abs(e) for r in have for e in r["mass"][vehicle][method][key]]
-                    mass[key] = ({"median_pct": 100 * float(np.median(errors)), "worst_pct": 100 * float(np.max(errors)),
-                                  "segments": len(errors)} if errors else {"segments": 0})
+                    mass[key] = {"segments": len(errors)}
+                    if errors:
+                        mass[key] |= {"median_pct": 100 * float(np.median(errors)),
+                                      "worst_pct": 100 * float(np.max(errors))}
                 lines.append(result(name, gradient["outside"]["median"], "%-pt", available=True, level=level,
                                     method=method, vehicle=vehicle, column=METHODS[method], drives=len(have),
                                     gradient_rmse_pct=gradient, mass_error=mass))

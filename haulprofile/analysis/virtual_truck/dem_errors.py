@@ -53,7 +53,8 @@ class DemErrors:
             step = VOID_PATCH_M / 4.0
             shape = (int((n1 - n0) / step) + 2, int((e1 - e0) / step) + 2)
             values = spectral_surface(rng, shape, step, VOID_PATCH_M, beta=4.0)
-            voids, threshold = GridField(e0, n0, step, values, -1e9), float(np.quantile(values, 1 - level.dem_void_fraction))
+            voids = GridField(e0, n0, step, values, -1e9)
+            threshold = float(np.quantile(values, 1 - level.dem_void_fraction))
         return cls(level, float(shift * np.cos(direction)), float(shift * np.sin(direction)), correlated, voids,
                    threshold, road.forest, road.town, (terrain_seed, seed))
 

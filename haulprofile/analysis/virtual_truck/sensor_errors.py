@@ -26,7 +26,8 @@ def wheel_speed(stream: pd.DataFrame, states, level: Realism, sensors, rng) -> d
     scale = rng.uniform(-1.0, 1.0) * level.wheel_scale_pct / 100.0
     t = stream["time_s"].to_numpy()
     true = _sample(states, "speed_mps", t)
-    kmh = np.maximum(true * 3.6 * (1 + scale) + rng.normal(0, sensors.wheel_speed_noise_kmh, t.size) * (true > 0.3), 0.0)
+    noise = rng.normal(0, sensors.wheel_speed_noise_kmh, t.size) * (true > 0.3)
+    kmh = np.maximum(true * 3.6 * (1 + scale) + noise, 0.0)
     kmh = _quantise(kmh, j1939.SPNS["wheel_speed_kmh"].resolution)
     stream["wheel_speed_kmh"], stream["speed_mps"] = kmh, kmh / 3.6
     return {"wheel_speed_scale": scale}
