@@ -1,8 +1,9 @@
 """The virtual truck's world: route (target speed, stops), road height, horizontal path, terrain.
 
 Everything is a function of the driven distance s [m] on a 1 m grid, except the terrain, which is a
-field over (latitude, longitude) built so that along the route it lies exactly ``cut_fill`` above the
-road, and in a tunnel up to ``depth_m`` above it. Away from the road seeded Gaussian hills rise
+field over (latitude, longitude). In the ideal world (`build_road` here) it is built so that along
+the route it lies exactly ``cut_fill`` above the road, and in a tunnel up to ``depth_m`` above it;
+the realistic levels build the terrain first and the road into it (`engineered`). Away from the road seeded Gaussian hills rise
 smoothly, so a 3 arc-second DEM represents the field well. Horizontal positions use a local
 equirectangular projection around the start point (good to well under 1 m over 100 km).
 """
