@@ -69,5 +69,6 @@ def run(args) -> int:
     for name in ("report.html", "summary.json", "signals.parquet"):
         if (out / name).exists():
             print(f"  {out / name}")
-    print(f"  {out / 'truth.parquet'}  (the virtual truck's ground truth, to compare with the estimates)")
+    print(f"  {out / 'truth.parquet'}, truth-road-10m.csv, truth-mass.csv, truth-errors.json  (the virtual "
+          f"truck's ground truth and every injected error, to compare with the estimates)")
     return 0
