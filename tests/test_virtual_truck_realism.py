@@ -138,7 +138,7 @@ def test_truth_files_explain_the_drive(typical, tmp_path):
 def test_wind_enters_the_road_load_and_the_kernel_matches_its_reference(scenario):
     from haulprofile.analysis import road_load
     from haulprofile.analysis.virtual_truck.driver import simulate_kernel
-    from haulprofile.analysis.virtual_truck.road import build_road
+    from haulprofile.analysis.virtual_truck.world import build_road
     from haulprofile.analysis.virtual_truck.truck import scenario_vehicle, simulate
     road = build_road(scenario, 2, realism_level("typical"))
     vehicle = scenario_vehicle(scenario)

@@ -16,7 +16,8 @@ import numpy as np
 from ..dem.srtm import SAMPLES_PER_SIDE, tile_name, tile_origin, write_hgt
 from ..errors import UserError
 from .dem_errors import DemErrors
-from .road import Road, build_road
+from .road import Road
+from .world import build_road
 from .scenario import Scenario
 
 ARC_SECONDS = 3

@@ -1,7 +1,7 @@
 """The virtual truck's world: route (target speed, stops), road height, horizontal path, terrain.
 
 Everything is a function of the driven distance s [m] on a 1 m grid, except the terrain, which is a
-field over (latitude, longitude). In the ideal world (`build_road` here) it is built so that along
+field over (latitude, longitude). In the ideal world (`ideal_road` here) it is built so that along
 the route it lies exactly ``cut_fill`` above the road, and in a tunnel up to ``depth_m`` above it;
 the realistic levels build the terrain first and the road into it (`engineered`). Away from the road seeded Gaussian hills rise
 smoothly, so a 3 arc-second DEM represents the field well. Horizontal positions use a local
@@ -16,7 +16,6 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .. import vecto
-from .realism import IDEAL, Realism
 from .scenario import Scenario, ScenarioFileError
 from .terrain import GridField
 
@@ -235,12 +234,8 @@ def _path(scenario: Scenario, distance: np.ndarray, rng: np.random.Generator):
     return east, north, heading, curvature
 
 
-def build_road(scenario: Scenario, seed: int = 0, realism: Realism = IDEAL) -> Road:
-    """The world of a scenario for a seed (same seed, same world); a realistic world when
-    ``realism.terrain_first`` (`engineered.engineered_road`)."""
-    if realism.terrain_first:
-        from .engineered import engineered_road
-        return engineered_road(scenario, seed)
+def ideal_road(scenario: Scenario, seed: int = 0) -> Road:
+    """The ideal world of a scenario for a seed (same seed, same world): terrain built around the road."""
     rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x70AD]))
     breaks, stops = _sections(scenario)
     length = breaks[-1, 0]

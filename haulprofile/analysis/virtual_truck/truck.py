@@ -14,7 +14,8 @@ from .driver import OUTPUTS, simulate_kernel
 from .loads import engine_loads, head_wind_mps, trailer_change
 from .realism import IDEAL, Realism
 from .realism import realism_level as make_realism
-from .road import Road, build_road
+from .road import Road
+from .world import build_road
 from .scenario import Scenario, ScenarioFileError
 from .sensor_errors import apply_sensor_errors
 
