@@ -11,7 +11,11 @@ import json
 import sys
 from pathlib import Path
 
-from ..pipeline import RunContext, jsonable, run as run_pipeline
+from ..ingest.stage import IngestOptions
+from ..jsonable import jsonable
+from ..markov.stage import CycleOptions
+from ..pipeline import Options, RunContext, run as run_pipeline
+from ..simulate.stage import SimulateOptions
 from ..vehicle import load_vehicle
 
 EXIT_UNTRUSTWORTHY_RESULT = 3
@@ -34,14 +38,10 @@ def add_arguments(parser) -> None:
     output.add_argument("--json", action="store_true", help="print the summary as JSON on stdout, nothing else")
 
 
-def options_from(args) -> dict:
-    options = {"ingest": {"rate_hz": args.rate_hz}, "cycle": {"duration_s": args.cycle_duration,
-                                                              "n_candidates": args.candidates, "seed": args.seed}}
-    if args.dbc is not None:
-        options["ingest"]["dbc"] = str(args.dbc)
-    if args.payload_kg is not None:
-        options["simulate"] = {"payload_kg": args.payload_kg}
-    return options
+def options_from(args) -> Options:
+    return Options(ingest=IngestOptions(rate_hz=args.rate_hz, dbc=args.dbc),
+                   cycle=CycleOptions(duration_s=args.cycle_duration, n_candidates=args.candidates, seed=args.seed),
+                   simulate=SimulateOptions(payload_kg=args.payload_kg))
 
 
 def verdict(summary: dict) -> str | None:
