@@ -15,7 +15,8 @@ import pytest
 from haulprofile import contract
 from haulprofile.logger.clock import Clock
 from haulprofile.logger.emulators.gps import epoch_sentences, with_checksum
-from haulprofile.logger.sources.gps import GpsSource, nmea_checksum_ok, ubx_cfg_rate
+from haulprofile.contract.nmea import nmea_checksum_ok
+from haulprofile.logger.sources.gps import GpsSource, ubx_cfg_rate
 
 
 def through_pty(data: bytes, configure_rate_hz: float | None = None):

@@ -1,7 +1,7 @@
 """GPS-only logs: a receiver's raw NMEA 0183 and u-blox UBX output as ``/gps/fix`` records.
 
-NMEA goes through the logger's own GPS source (`haulprofile.logger.sources.gps.GpsSource`, pynmea2),
-so a file gives the very fixes the logger would have logged from the same bytes: sentences of one
+NMEA goes through the logger's own epoch assembly (`haulprofile.contract.nmea`, pynmea2), so a
+file gives the very fixes the logger would have logged from the same bytes: sentences of one
 epoch merged (GGA position, RMC/VTG speed, GST accuracy), bad checksums and proprietary sentences
 skipped. UBX NAV-PVT messages (pyubx2) give fixes of their own. A fix's time is its UTC (RMC date
 and time, or NAV-PVT's); without a date, the UTC time of day. Those times stand in for the
@@ -10,7 +10,6 @@ monotonic clock (``t_mono_ns``): a GPS-only log has no other.
 
 from __future__ import annotations
 
-import asyncio
 import datetime as dt
 from pathlib import Path
 
@@ -23,7 +22,7 @@ DAY_NS = 86_400 * 1_000_000_000
 
 def looks_like_gnss(head: bytes) -> bool:
     """True if the first bytes of a file are NMEA sentences with valid checksums, or UBX frames."""
-    from haulprofile.logger.sources.gps import nmea_checksum_ok
+    from haulprofile.contract.nmea import nmea_checksum_ok
 
     lines = head.split(b"\n")
     lines = [line.strip() for line in (lines[:-1] if len(head) >= 4096 else lines) if line.strip()]
@@ -62,31 +61,17 @@ def read_fixes(path: str | Path) -> list[dict]:
     return sorted(fixes, key=lambda f: f["t_mono_ns"])
 
 
-class _Clock:
-    """The logger clock's one call the GPS source makes while parsing."""
-
-    @staticmethod
-    def mono_offset_ns() -> int:
-        return 0
-
-
 def _nmea_fixes(data: bytes) -> list[dict]:
-    from haulprofile.logger.sources.gps import GpsSource
+    """Fixes of the NMEA sentences, timed by their UTC (or UTC time of day, rolling over at midnight)."""
+    from haulprofile.contract.nmea import EpochFixes
 
     fixes: list[tuple[str, dict]] = []
-
-    class FileGps(GpsSource):
-        def flush_epoch(self) -> None:
-            self._flushing = self._epoch
-            super().flush_epoch()
-
-        def emit_json(self, topic, record, t_mono_ns) -> None:
-            if topic is contract.GPS_FIX:
-                fixes.append((self._flushing.time_key, record))
-
-    source = FileGps(asyncio.Queue(), _Clock(), port="")
-    source.feed(data + b"\n", 0)
-    source.flush_epoch()
+    epochs = EpochFixes(lambda epoch, fix: fixes.append((epoch.time_key, fix)), {})
+    for line in data.split(b"\n"):
+        start = line.find(b"$")
+        if start >= 0:
+            epochs.sentence(line[start:].rstrip(b"\r").decode("ascii", errors="replace"), 0)
+    epochs.flush()
     out, day_ns, last = [], 0, None
     for time_key, fix in fixes:
         if fix.get("gps_time_utc_ns") is not None:
