@@ -19,6 +19,7 @@ import pandas as pd
 
 from .. import signals as signals_table
 from ..errors import UserError
+from . import align
 from . import dbc as dbc_module
 from . import foreign
 from .columns import build_table
@@ -70,6 +71,12 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
         damage = "; ".join(f"{Path(r.path).name}: {r.warning()}" for r in timeline.reports if r.warning())
         raise LogError(f"{exc}" + (f" ({damage})" if damage else "")) from None
     warnings = [w for w in (r.warning() for r in timeline.reports) if w]
+    shortened = summary["gaps_shortened"]
+    if shortened:
+        longest = max(g["removed_s"] for g in shortened)
+        warnings.append(f"{len(shortened)} silence(s) between recordings longer than {align.MAX_GAP_S:.0f} s "
+                        f"(longest {longest / 3600:.1f} h) shortened to {align.KEPT_GAP_S:.0f} s of gap rows each: "
+                        f"time_s counts recorded time, wall_time_ns keeps the real time")
     if "imu-scale" in ingest.notes:
         warnings.append("IMU channel metadata has no accel_scale_mps2_per_lsb: accel_x/y/z_mps2 left out")
     for line in warnings:
