@@ -138,3 +138,39 @@ def forgetting_factor(value: float, option: str = "--forgetting-factor") -> floa
     if not (math.isfinite(value) and 0 < value <= 1):
         raise UserError(f"{option} must be above 0 and at most 1, got {value:g}")
     return float(value)
+
+
+def _digest(path: Path) -> str:
+    import hashlib
+
+    digest = hashlib.blake2b(digest_size=20)
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def drop_same_content(paths: list[Path], say=None) -> list[Path]:
+    """``paths`` without files whose bytes repeat an earlier one (a log copied or given twice would
+    count twice); one warning per dropped file."""
+    dropped = repeated_content(paths, say)
+    return [p for i, p in enumerate(paths) if i not in dropped]
+
+
+def repeated_content(paths: list[Path], say=None) -> set[int]:
+    """Indexes of files whose bytes repeat an earlier file's; only files of equal size are hashed."""
+    by_size: dict[int, list[int]] = {}
+    for index, path in enumerate(paths):
+        by_size.setdefault(path.stat().st_size, []).append(index)
+    seen: dict[str, int] = {}
+    dropped: set[int] = set()
+    for same_size in by_size.values():
+        if len(same_size) < 2:
+            continue
+        for index in same_size:
+            first = seen.setdefault(_digest(paths[index]), index)
+            if first != index:
+                dropped.add(index)
+                if say is not None:
+                    say(f"warning: {paths[index]} has the same content as {paths[first]}: left out (counted once)")
+    return dropped

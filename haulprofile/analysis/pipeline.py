@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 import pandas as pd
 
+from . import json_out
 from . import signals as signals_table
 from .errors import UserError
 from .vehicle import Vehicle
@@ -81,8 +81,7 @@ def load_inputs(ctx: RunContext) -> None:
         if not path.exists():
             raise UserError(f"input {path} not found")
     if tables:
-        frames = [signals_table.read_signals(p) for p in tables]
-        ctx.signals = signals_table.validate(pd.concat(frames, ignore_index=True), ", ".join(map(str, tables)))
+        ctx.signals = signals_table.combine(tables, ctx.say)
 
 
 def run(ctx: RunContext, until: str | None = None, cache: bool = False, progress: bool = False) -> RunContext:
@@ -126,7 +125,7 @@ def run(ctx: RunContext, until: str | None = None, cache: bool = False, progress
         raise UserError("no signals: the inputs are logs but no ingest stage is installed")
     if until is None:
         signals_table.write_signals(ctx.signals, ctx.out_dir / "signals.parquet")
-        (ctx.out_dir / "summary.json").write_text(json.dumps(ctx.summary, indent=2, default=jsonable))
+        (ctx.out_dir / "summary.json").write_text(json_out.dumps(ctx.summary, indent=2))
     return ctx
 
 

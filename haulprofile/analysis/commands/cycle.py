@@ -7,23 +7,25 @@ when installed; ``--mass-kg`` gives a known constant total mass instead.
 
 from __future__ import annotations
 
-import json
+import sys
 from pathlib import Path
 
-from .. import pipeline
+from .. import checks, json_out, pipeline
 from .. import signals as signals_table
 from ..errors import UserError
 from ..markov.classes import ClassWidths
 from ..markov.stage import stage as cycle_stage
 from ..vehicle import load_vehicle
 
+EXIT_UNTRUSTWORTHY_RESULT = 3
 PRODUCES = {"kinematics": "accel_mps2", "gradient": "gradient_pct", "mass": "mass_kg"}
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="signals tables (CSV/Parquet) or MCAP logs")
-    parser.add_argument("--out", type=Path, required=True, help="output directory")
-    parser.add_argument("--duration", type=float, default=1800.0, help="cycle duration [s] (1800)")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, required=True, help="output directory")
+    parser.add_argument("--cycle-duration", "--duration", dest="cycle_duration", type=float, default=1800.0,
+                        help="cycle duration [s] (1800)")
     parser.add_argument("--speed-class-kmh", type=float, default=1.0, help="speed class width [km/h] (1)")
     parser.add_argument("--gradient-class-pct", type=float, default=0.5, help="gradient class width [%%] (0.5)")
     parser.add_argument("--mass-class-kg", type=float, default=100.0, help="mass class width [kg] (100)")
@@ -62,25 +64,18 @@ def _prepare(ctx: pipeline.RunContext, mass_kg: float | None) -> None:
         stages[name](ctx)
 
 
-def _plain(value):
-    """JSON form of NumPy scalars and paths in the summary."""
-    if hasattr(value, "item"):
-        return value.item()
-    return str(value)
-
-
 def run(args) -> int:
     if args.candidates < 1:
         raise UserError(f"--candidates must be at least 1, got {args.candidates}")
-    if not args.duration >= 2:
-        raise UserError(f"--duration must be at least 2 s, got {args.duration}")
+    checks.cycle_duration_s(args.cycle_duration)
+    checks.output_dir(args.out, args.inputs)
     if args.seed < 0:
         raise UserError(f"--seed must be a non-negative integer, got {args.seed}")
     widths = ClassWidths(args.speed_class_kmh, args.gradient_class_pct, args.mass_class_kg)
     ctx = pipeline.RunContext(
         inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle) if args.vehicle else None,
         dem_dir=args.dem, say=(lambda _msg: None) if args.quiet else print,
-        options={"cycle": {"duration_s": args.duration, "widths": widths, "n_candidates": args.candidates,
+        options={"cycle": {"duration_s": args.cycle_duration, "widths": widths, "n_candidates": args.candidates,
                            "seed": args.seed, "update_counts": args.update_counts}})
     args.out.mkdir(parents=True, exist_ok=True)
     _prepare(ctx, args.mass_kg)
@@ -88,5 +83,9 @@ def run(args) -> int:
     if "cycle" not in ctx.summary:
         raise UserError("no cycle: the signals lack " + ", ".join(
             signals_table.missing_for(ctx.signals, ["gradient_pct", "mass_kg"])) + " (see the messages above)")
-    (args.out / "cycle.json").write_text(json.dumps(ctx.summary["cycle"], indent=2, default=_plain))
-    return 0 if ctx.summary["cycle"]["valid"] else 1
+    (args.out / "cycle.json").write_text(json_out.dumps(ctx.summary["cycle"], indent=2))
+    if not ctx.summary["cycle"]["valid"]:
+        print(f"analyze cycle: warning: no valid cycle: {ctx.summary['cycle'].get('statement', '')} "
+              f"(try more --candidates or a longer --cycle-duration)", file=sys.stderr)
+        return EXIT_UNTRUSTWORTHY_RESULT
+    return 0

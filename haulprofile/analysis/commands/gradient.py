@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import checks
 from ..errors import UserError
 from ..pipeline import RunContext, available_stages, load_inputs
 
@@ -14,7 +15,7 @@ from ..pipeline import RunContext, available_stages, load_inputs
 def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles or GeoTIFFs (else barometer only)")
-    parser.add_argument("--out", type=Path, default=Path("gradient-out"), help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("gradient-out"), help="output directory")
     parser.add_argument("--spacing", type=float, default=10.0, help="distance grid spacing [m] (default 10)")
     parser.add_argument("--no-figure", action="store_true", help="skip the figure")
 
@@ -39,6 +40,8 @@ def run(args) -> int:
     from ..gradient import GradientSettings, gradient_with_dem_fallback
     from ..gradient.figure import draw_sources
 
+    checks.output_dir(args.out, args.inputs)
+    checks.positive(args.spacing, "--spacing", "m")
     ctx = signals_for(args.inputs, print, args.out, dem_dir=args.dem)
     result = gradient_with_dem_fallback(ctx.signals, args.dem, GradientSettings(spacing_m=args.spacing), print)
     for note in result.notes:

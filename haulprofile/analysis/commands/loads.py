@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from .. import checks
 from ..errors import UserError
 from ..signals import missing_for, read_signals
 from ..vehicle import load_vehicle
@@ -18,7 +19,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
     parser.add_argument("--cycle", type=Path,
                         help="generated cycle CSV (time_s, speed_mps, accel_mps2, gradient_pct, mass_kg) to compare")
-    parser.add_argument("--out", type=Path, default=Path("loads-out"), help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("loads-out"), help="output directory")
 
 
 def _drive(path: Path, what: str) -> pd.DataFrame:
@@ -34,6 +35,7 @@ def _drive(path: Path, what: str) -> pd.DataFrame:
 def run(args) -> int:
     from ..loads import collectives_of, write_all
 
+    checks.output_dir(args.out, [args.signals] + ([args.cycle] if args.cycle else []))
     vehicle = load_vehicle(args.vehicle)
     drives = {"measured": _drive(args.signals, "measured drive")}
     if args.cycle is not None:

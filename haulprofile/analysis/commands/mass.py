@@ -3,11 +3,11 @@ beside the truck's own CAN estimate; a figure like the paper's Fig. 6."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
+from .. import checks, json_out
 from ..vehicle import load_vehicle
 from .gradient import signals_for
 
@@ -16,7 +16,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
     parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles or GeoTIFFs (for the gradient)")
-    parser.add_argument("--out", type=Path, default=Path("mass-out"), help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("mass-out"), help="output directory")
     parser.add_argument("--true-mass", type=float, nargs="+", metavar="KG",
                         help="the real total mass [kg], if weighed, for the figure: one value, or one per segment")
     parser.add_argument("--forgetting-factor", type=float, default=0.9985, help="lambda of RLS and LM (default 0.9985)")
@@ -42,6 +42,10 @@ def run(args) -> int:
     from ..mass import SegmentSettings, estimate_mass
     from ..mass.figure import draw_estimates
 
+    checks.output_dir(args.out, args.inputs)
+    checks.forgetting_factor(args.forgetting_factor)
+    for mass in args.true_mass or []:
+        checks.positive(mass, "--true-mass", "kg")
     vehicle = load_vehicle(args.vehicle)
     ctx = signals_for(args.inputs, print, args.out, vehicle=vehicle, dem_dir=args.dem)
     if "gradient_pct" not in ctx.signals.columns:
@@ -51,7 +55,7 @@ def run(args) -> int:
         print(f"note: {note}")
     print(format_segments(result.segments))
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "mass.json").write_text(json.dumps({"segments": result.segments}, indent=2))
+    (args.out / "mass.json").write_text(json_out.dumps({"segments": result.segments}, indent=2))
     print(f"wrote {args.out / 'mass.json'}")
     if not args.no_figure:
         print(f"wrote {draw_estimates(ctx.signals, result, args.out / 'mass.png', args.true_mass)}")

@@ -17,6 +17,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
+from .. import checks
 from .. import signals as signals_table
 from ..errors import UserError
 from . import align
@@ -41,14 +42,16 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
                 say: Callable[[str], None] | None = None) -> tuple[pd.DataFrame, dict]:
     """Signals table [SI units, one row per 1/rate_hz s] and summary of logs or signals tables."""
     say = say or (lambda _msg: None)
+    checks.rate_hz(rate_hz)
     files = expand(paths)
     tables = [p for p in files if signals_table.is_signals_path(p)]
     if tables:
         if len(tables) != len(files):
             raise LogError("give either logs or signals tables, not both")
-        frame = pd.concat([signals_table.read_signals(p) for p in tables], ignore_index=True)
-        frame = signals_table.validate(frame, ", ".join(map(str, tables)))
-        return frame, {"inputs": [str(p) for p in tables], "rows": len(frame), "source": "signals table"}
+        frame = signals_table.combine(tables, say)
+        return frame, {"inputs": [str(p) for p in tables], "source": "signals table",
+                       **signals_table.describe(frame)}
+    files = checks.drop_same_content(files, say)
     mcap_files = [p for p in files if is_mcap(p)]
     other = [p for p in files if p not in mcap_files]
     unknown = [p for p in other if not foreign.is_foreign(p)]
@@ -141,7 +144,7 @@ def stage(ctx) -> None:
                         "PID 0x0D): log the vehicle's CAN bus, or give a signals table with speed_mps")
     ctx.signals = frame
     ctx.summary["ingest"] = summary
-    if "rate_hz" in summary:
+    if "can_frames" in summary:
         ctx.say(f"ingest: {summary['rows']} rows at {summary['rate_hz']:g} Hz, "
                 f"{summary['valid_fraction']:.0%} valid, {summary['can_frames']} CAN frames")
     else:
