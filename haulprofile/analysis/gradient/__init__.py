@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..dem import MissingTileError, open_dem
+from ..dem.plausible import ImplausibleDemError
 from ..errors import UserError
 from .estimate import GradientResult, GradientSettings, estimate_gradient
 from .figure import draw_sources
@@ -23,7 +24,7 @@ def gradient_with_dem_fallback(frame, dem_dir, settings: GradientSettings = Grad
     dem = open_dem(dem_dir) if dem_dir is not None else None
     try:
         return estimate_gradient(frame, dem, settings)
-    except MissingTileError as exc:
+    except (MissingTileError, ImplausibleDemError) as exc:
         say(f"gradient: {exc}; using the barometer alone")
         return estimate_gradient(frame, None, settings)
 
@@ -35,8 +36,8 @@ def stage(ctx) -> None:
     settings = GradientSettings(**ctx.options.get("gradient", {}))
     try:
         result = estimate_gradient(frame, open_dem(ctx.dem_dir) if ctx.dem_dir is not None else None, settings)
-    except MissingTileError as exc:
-        raise MissingTileError(f"{exc}; or run without --dem for barometric height only") from None
+    except (MissingTileError, ImplausibleDemError) as exc:
+        raise type(exc)(f"{exc}; or run without --dem for barometric height only") from None
     except UserError as exc:
         ctx.say(f"gradient: skipped: {exc}")
         return
