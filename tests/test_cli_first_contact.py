@@ -174,3 +174,41 @@ def test_version(capsys):
     with pytest.raises(SystemExit) as exit_info:
         cli.main(["--version"])
     assert exit_info.value.code == 0 and capsys.readouterr().out.startswith("analyze (haulprofile) ")
+
+
+@pytest.mark.parametrize("command", ["run", "simulate"])
+def test_time_in_the_wrong_unit_is_refused_before_allocating(command, tmp_path, capsys):
+    """time_s x 1e12 asked for 7 PiB; a table in ms is refused as well."""
+    time = np.arange(600) * 0.1
+    for scale in (1e12, 1e3):
+        path = tmp_path / f"x{scale:g}.csv"
+        pd.DataFrame({"time_s": time * scale, "speed_mps": np.full(600, 10.0)}).to_csv(path, index=False)
+        code, _, err = run_cli(capsys, command, path, "--vehicle", "rigid-18t", "--out", tmp_path / "o")
+        one_line_error(code, err, "seconds")
+
+
+def test_stages_check_their_sizes_before_allocating():
+    """Behind the validator, the stages that allocate by time or distance refuse absurd sizes themselves."""
+    from haulprofile.analysis.errors import UserError
+    from haulprofile.analysis.gradient import GradientSettings, estimate_gradient
+    from haulprofile.analysis.simulate import simulate
+    from haulprofile.analysis.simulate.cycle import time_cycle
+    from haulprofile.analysis.vehicle import load_vehicle
+
+    vehicle = load_vehicle("rigid-18t")
+    far = pd.DataFrame({"time_s": [0.0, 1e13], "speed_mps": [10.0, 10.0]})
+    with pytest.raises(UserError, match="rows"):
+        simulate(time_cycle(far, 20_000.0), vehicle)
+    with pytest.raises(UserError, match="distance grid"):
+        estimate_gradient(far.assign(distance_m=[0.0, 1e12], pressure_pa=[95_000.0, 95_000.0]), None,
+                          GradientSettings())
+
+
+def test_mass_without_a_confident_segment_exits_3(tmp_path, capsys):
+    """A steady cruise has no excitation: the command finishes but says the result is not trustworthy."""
+    time = np.arange(3000) * 0.1
+    path = tmp_path / "cruise.csv"
+    pd.DataFrame({"time_s": time, "speed_mps": 15.0, "engine_speed_rpm": 1400.0, "engine_torque_nm": 600.0,
+                  "gradient_pct": 0.0}).to_csv(path, index=False)
+    code, _, err = run_cli(capsys, "mass", path, "--vehicle", "rigid-18t", "--out", tmp_path / "o", "--no-figure")
+    assert code == 3 and "confident mass" in err

@@ -41,6 +41,10 @@ COLUMNS = {**REQUIRED, **OPTIONAL, **DERIVED}
 SIGNALS_SUFFIXES = {".csv", ".parquet", ".pq"}
 MAX_SPEED_MPS = 70.0
 """Fastest plausible road vehicle speed [m/s] (252 km/h); trucks are limited to some 25-35 m/s."""
+MAX_SAMPLE_INTERVAL_S = 60.0
+"""Longest median interval between samples of a drive [s]; longer means time_s is not in seconds."""
+MAX_SPAN_S = 5 * 366 * 86400.0
+"""Longest time a table may span [s] (five years)."""
 MIN_SPEED_MPS = -0.5
 """Wheel-based speed is not signed; small negative values are sensor noise, larger ones a fault [m/s]."""
 
@@ -70,6 +74,9 @@ def validate(frame: pd.DataFrame, source: str = "signals table") -> pd.DataFrame
         row = int(np.flatnonzero(step < 0)[0]) + 1
         raise SignalsError(f"{source}: time_s goes backwards at row {row} ({time[row]:g} s after {time[row - 1]:g} s); "
                            f"sort the table by time or fix its clock")
+    if np.median(step) > MAX_SAMPLE_INTERVAL_S or time[-1] - time[0] > MAX_SPAN_S:
+        raise SignalsError(f"{source}: time_s spans {time[-1] - time[0]:.3g} s with a median step of "
+                           f"{np.median(step):.3g} s; is it in seconds?")
     if np.any(step == 0):
         row = int(np.flatnonzero(step == 0)[0]) + 1
         raise SignalsError(f"{source}: time_s has {int((step == 0).sum())} duplicated time stamp(s), the first "

@@ -3,6 +3,7 @@ beside the truck's own CAN estimate; a figure like the paper's Fig. 6."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +11,8 @@ import numpy as np
 from .. import checks, json_out
 from ..vehicle import load_vehicle
 from .gradient import signals_for
+
+EXIT_UNTRUSTWORTHY_RESULT = 3
 
 
 def add_arguments(parser) -> None:
@@ -59,4 +62,7 @@ def run(args) -> int:
     print(f"wrote {args.out / 'mass.json'}")
     if not args.no_figure:
         print(f"wrote {draw_estimates(ctx.signals, result, args.out / 'mass.png', args.true_mass)}")
+    if not any(s["status"] == "ok" for s in result.segments):
+        print("analyze mass: warning: no segment has enough excitation for a confident mass", file=sys.stderr)
+        return EXIT_UNTRUSTWORTHY_RESULT
     return 0

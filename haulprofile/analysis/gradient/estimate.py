@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .. import kinematics
+from .. import checks, kinematics
 from ..errors import UserError
 from . import grid as distance_grid
 from . import sources
@@ -80,6 +80,8 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     spacing = settings.spacing_m
     index = np.where(valid, distance_grid.grid_index(distance, spacing), -1)
     n_bins = int(index.max()) + 1
+    checks.rows(n_bins, f"the {spacing:g} m distance grid of {distance[valid].max() / 1000:.3g} km",
+                "is speed_mps in m/s and time_s in s?")
     s_grid = np.arange(n_bins) * spacing
     out = pd.DataFrame({"distance_m": s_grid})
 
