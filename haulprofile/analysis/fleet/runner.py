@@ -5,6 +5,7 @@ the same result whichever runs them."""
 from __future__ import annotations
 
 import os
+import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -188,7 +189,7 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
         if not group.logs:
             raise FleetError(f"{group.log_dir}: no logs outside the output directory {out_dir}")
     flat = [(group, log) for group in spec.groups for log in group.logs]
-    repeated = repeated_content([log for _, log in flat], say)
+    repeated = repeated_content([log for _, log in flat], lambda line: print(f"fleet: {line}", file=sys.stderr))
     for group in spec.groups:
         group.logs = [log for i, (owner, log) in enumerate(flat) if owner is group and i not in repeated]
     tasks = [LogTask(log, group.name, group.vehicle, log_out_dir(out_dir, group, log), spec.dem_dir, spec.options,
