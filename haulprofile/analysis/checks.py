@@ -108,8 +108,8 @@ def rate_hz(value: float, option: str = "--rate-hz") -> float:
 def rows(n_rows: float, what: str, hint: str) -> None:
     """Refuse a table of more than `MAX_ROWS` rows before allocating it."""
     if not n_rows <= MAX_ROWS:
-        raise UserError(f"{what} would need {n_rows:.3g} rows (more than {MAX_ROWS:,}, ~{MAX_ROWS * 30 * 8 / 1e9:.0f} GB); "
-                        f"{hint}")
+        raise UserError(f"{what} would need {n_rows:.3g} rows (more than {MAX_ROWS:,}, "
+                        f"~{MAX_ROWS * 30 * 8 / 1e9:.0f} GB); {hint}")
 
 
 def cycle_duration_s(value: float, option: str = "--cycle-duration") -> float:

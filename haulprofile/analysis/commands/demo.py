@@ -19,7 +19,8 @@ from ..virtual_truck import drive, load_scenario, scenario_vehicle, write_dem, w
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--out", type=Path, default=Path("demo-out"), help="output directory (default demo-out)")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("demo-out"),
+                        help="output directory (default demo-out)")
     parser.add_argument("--scenario", default="regional-tunnel",
                         help="shipped scenario name (urban-delivery, regional-tunnel, long-haul) or a TOML file")
     parser.add_argument("--seed", type=int, default=0, help="seed of the virtual world and its sensor noise")

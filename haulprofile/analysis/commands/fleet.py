@@ -34,7 +34,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--candidates", type=int, default=100_000,
                         help="Monte Carlo candidates per group (100000, as analyze run)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
-    parser.add_argument("--rate-hz", "--rate", dest="rate_hz", type=float, default=10.0, help="rate of the signals tables (10 Hz)")
+    parser.add_argument("--rate-hz", "--rate", dest="rate_hz", type=float, default=10.0,
+                        help="rate of the signals tables (10 Hz)")
     parser.add_argument("--no-figures", action="store_true",
                         help="skip each log's gradient and mass figures (some 30 %% of the time per log)")
     output = parser.add_mutually_exclusive_group()

@@ -15,7 +15,8 @@ from ..pipeline import RunContext, available_stages, load_inputs
 def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles or GeoTIFFs (else barometer only)")
-    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("gradient-out"), help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("gradient-out"),
+                        help="output directory")
     parser.add_argument("--spacing", type=float, default=10.0, help="distance grid spacing [m] (default 10)")
     parser.add_argument("--no-figure", action="store_true", help="skip the figure")
 

@@ -19,7 +19,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
     parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles or GeoTIFFs (for the gradient)")
-    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("mass-out"), help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("mass-out"),
+                        help="output directory")
     parser.add_argument("--true-mass", type=float, nargs="+", metavar="KG",
                         help="the real total mass [kg], if weighed, for the figure: one value, or one per segment")
     parser.add_argument("--forgetting-factor", type=float, default=0.9985, help="lambda of RLS and LM (default 0.9985)")

@@ -23,9 +23,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles (or GeoTIFFs)")
     parser.add_argument("-o", "--out", "--output", dest="out", type=Path, required=True, help="output directory")
-    parser.add_argument("--rate-hz", "--rate", dest="rate_hz", type=float, default=10.0, help="rate of the signals table (10 Hz)")
+    parser.add_argument("--rate-hz", "--rate", dest="rate_hz", type=float, default=10.0,
+                        help="rate of the signals table (10 Hz)")
     parser.add_argument("--dbc", type=Path, help="a DBC file whose signals are decoded as further columns")
-    parser.add_argument("--cycle-duration", "--duration", dest="cycle_duration", type=float, default=1800.0, help="generated cycle length [s] (1800)")
+    parser.add_argument("--cycle-duration", "--duration", dest="cycle_duration", type=float, default=1800.0,
+                        help="generated cycle length [s] (1800)")
     parser.add_argument("--candidates", type=int, default=100_000, help="Monte Carlo candidates (100000, about 2-3 s)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
     parser.add_argument("--payload-kg", type=float, help="payload of the simulated electric truck [kg]")

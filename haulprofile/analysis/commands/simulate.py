@@ -23,7 +23,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--obc-power-w", default="0",
                         help="on-board charger power into the battery [W]: a number or a CSV with time_s, power_w")
     parser.add_argument("--time-step-s", type=float, default=0.1, help="integration step [s] (default 0.1)")
-    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("simulation-out"), help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("simulation-out"),
+                        help="output directory")
 
 
 def power_input(text: str | None, name: str):
@@ -43,7 +44,8 @@ def power_input(text: str | None, name: str):
         raise UserError(f"{name} {path}: not a readable CSV table ({type(exc).__name__})") from None
     columns = {"time_s", "power_w"}
     if not columns <= set(table.columns) or not all(pd.api.types.is_numeric_dtype(table[c]) for c in columns):
-        raise UserError(f"{name} {path}: needs numeric columns time_s and power_w, has {', '.join(map(str, table.columns))}")
+        raise UserError(f"{name} {path}: needs numeric columns time_s and power_w, "
+                        f"has {', '.join(map(str, table.columns))}")
     return table
 
 

@@ -14,7 +14,7 @@ from ..errors import UserError
 
 MIN_HEIGHT_M = -500.0
 MAX_HEIGHT_M = 9000.0
-MAX_OUTSIDE_SHARE = 0.001
+MAX_OUTSIDE_SHARE = 0.05
 """Share of samples outside the range above which the grid is not a DEM [-]."""
 MAX_MEDIAN_STEP_M = 100.0
 """Median height difference between neighbouring samples above which the grid is noise [m]."""
