@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from haulprofile.analysis import cli
-from haulprofile.analysis.ingest import synthetic
+from haulprofile.testing import logs as synthetic
 
 
 def run_cli(capsys, *argv):
@@ -191,14 +191,14 @@ def test_stages_check_their_sizes_before_allocating():
     """Behind the validator, the stages that allocate by time or distance refuse absurd sizes themselves."""
     from haulprofile.analysis.errors import UserError
     from haulprofile.analysis.gradient import GradientSettings, estimate_gradient
-    from haulprofile.analysis.simulate import simulate
+    from haulprofile.analysis.simulate import simulate_cycle
     from haulprofile.analysis.simulate.cycle import time_cycle
     from haulprofile.analysis.vehicle import load_vehicle
 
     vehicle = load_vehicle("rigid-18t")
     far = pd.DataFrame({"time_s": [0.0, 1e13], "speed_mps": [10.0, 10.0]})
     with pytest.raises(UserError, match="rows"):
-        simulate(time_cycle(far, 20_000.0), vehicle)
+        simulate_cycle(time_cycle(far, 20_000.0), vehicle)
     with pytest.raises(UserError, match="distance grid"):
         estimate_gradient(far.assign(distance_m=[0.0, 1e12], pressure_pa=[95_000.0, 95_000.0]), None,
                           GradientSettings())

@@ -8,7 +8,8 @@ import textwrap
 import numpy as np
 import pytest
 
-from haulprofile.analysis.ingest import align, ingest_logs, synthetic
+from haulprofile.analysis.ingest import align, ingest_logs
+from haulprofile.testing import logs as synthetic
 
 DAY_NS = 86_400 * 10**9
 

@@ -7,7 +7,8 @@ import pandas as pd
 import pytest
 
 from haulprofile.analysis import cli
-from haulprofile.analysis.ingest import ingest_logs, synthetic
+from haulprofile.analysis.ingest import ingest_logs
+from haulprofile.testing import logs as synthetic
 from haulprofile.analysis.signals import SignalsError, validate
 
 

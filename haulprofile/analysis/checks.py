@@ -86,14 +86,22 @@ def output_file(path: str | Path, inputs=(), suffixes: set[str] | None = None, o
     return path
 
 
-def output_dir(path: str | Path, inputs=(), option: str = "--out") -> Path:
-    """Where a command writes its files: a directory (or one to create), writable, not an input."""
+def output_dir(path: str | Path, inputs=(), option: str = "--out", names=()) -> Path:
+    """Where a command writes its files: a directory (or one to create), writable, not an input;
+    none of ``names`` (what the command writes into it) may be an input or an existing log."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise UserError(f"{option} {path} is an existing file; give a directory")
-    for source in inputs or []:
-        if _same(path, Path(source)) and not Path(source).is_dir():
+    sources = _input_files(inputs)
+    for source in sources:
+        if _same(path, source):
             raise UserError(f"{option} {path} is one of the inputs; give a directory")
+    for name in names:
+        target = path / name
+        if any(_same(target, source) for source in sources):
+            raise UserError(f"{target} is an input of this run; it is never written over, give another output")
+        if is_log(target):
+            raise UserError(f"{target} is an existing log; it is never written over, give another output")
     _writable_dir(path, option)
     return path
 

@@ -127,7 +127,19 @@ def missing_for(frame: pd.DataFrame, needed: list[str]) -> list[str]:
 
 
 def read_signals(path: str | Path) -> pd.DataFrame:
-    """Read a signals table from CSV or Parquet and validate it."""
+    """Read a signals table from CSV or Parquet and validate it.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.csv``, ``.parquet`` or ``.pq`` with at least ``time_s`` [s] and ``speed_mps`` [m/s].
+
+    Returns
+    -------
+    DataFrame
+        One row per sample in SI units (`COLUMNS`), sorted by ``time_s``; `SignalsError` (one
+        line) for a missing column, a non-numeric column or missing time stamps.
+    """
     path = Path(path)
     if not path.is_file():
         raise SignalsError(f"signals table {path} not found")
@@ -142,7 +154,20 @@ def read_signals(path: str | Path) -> pd.DataFrame:
 
 
 def write_signals(frame: pd.DataFrame, path: str | Path) -> Path:
-    """Write a signals table; the suffix (.csv, or .parquet/.pq) chooses the format, any other is refused."""
+    """Write a signals table; the suffix (.csv, or .parquet/.pq) chooses the format, any other is refused.
+
+    Parameters
+    ----------
+    frame : DataFrame
+        A signals table (SI columns, `COLUMNS`).
+    path : str or Path
+        Where; its folder is made.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     if path.suffix.lower() not in SIGNALS_SUFFIXES:
         raise SignalsError(f"{path}: a signals table ends in {', '.join(sorted(SIGNALS_SUFFIXES))}, "

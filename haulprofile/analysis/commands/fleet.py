@@ -12,8 +12,10 @@ import json
 import sys
 from pathlib import Path
 
-from .. import checks, json_out
+from .. import checks, jsonable
 from ..fleet import FleetSpec, run_fleet
+from ..ingest.stage import IngestOptions
+from ..pipeline import Options
 from ..vehicle import load_vehicle
 
 EXIT_INCOMPLETE = 3
@@ -49,7 +51,8 @@ def run(args) -> int:
     checks.cycle_duration_s(args.cycle_duration)
     vehicles = [load_vehicle(v) for v in args.vehicle]
     spec = FleetSpec.of(args.log_dirs, vehicles, dem_dir=args.dem, duration_s=args.cycle_duration,
-                        n_candidates=args.candidates, seed=args.seed, options={"ingest": {"rate_hz": args.rate_hz}},
+                        n_candidates=args.candidates, seed=args.seed,
+                        options=Options(ingest=IngestOptions(rate_hz=args.rate_hz)),
                         figures=not args.no_figures)
     quiet = args.quiet or args.json
     fleet = run_fleet(spec, args.out, workers=args.workers, scheduler=args.scheduler,
@@ -64,7 +67,7 @@ def run(args) -> int:
             problems.append(f"{group.name}: no valid cycle: {group.selection['statement']} (try more --candidates "
                             f"or a longer --cycle-duration)")
     if args.json:
-        print(json_out.dumps(json.loads((args.out / "fleet-summary.json").read_text())))
+        print(jsonable.dumps(json.loads((args.out / "fleet-summary.json").read_text())))
     for problem in problems:
         print(f"analyze fleet: warning: {problem}", file=sys.stderr)
     return EXIT_INCOMPLETE if problems else 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .. import json_out
+from .. import jsonable
 from ..ingest import ingest_logs
 
 
@@ -19,7 +19,7 @@ def run(args) -> int:
     _, summary = ingest_logs(args.inputs, dbc=args.dbc, progress=sys.stderr.isatty(),
                              say=lambda msg: print(msg, file=sys.stderr))
     if args.json:
-        print(json_out.dumps(summary, indent=2))
+        print(jsonable.dumps(summary, indent=2))
         return 0
     print("\n".join(describe(summary)))
     return 0

@@ -10,9 +10,12 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .. import checks, json_out
+from .. import checks, jsonable
 from ..errors import UserError
-from ..pipeline import RunContext, run as run_pipeline
+from ..ingest.stage import IngestOptions
+from ..markov.stage import CycleOptions
+from ..pipeline import Options, RunContext, run as run_pipeline
+from ..simulate.stage import SimulateOptions
 from ..vehicle import load_vehicle
 
 EXIT_UNTRUSTWORTHY_RESULT = 3
@@ -37,14 +40,10 @@ def add_arguments(parser) -> None:
     output.add_argument("--json", action="store_true", help="print the summary as JSON on stdout, nothing else")
 
 
-def options_from(args) -> dict:
-    options = {"ingest": {"rate_hz": args.rate_hz}, "cycle": {"duration_s": args.cycle_duration,
-                                                              "n_candidates": args.candidates, "seed": args.seed}}
-    if args.dbc is not None:
-        options["ingest"]["dbc"] = str(args.dbc)
-    if args.payload_kg is not None:
-        options["simulate"] = {"payload_kg": args.payload_kg}
-    return options
+def options_from(args) -> Options:
+    return Options(ingest=IngestOptions(rate_hz=args.rate_hz, dbc=args.dbc),
+                   cycle=CycleOptions(duration_s=args.cycle_duration, n_candidates=args.candidates, seed=args.seed),
+                   simulate=SimulateOptions(payload_kg=args.payload_kg))
 
 
 def verdict(summary: dict) -> str | None:
@@ -63,7 +62,6 @@ def verdict(summary: dict) -> str | None:
 
 def check_arguments(args) -> None:
     """Every value of ``analyze run`` that can be checked before reading anything."""
-    checks.output_dir(args.out, args.inputs)
     checks.rate_hz(args.rate_hz)
     checks.cycle_duration_s(args.cycle_duration)
     if args.candidates < 1:
@@ -80,7 +78,7 @@ def run(args) -> int:
     run_pipeline(ctx, cache=not args.no_cache, progress=not quiet and sys.stderr.isatty())
     problem = verdict(ctx.summary)
     if args.json:
-        print(json_out.dumps(ctx.summary))
+        print(jsonable.dumps(ctx.summary))
     else:
         ctx.say(f"wrote {args.out / 'report.html'}, {args.out / 'signals.parquet'} and {args.out / 'summary.json'}")
     if problem:

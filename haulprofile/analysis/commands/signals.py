@@ -7,7 +7,6 @@ from pathlib import Path
 
 from .. import checks
 from .. import signals as signals_table
-from ..ingest import ingest_logs
 
 
 def add_arguments(parser) -> None:
@@ -22,12 +21,17 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from ..ingest.stage import IngestOptions
+    from ..pipeline import Options, RunContext, run as run_pipeline
+
     checks.output_file(args.out, args.inputs, signals_table.SIGNALS_SUFFIXES, what="signals table")
     checks.rate_hz(args.rate_hz)
     say = (lambda _msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    frame, summary = ingest_logs(args.inputs, rate_hz=args.rate_hz, dbc=args.dbc,
-                                 progress=not args.quiet and sys.stderr.isatty(), say=say)
-    path = signals_table.write_signals(frame, args.out)
-    say(f"wrote {path}: {len(frame)} rows at {args.rate_hz:g} Hz, {summary.get('valid_fraction', 1.0):.0%} valid, "
+    options = IngestOptions(rate_hz=args.rate_hz, dbc=args.dbc, progress=not args.quiet and sys.stderr.isatty())
+    ctx = RunContext(inputs=list(args.inputs), out_dir=args.out.parent, options=Options(ingest=options),
+                     signals_name=args.out.name, say=say)
+    ctx = run_pipeline(ctx, until="ingest")
+    frame, summary = ctx.signals, ctx.summary.get("ingest", {})
+    say(f"wrote {args.out}: {len(frame)} rows at {args.rate_hz:g} Hz, {summary.get('valid_fraction', 1.0):.0%} valid, "
         f"columns {', '.join(c for c in frame.columns if c not in ('time_s', 'valid'))}")
     return 0
