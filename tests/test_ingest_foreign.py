@@ -124,3 +124,23 @@ def test_unreadable_foreign_log_is_a_one_line_error(tmp_path, name):
     with pytest.raises(UserError) as raised:
         ingest_logs([path])
     assert "\n" not in str(raised.value) and name in str(raised.value)
+
+
+def test_a_cut_mf4_gives_one_line_and_no_traceback_from_asammdf(tmp_path):
+    """asammdf's half-built reader complains from ``__del__`` after the clean error; it must not reach the user."""
+    import subprocess
+    import sys
+
+    asammdf = pytest.importorskip("asammdf")
+    t = np.arange(20000) * 0.01
+    mdf = asammdf.MDF(version="4.10")
+    mdf.append([asammdf.Signal(np.arange(20000, dtype=np.uint32), t, name="CAN_DataFrame.ID"),
+                asammdf.Signal(np.full(20000, 8, np.uint8), t, name="CAN_DataFrame.DLC")])
+    mdf.save(tmp_path / "full.mf4", overwrite=True)
+    mdf.close()
+    whole = (tmp_path / "full.mf4").read_bytes()
+    (tmp_path / "cut.mf4").write_bytes(whole[:len(whole) // 2])
+    result = subprocess.run([sys.executable, "-m", "haulprofile.analysis.cli", "info", str(tmp_path / "cut.mf4")],
+                            capture_output=True, text=True)
+    assert result.returncode == 2
+    assert len(result.stderr.strip().splitlines()) == 1 and "cut.mf4" in result.stderr, result.stderr

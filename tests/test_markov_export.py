@@ -145,7 +145,7 @@ def test_analyze_cycle_command(drive, tmp_path, capsys):
             "--mass-class-kg", "100", "--quiet"]
     code = cli.main(argv)
     summary = json.loads((out / "cycle.json").read_text())
-    assert code == (0 if summary["valid"] else 1)
+    assert code == (0 if summary["valid"] else 3)
     first = pd.read_csv(out / "cycle.csv")
     assert len(first) == 901
     cli.main(argv)

@@ -130,3 +130,47 @@ def test_no_valid_cycle(demo_inputs, tmp_path, capsys):
                            "--out", tmp_path / "o", "--quiet", "--candidates", "1", "--cycle-duration", "60")
     line = one_line_error(err)
     assert code == 3 and "no valid cycle" in line and "--candidates" in line
+
+
+def _strict(text):
+    def refuse(constant):
+        raise ValueError(f"bare {constant} in JSON")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def _key_paths(value, prefix=""):
+    """Every leaf of a summary as ``a.b``, list elements as ``a[]``."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            yield from _key_paths(item, f"{prefix}.{key}" if prefix else key)
+    elif isinstance(value, list) and value and all(isinstance(item, dict) for item in value):
+        for item in value:
+            yield from _key_paths(item, prefix + "[]")
+    else:
+        yield prefix
+
+
+def _documented_patterns():
+    import re
+    from pathlib import Path
+
+    doc = (Path(__file__).parents[1] / "docs" / "summary-json.md").read_text()
+    keys = re.findall(r"^\| `([^`]+)` \|", doc, flags=re.M)
+    return [re.compile("^" + re.escape(k).replace(r"\*", ".+") + "$") for k in keys]
+
+
+def test_summary_json_is_strict_versioned_and_every_key_documented(first_run):
+    _, out = first_run
+    summary = _strict((out / "summary.json").read_text())
+    assert summary["schema_version"] == 1
+    patterns = _documented_patterns()
+    undocumented = sorted({p for p in _key_paths(summary) if not any(r.match(p) for r in patterns)})
+    assert not undocumented, f"keys missing from docs/summary-json.md: {undocumented}"
+
+
+def test_json_on_stdout_is_strict(demo_inputs, first_run, capsys):
+    _, out = first_run
+    code, stdout, _ = run_cli(capsys, "run", demo_inputs / "logs", "--vehicle", "rigid-18t", "--dem",
+                              demo_inputs / "dem", "--out", out, "--candidates", "1000", "--json")
+    assert code in (0, 3) and _strict(stdout)["schema_version"] == 1

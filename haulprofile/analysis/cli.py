@@ -5,6 +5,7 @@ whose module is not in this installation is not listed."""
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import importlib.util
 import sys
@@ -26,6 +27,38 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+HIDDEN_ALIASES = frozenset({"--output", "--rate", "--duration"})
+"""Old spellings still accepted (``--rate`` for ``--rate-hz``, ``--output`` for ``--out``, ``--duration``
+for ``--cycle-duration``) but not shown in ``--help``."""
+ENVIRONMENT_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOSPC, errno.EDQUOT, errno.ENOTDIR,
+                      errno.EISDIR, errno.EEXIST, errno.ENAMETOOLONG}
+"""File-system refusals (read-only, full, a file where a directory should be): the user's to fix, exit 2."""
+
+
+class _HelpFormatter(argparse.HelpFormatter):
+    """Help that lists each option under its current names only."""
+
+    def _format_action_invocation(self, action):
+        shown = [s for s in action.option_strings if s not in HIDDEN_ALIASES]
+        if not action.option_strings or shown == action.option_strings:
+            return super()._format_action_invocation(action)
+        hidden = action.option_strings
+        action.option_strings = shown
+        try:
+            return super()._format_action_invocation(action)
+        finally:
+            action.option_strings = hidden
+
+
+def version() -> str:
+    from importlib.metadata import PackageNotFoundError, version as package_version
+
+    try:
+        return package_version("haulprofile")
+    except PackageNotFoundError:
+        return "unknown"
+
+
 def available_commands() -> dict[str, tuple[str, str]]:
     return {name: spec for name, spec in COMMANDS.items() if importlib.util.find_spec(spec[0]) is not None}
 
@@ -34,6 +67,7 @@ def build_parser(commands: dict[str, tuple[str, str]]) -> argparse.ArgumentParse
     parser = argparse.ArgumentParser(
         prog="analyze", description="haulprofile analysis: truck logs to load profiles.")
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
+    parser.add_argument("--version", action="version", version=f"analyze (haulprofile) {version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (_, help_text) in commands.items():
         sub.add_parser(name, help=help_text, add_help=False)
@@ -49,7 +83,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     module = importlib.import_module(commands[known.command][0])
-    sub = argparse.ArgumentParser(prog=f"analyze {known.command}", description=commands[known.command][1])
+    sub = argparse.ArgumentParser(prog=f"analyze {known.command}", description=commands[known.command][1],
+                                  formatter_class=_HelpFormatter)
     module.add_arguments(sub)
     args = sub.parse_args(rest)
     args.debug = known.debug
@@ -60,15 +95,25 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"analyze {known.command}: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except OSError as exc:
+        if not known.debug and exc.errno in ENVIRONMENT_ERRNOS:
+            where = f"{exc.filename}: " if exc.filename else ""
+            print(f"analyze {known.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+            return 2
+        return _internal_error(exc, known)
     except KeyboardInterrupt:
         print("analyze: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # a bug, not the user's input: one line, the traceback on --debug
-        if known.debug:
-            raise
-        print(f"analyze {known.command}: internal error: {type(exc).__name__}: {exc} "
-              f"(rerun with 'analyze --debug {known.command} ...' and report it)", file=sys.stderr)
-        return 1
+        return _internal_error(exc, known)
+
+
+def _internal_error(exc: Exception, known) -> int:
+    if known.debug:
+        raise exc
+    print(f"analyze {known.command}: internal error: {type(exc).__name__}: {exc} "
+          f"(rerun with 'analyze --debug {known.command} ...' and report it)", file=sys.stderr)
+    return 1
 
 
 if __name__ == "__main__":

@@ -11,14 +11,15 @@ the new summary.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
 import tempfile
 from pathlib import Path
 
+from . import checks, jsonable
 from .errors import UserError
-from .jsonable import jsonable
 
 SUMMARY = "summary.json"
 RUN_FILES = ("gradient.csv", "gradient.png", "mass.png", "cycle.csv", "cycle.parquet", "cycle.vdri", "cycle.png",
@@ -82,7 +83,7 @@ def _stage_files(ctx, staging: Path, full: bool) -> None:
     for name, content in ctx.json_files.items():
         value = content(ctx)
         if value is not None:
-            (staging / name).write_text(json.dumps(value, indent=2, default=jsonable))
+            (staging / name).write_text(jsonable.dumps(value, indent=2))
     from .signals import write_signals
 
     if ctx.signals_name is not None and ctx.signals is not None:
@@ -94,7 +95,7 @@ def _stage_files(ctx, staging: Path, full: bool) -> None:
         summary["report"] = write_report(ctx.signals, summary, staging, ctx.vehicle)
         ctx.say(f"report: {ctx.out_dir / summary['report']}")
         write_signals(ctx.signals, staging / "signals.parquet")
-        (staging / SUMMARY).write_text(json.dumps(summary, indent=2, default=jsonable))
+        (staging / SUMMARY).write_text(jsonable.dumps(summary, indent=2))
 
 
 def _remove(path: Path) -> None:
@@ -104,12 +105,26 @@ def _remove(path: Path) -> None:
         path.unlink()
 
 
+def _files_read(ctx) -> list[Path]:
+    """The run's inputs and the files its stage options name (a DBC, a cycle to simulate or compare)."""
+    named = [getattr(table, f.name) for table in (getattr(ctx.options, t.name) for t in dataclasses.fields(ctx.options))
+             for f in dataclasses.fields(table)]
+    return list(ctx.inputs) + [value for value in named if isinstance(value, Path)]
+
+
+def check(ctx) -> None:
+    """Before any stage runs: the output directory can be written and nothing this run may write
+    there is one of its inputs or an existing log (`checks.output_dir`)."""
+    names = {*RUN_FILES, SUMMARY, *ctx.json_files, *(n for n in ctx.subdirs.values() if n)}
+    if ctx.signals_name is not None:
+        names.add(ctx.signals_name)
+    checks.output_dir(ctx.out_dir, _files_read(ctx), names=sorted(names))
+
+
 def write_outputs(ctx, full: bool) -> list[Path]:
     """Write the files of the stages that ran (and, for a ``full`` run, the report, signals table and
     summary) into ``ctx.out_dir``; returns the paths written, the summary last."""
     out = ctx.out_dir
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} is a file, not a directory")
     try:
         out.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=".partial-", dir=out))
@@ -120,10 +135,6 @@ def write_outputs(ctx, full: bool) -> list[Path]:
         names = sorted(p.name for p in staging.iterdir())
         if not names:
             return []
-        inputs = {p.resolve() for p in ctx.inputs if p.is_file()}
-        for name in names:
-            if (out / name).resolve() in inputs:
-                raise UserError(f"{out / name} is an input of this run; give another output")
         if full or set(names) & set(RUN_FILES):
             (out / SUMMARY).unlink(missing_ok=True)  # the folder no longer holds one finished run
         if full:

@@ -29,7 +29,7 @@ from .markov.stage import CycleOptions, CycleResult, cycle_stage
 from .mass import MassResult
 from .mass.stage import MassOptions, mass_stage
 from .options import options_of
-from .outputs import write_outputs
+from .outputs import check as check_outputs, write_outputs
 from .simulate.model import SimulationResult
 from .simulate.stage import SimulateOptions, simulate_stage
 from .stage_cache import StageCache
@@ -151,8 +151,7 @@ def load_inputs(ctx: RunContext) -> None:
         if not path.exists():
             raise UserError(f"input {path} not found")
     if tables:
-        frames = [signals_table.read_signals(p) for p in tables]
-        ctx.signals = signals_table.validate(pd.concat(frames, ignore_index=True), ", ".join(map(str, tables)))
+        ctx.signals = signals_table.combine(tables, ctx.say)
 
 
 def stage_names() -> list[str]:
@@ -193,6 +192,7 @@ def run(ctx: RunContext, until: str | None = None, start: str | None = None, cac
     RunContext
         ``ctx``, with ``signals``, ``results``, ``summary`` and ``skipped`` filled in.
     """
+    check_outputs(ctx)
     load_inputs(ctx)
     ctx.summary.setdefault("stages", [])
     last = _index(until) if until is not None else len(STAGES)

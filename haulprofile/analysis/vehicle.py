@@ -188,7 +188,11 @@ def load_vehicle(path_or_name: str | Path) -> Vehicle:
         if not path.is_file():
             raise VehicleFileError(
                 f"vehicle file {path} not found (give a TOML file or one of: {', '.join(EXAMPLES)})")
-        text, source = path.read_text(), str(path)
+        try:
+            text, source = path.read_text(encoding="utf-8"), str(path)
+        except UnicodeDecodeError as exc:
+            raise VehicleFileError(f"{path}: not UTF-8 text (invalid byte at offset {exc.start}); a vehicle file "
+                                   f"is TOML, saved as UTF-8") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

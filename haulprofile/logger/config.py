@@ -152,6 +152,9 @@ _POSITIVE = {"logger.queue_size", "logger.time_scale", "storage.rotate_size_mb",
              "can.obd.timeout_s", "can.obd.probe_interval_s", "can.obd.failed_rounds_before_probe",
              "can.j1939.request_interval_s", "i2c.lps25hb.odr_hz", "i2c.hts221.odr_hz", "i2c.lsm9ds1.odr_hz",
              "i2c.lsm9ds1.mag_odr_hz", "gps.baudrate", "gps.rate_hz", "can.bitrate"}
+_NON_NEGATIVE = {"storage.min_free_mb"}
+I2C_ADDRESSES = range(0x08, 0x78)
+"""7-bit I2C addresses a device may have (0x00-0x07 and 0x78-0x7F are reserved)."""
 
 
 def _build(cls, data: dict, prefix: str):
@@ -169,6 +172,8 @@ def _build(cls, data: dict, prefix: str):
             raise ConfigError(f"config: {key} must be one of {', '.join(_CHOICES[key])}, got {value!r}")
         if key in _POSITIVE and not value > 0:
             raise ConfigError(f"config: {key} must be > 0, got {value!r}")
+        if key in _NON_NEGATIVE and not value >= 0:
+            raise ConfigError(f"config: {key} must be 0 or more, got {value!r}")
         return value
 
     return cls(**table_kwargs(cls, data, "config", check, ConfigError,
@@ -209,6 +214,12 @@ def _check(config: Config) -> None:
         raise ConfigError("config: i2c.lsm9ds1.mag_odr_hz must be one of 0.625, 1.25, 2.5, 5, 10, 20, 40, 80")
     if config.i2c.hts221.odr_hz not in (1.0, 7.0, 12.5):
         raise ConfigError("config: i2c.hts221.odr_hz must be 1, 7 or 12.5")
+    for key, address in (("i2c.lps25hb.address", config.i2c.lps25hb.address),
+                         ("i2c.hts221.address", config.i2c.hts221.address),
+                         ("i2c.lsm9ds1.address_ag", config.i2c.lsm9ds1.address_ag),
+                         ("i2c.lsm9ds1.address_m", config.i2c.lsm9ds1.address_m)):
+        if address not in I2C_ADDRESSES:
+            raise ConfigError(f"config: {key} must be a 7-bit I2C address 0x08 to 0x77, got {address:#x}")
     if config.logger.time_scale != 1.0 and not config.emulation.enabled:
         raise ConfigError("config: logger.time_scale other than 1 needs [emulation] enabled = true")
 
@@ -228,11 +239,21 @@ def load(path: str | Path) -> Config:
     """Read and check a configuration file; raises `ConfigError` with a one-line message."""
     path = Path(path)
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as exc:
         raise ConfigError(f"config: cannot read {path}: {exc.strerror}") from None
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise ConfigError(f"config: {path} is saved as UTF-16; save it as UTF-8 (TOML is UTF-8)")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"config: {path} is not UTF-8 text (invalid byte at offset {exc.start}); "
+                          f"TOML is UTF-8") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"config: {path} is not valid TOML: {exc}") from None
+    if not data:
+        raise ConfigError(f"config: {path} sets nothing; start from {example_path()} and set at least "
+                          f"[logger] directory")
     return from_dict(data)

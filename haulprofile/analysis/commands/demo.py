@@ -20,7 +20,8 @@ from ..virtual_truck import drive, load_scenario, realism_level, scenario_vehicl
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--out", type=Path, default=Path("demo-out"), help="output directory (default demo-out)")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("demo-out"),
+                        help="output directory (default demo-out)")
     parser.add_argument("--scenario", default="regional-tunnel",
                         help="shipped scenario name (urban-delivery, regional-tunnel, long-haul) or a TOML file")
     parser.add_argument("--seed", type=int, default=0, help="seed of the virtual world and its sensor noise")

@@ -7,13 +7,15 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import checks
 from ..errors import UserError
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles or GeoTIFFs (else barometer only)")
-    parser.add_argument("--out", type=Path, default=Path("gradient-out"), help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("gradient-out"),
+                        help="output directory")
     parser.add_argument("--spacing", type=float, default=10.0, help="distance grid spacing [m] (default 10)")
     parser.add_argument("--no-figure", action="store_true", help="skip the figure")
 
@@ -23,6 +25,7 @@ def run(args) -> int:
     from ..gradient.stage import GradientOptions
     from ..pipeline import Options, RunContext, run as run_pipeline
 
+    checks.positive(args.spacing, "--spacing", "m")
     options = Options(gradient=GradientOptions(GradientSettings(spacing_m=args.spacing), barometer_off_map=True))
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, dem_dir=args.dem, options=options,
                      figures=not args.no_figure)

@@ -16,7 +16,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
     parser.add_argument("--cycle", type=Path,
                         help="generated cycle CSV (time_s, speed_mps, accel_mps2, gradient_pct, mass_kg) to compare")
-    parser.add_argument("--out", type=Path, default=Path("loads-out"), help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("loads-out"),
+                        help="output directory")
 
 
 def run(args) -> int:

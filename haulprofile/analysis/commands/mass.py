@@ -3,19 +3,24 @@ beside the truck's own CAN estimate; a figure like the paper's Fig. 6."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 
+from .. import checks
 from ..errors import UserError
 from ..vehicle import load_vehicle
+
+EXIT_UNTRUSTWORTHY_RESULT = 3
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
     parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles or GeoTIFFs (for the gradient)")
-    parser.add_argument("--out", type=Path, default=Path("mass-out"), help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("mass-out"),
+                        help="output directory")
     parser.add_argument("--true-mass", type=float, nargs="+", metavar="KG",
                         help="the real total mass [kg], if weighed, for the figure: one value, or one per segment")
     parser.add_argument("--forgetting-factor", type=float, default=0.9985, help="lambda of RLS and LM (default 0.9985)")
@@ -46,6 +51,9 @@ def run(args) -> int:
     from ..mass.stage import MassOptions
     from ..pipeline import Options, RunContext, run as run_pipeline
 
+    checks.forgetting_factor(args.forgetting_factor)
+    for mass in args.true_mass or []:
+        checks.positive(mass, "--true-mass", "kg")
     options = Options(gradient=GradientOptions(keep_existing=True),
                       mass=MassOptions(segments=SegmentSettings(forgetting_factor=args.forgetting_factor),
                                        true_mass_kg=tuple(args.true_mass) if args.true_mass else None))
@@ -59,4 +67,7 @@ def run(args) -> int:
     print(f"wrote {args.out / 'mass.json'}")
     for name in ctx.summary["mass"]["files"]:
         print(f"wrote {args.out / name}")
+    if not any(s["status"] == "ok" for s in ctx.results.mass.segments):
+        print("analyze mass: warning: no segment has enough excitation for a confident mass", file=sys.stderr)
+        return EXIT_UNTRUSTWORTHY_RESULT
     return 0

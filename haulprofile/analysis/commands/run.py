@@ -7,12 +7,12 @@ not meet its criteria (no confident mass in any segment, or no valid cycle), sai
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
+from .. import checks, jsonable
+from ..errors import UserError
 from ..ingest.stage import IngestOptions
-from ..jsonable import jsonable
 from ..markov.stage import CycleOptions
 from ..pipeline import Options, RunContext, run as run_pipeline
 from ..simulate.stage import SimulateOptions
@@ -25,10 +25,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
     parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles (or GeoTIFFs)")
-    parser.add_argument("--out", type=Path, required=True, help="output directory")
-    parser.add_argument("--rate-hz", type=float, default=10.0, help="rate of the signals table (10 Hz)")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, required=True, help="output directory")
+    parser.add_argument("--rate-hz", "--rate", dest="rate_hz", type=float, default=10.0,
+                        help="rate of the signals table (10 Hz)")
     parser.add_argument("--dbc", type=Path, help="a DBC file whose signals are decoded as further columns")
-    parser.add_argument("--cycle-duration", type=float, default=1800.0, help="generated cycle length [s] (1800)")
+    parser.add_argument("--cycle-duration", "--duration", dest="cycle_duration", type=float, default=1800.0,
+                        help="generated cycle length [s] (1800)")
     parser.add_argument("--candidates", type=int, default=100_000, help="Monte Carlo candidates (100000, about 2-3 s)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
     parser.add_argument("--payload-kg", type=float, help="payload of the simulated electric truck [kg]")
@@ -46,7 +48,8 @@ def options_from(args) -> Options:
 
 def verdict(summary: dict) -> str | None:
     """One line when a result did not meet its criteria, else None."""
-    problems = []
+    problems = [f"no {what}: the {stage} stage was skipped (see its message)"
+                for stage, what in (("mass", "mass estimate"), ("cycle", "cycle")) if stage not in summary]
     segments = summary.get("mass", {}).get("segments")
     if segments is not None and not any(s["status"] == "ok" for s in segments):
         problems.append("no segment has enough excitation for a confident mass (see the report's mass chapter)")
@@ -57,14 +60,25 @@ def verdict(summary: dict) -> str | None:
     return "; ".join(problems) or None
 
 
+def check_arguments(args) -> None:
+    """Every value of ``analyze run`` that can be checked before reading anything."""
+    checks.rate_hz(args.rate_hz)
+    checks.cycle_duration_s(args.cycle_duration)
+    if args.candidates < 1:
+        raise UserError(f"--candidates must be at least 1, got {args.candidates}")
+    if args.payload_kg is not None:
+        checks.non_negative(args.payload_kg, "--payload-kg", "kg")
+
+
 def run(args) -> int:
+    check_arguments(args)
     quiet = args.quiet or args.json
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle),
                      dem_dir=args.dem, options=options_from(args), say=(lambda _msg: None) if quiet else print)
     run_pipeline(ctx, cache=not args.no_cache, progress=not quiet and sys.stderr.isatty())
     problem = verdict(ctx.summary)
     if args.json:
-        print(json.dumps(ctx.summary, default=jsonable))
+        print(jsonable.dumps(ctx.summary))
     else:
         ctx.say(f"wrote {args.out / 'report.html'}, {args.out / 'signals.parquet'} and {args.out / 'summary.json'}")
     if problem:

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..dem import MissingTileError, open_dem
+from ..dem.plausible import ImplausibleDemError
 from ..errors import UserError
 from .estimate import GradientResult, GradientSettings, estimate_gradient
 from .figure import draw_sources
@@ -51,12 +52,12 @@ def gradient_stage(ctx) -> None:
     try:
         try:
             result = estimate_gradient(frame, dem, options.settings)
-        except MissingTileError as exc:
+        except (MissingTileError, ImplausibleDemError) as exc:
             if not options.barometer_off_map:
-                raise MissingTileError(f"{exc}; or run without --dem for barometric height only") from None
+                raise type(exc)(f"{exc}; or run without --dem for barometric height only") from None
             ctx.say(f"gradient: {exc}; using the barometer alone")
             result = estimate_gradient(frame, None, options.settings)
-    except MissingTileError:
+    except (MissingTileError, ImplausibleDemError):
         raise
     except UserError as exc:
         ctx.skip("gradient", str(exc))

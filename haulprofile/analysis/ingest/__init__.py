@@ -17,7 +17,9 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
+from .. import checks
 from .. import signals as signals_table
+from . import align
 from . import dbc as dbc_module
 from . import foreign
 from .columns import build_table
@@ -39,14 +41,16 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
                 say: Callable[[str], None] | None = None) -> tuple[pd.DataFrame, dict]:
     """Signals table [SI units, one row per 1/rate_hz s] and summary of logs or signals tables."""
     say = say or (lambda _msg: None)
+    checks.rate_hz(rate_hz)
     files = expand(paths)
     tables = [p for p in files if signals_table.is_signals_path(p)]
     if tables:
         if len(tables) != len(files):
             raise LogError("give either logs or signals tables, not both")
-        frame = pd.concat([signals_table.read_signals(p) for p in tables], ignore_index=True)
-        frame = signals_table.validate(frame, ", ".join(map(str, tables)))
-        return frame, {"inputs": [str(p) for p in tables], "rows": len(frame), "source": "signals table"}
+        frame = signals_table.combine(tables, say)
+        return frame, {"inputs": [str(p) for p in tables], "source": "signals table",
+                       **signals_table.describe(frame)}
+    files = checks.drop_same_content(files, say)
     mcap_files = [p for p in files if is_mcap(p)]
     other = [p for p in files if p not in mcap_files]
     kinds = {p: foreign.kind(p) for p in other}
@@ -75,6 +79,12 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
         raise LogError(f"{exc}" + (f" ({damage})" if damage else "")) from None
     warnings = [w for w in (r.warning() for r in timeline.reports) if w]
     warnings += [w for w in map(foreign.cut_short, other) if w]
+    shortened = summary["gaps_shortened"]
+    if shortened:
+        longest = max(g["removed_s"] for g in shortened)
+        warnings.append(f"{len(shortened)} silence(s) between recordings longer than {align.MAX_GAP_S:.0f} s "
+                        f"(longest {longest / 3600:.1f} h) shortened to {align.KEPT_GAP_S:.0f} s of gap rows each: "
+                        f"time_s counts recorded time, wall_time_ns keeps the real time")
     if "imu-scale" in ingest.notes:
         warnings.append("IMU channel metadata has no accel_scale_mps2_per_lsb: accel_x/y/z_mps2 left out")
     for line in warnings:

@@ -9,7 +9,9 @@ format knows it (epoch timestamps, MF4 start time).
 
 from __future__ import annotations
 
+import gc
 import logging
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -125,12 +127,9 @@ def read_mf4(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
 
 
 def _read_mf4(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
-    from asammdf import MDF
-
-    try:
-        mdf = MDF(str(path))
-    except Exception as exc:  # asammdf raises many types for unreadable files
-        raise ForeignLogError(f"{path}: cannot read as MF4 ({type(exc).__name__}: {exc})") from None
+    mdf, error = _open_mdf(path)
+    if error is not None:
+        raise ForeignLogError(f"{path}: cannot read as MF4 ({error})")
     try:
         parts, start_ns = _mf4_frames(mdf)
     except Exception as exc:  # noqa: BLE001 - asammdf raises many types on damaged files
@@ -169,6 +168,25 @@ def _cut_mf4_frames(path: Path) -> tuple[list[np.ndarray], int] | None:
             except Exception:  # noqa: BLE001,S112 - asammdf raises many types; the next end may read
                 continue
     return None
+
+
+def _open_mdf(path: Path):
+    """(MDF, None) or (None, the reason it cannot be read). asammdf leaves a half-built object whose
+    ``__del__`` raises on a cut file; it is collected here, its complaint silenced, so the user sees
+    only the one-line error."""
+    from asammdf import MDF
+
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda _unraisable: None
+    try:
+        try:
+            return MDF(str(path)), None
+        except Exception as exc:  # asammdf raises many types for unreadable files
+            error = f"{type(exc).__name__}: {exc}"
+        gc.collect()
+        return None, error
+    finally:
+        sys.unraisablehook = hook
 
 
 def _mf4_frames(mdf) -> tuple[list[np.ndarray], int]:

@@ -38,7 +38,7 @@ def ingest_stage(ctx) -> None:
                         "PID 0x0D nor GPS speed): log the vehicle's CAN bus, or give a signals table with speed_mps")
     ctx.signals = frame
     ctx.summary["ingest"] = summary
-    if "rate_hz" in summary:
+    if "can_frames" in summary:
         ctx.say(f"ingest: {summary['rows']} rows at {summary['rate_hz']:g} Hz, "
                 f"{summary['valid_fraction']:.0%} valid, {summary['can_frames']} CAN frames")
     else:

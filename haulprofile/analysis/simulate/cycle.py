@@ -111,7 +111,10 @@ def read_cycle(path: str | Path, vehicle: Vehicle, payload_kg: float | None = No
     if path.suffix.lower() not in SIGNALS_SUFFIXES:
         raise SimulationInputError(f"{path}: give a .vdri, or a .csv/.parquet with time_s and speed_mps")
     if path.suffix.lower() == ".csv":
-        header = pd.read_csv(path, nrows=0).columns
+        try:
+            header = pd.read_csv(path, nrows=0).columns
+        except (ValueError, UnicodeDecodeError) as exc:  # pandas' ParserError and EmptyDataError are ValueErrors
+            raise SimulationInputError(f"{path}: not a readable CSV table ({type(exc).__name__})") from None
         if all(h in header for h in ("<s>", "<v>", "<grad>", "<stop>")):
             return distance_cycle(read_vdri(path), mass, path.stem)
     frame = read_signals(path)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .. import road_load
+from .. import checks, road_load
 from ..vehicle import Vehicle
 from . import kernel as K
 from .cycle import SimCycle, SimulationInputError
@@ -122,7 +122,10 @@ def kernel_arguments(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, ept
     load_time, (aux, epto, obc) = _loads_on_one_grid(
         ep.auxiliary_power_w if aux_power_w is None else aux_power_w, epto_power_w, obc_power_w)
     f_roll, f_climb = cycle.road_forces_n(vehicle)
-    out = np.empty((_expected_steps(cycle, settings.time_step_s), K.N_COLUMNS))
+    steps = _expected_steps(cycle, settings.time_step_s)
+    checks.rows(steps, f"simulating {cycle.name} at {settings.time_step_s:g} s steps",
+                "is the cycle's time or distance in the right unit?")
+    out = np.empty((steps, K.N_COLUMNS))
     return (cycle.time_based, cycle.position, cycle.target_speed_mps, cycle.gradient_pct, f_roll, f_climb,
             cycle.mass_kg, cycle.stop_distance_m, cycle.stop_time_s, load_time, aux, epto, obc,
             p, ratios, map_speed, map_torque, map_eff, out)
