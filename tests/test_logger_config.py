@@ -7,7 +7,7 @@ import dataclasses
 import pytest
 
 from haulprofile.logger import config as cfg
-from haulprofile.logger.sources.can import allowed_tx_ids
+from haulprofile.logger.sources.can import allowed_tx_ids, transmit_warning
 
 
 def test_example_is_valid_and_matches_the_defaults():
@@ -51,4 +51,16 @@ def test_unreadable_and_invalid_files(tmp_path):
 def test_listen_only_empties_the_allow_list():
     config = cfg.from_dict({"can": {"listen_only": True}})
     assert allowed_tx_ids(config.can) == frozenset()
-    assert allowed_tx_ids(cfg.Config().can)
+    assert allowed_tx_ids(cfg.from_dict({"can": {"listen_only": False}}).can)
+
+
+def test_listen_only_is_the_default_everywhere():
+    """Defaults, the shipped example and a config without the key transmit nothing; transmitting
+    is said in one line at start."""
+    assert cfg.Config().can.listen_only is True
+    assert cfg.load(cfg.example_path()).can.listen_only is True
+    assert cfg.from_dict({"can": {"obd": {"enabled": True}}}).can.listen_only is True
+    assert transmit_warning(cfg.Config().can) is None
+    line = transmit_warning(cfg.from_dict({"can": {"listen_only": False}}).can)
+    assert line.startswith("TRANSMITTING on can0") and "OBD-II requests at 30 Hz" in line
+    assert "PGN 65251, 65258" in line and "\n" not in line

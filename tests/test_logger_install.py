@@ -71,3 +71,14 @@ def test_bad_arguments_are_one_line(args, message):
     result = run("--dry-run", *args)
     assert result.returncode == 2 and message in result.stderr and result.stderr.count("\n") == 1
     assert result.stdout == ""
+
+
+def test_listen_only_unless_transmit_is_asked_for():
+    network = (SCRIPT.parents[1] / "udev" / "80-haulprofile-can.network").read_text()
+    assert "\nListenOnly=yes\n" in network
+    quiet = run("--dry-run").stdout
+    assert "ListenOnly=no" not in quiet and "listen_only = false" not in quiet
+    loud = run("--dry-run", "--transmit")
+    assert loud.returncode == 0, loud.stderr
+    assert "s/^ListenOnly=.*/ListenOnly=no/" in loud.stdout
+    assert "s|^listen_only = true |listen_only = false|" in loud.stdout and "WARNING: --transmit" in loud.stdout

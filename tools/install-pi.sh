@@ -4,8 +4,12 @@
 # configuration and the systemd unit. Idempotent: run it again after `git pull` to update.
 # See docs/raspberry-pi.md.
 #
-#   sudo tools/install-pi.sh [--bitrate 250000|500000] [--mcp2515] [--no-start] [--dry-run]
+#   sudo tools/install-pi.sh [--bitrate 250000|500000] [--transmit] [--mcp2515] [--no-start] [--dry-run]
 #
+#   (default) listen-only: the CAN controller (networkd ListenOnly=yes) and the daemon
+#               (can.listen_only = true) put nothing on the truck's bus
+#   --transmit  let the logger send OBD-II requests and J1939 requests (ListenOnly=no,
+#               can.listen_only = false); only with the fleet's agreement for that truck
 #   --bitrate   CAN bitrate of can0: 250000 (J1939/FMS, heavy trucks; default) or 500000 (OBD-II)
 #   --mcp2515   enable the MCP2515 SPI CAN HAT overlay (16 MHz crystal, interrupt on GPIO 25);
 #               a reboot is needed afterwards
@@ -17,6 +21,7 @@ BITRATE=250000
 MCP2515=0
 START=1
 DRY_RUN=0
+TRANSMIT=0
 PREFIX=/opt/haulprofile
 CONFIG_DIR=/etc/haulprofile
 SERVICE_USER=haulprofile
@@ -31,9 +36,10 @@ while [[ $# -gt 0 ]]; do
         --bitrate) [[ $# -ge 2 ]] || die "--bitrate needs a value (250000 or 500000)"; BITRATE="$2"; shift 2 ;;
         --bitrate=*) BITRATE="${1#*=}"; shift ;;
         --mcp2515) MCP2515=1; shift ;;
+        --transmit) TRANSMIT=1; shift ;;
         --no-start) START=0; shift ;;
         --dry-run) DRY_RUN=1; shift ;;
-        -h|--help) sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) die "unknown option $1 (see --help)" ;;
     esac
 done
@@ -99,6 +105,9 @@ run install -m 0644 "$SOURCE/udev/80-haulprofile.rules" /etc/udev/rules.d/80-hau
 run install -d -m 0755 /etc/systemd/network
 run install -m 0644 "$SOURCE/udev/80-haulprofile-can.network" /etc/systemd/network/80-haulprofile-can.network
 run sed -i "s/^BitRate=.*/BitRate=$NETWORKD_BITRATE/" /etc/systemd/network/80-haulprofile-can.network
+if [[ $TRANSMIT -eq 1 ]]; then
+    run sed -i "s/^ListenOnly=.*/ListenOnly=no/" /etc/systemd/network/80-haulprofile-can.network
+fi
 run udevadm control --reload
 run udevadm trigger --subsystem-match=net --subsystem-match=tty --subsystem-match=i2c-dev
 run systemctl enable --now systemd-networkd
@@ -110,6 +119,10 @@ if [[ $DRY_RUN -eq 1 || ! -f "$CONFIG_DIR/logger.toml" ]]; then
     run install -m 0644 "$SOURCE/haulprofile/logger/logger.example.toml" "$CONFIG_DIR/logger.toml"
     run sed -i -e "s|^bitrate = [0-9]*|bitrate = $BITRATE|" \
         -e 's|^port = "/dev/ttyACM0"|port = "/dev/haulprofile-gps"|' "$CONFIG_DIR/logger.toml"
+    if [[ $TRANSMIT -eq 1 ]]; then
+        echo "   WARNING: --transmit: the logger will send OBD-II and J1939 requests on the truck's CAN bus"
+        run sed -i "s|^listen_only = true |listen_only = false|" "$CONFIG_DIR/logger.toml"
+    fi
 else
     echo "   $CONFIG_DIR/logger.toml exists: left as it is (set can.bitrate = $BITRATE there if it changed)"
 fi

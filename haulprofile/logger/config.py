@@ -69,7 +69,8 @@ class CanSection:
     interface: str = "socketcan"
     channel: str = "can0"
     bitrate: int = 250000
-    listen_only: bool = False
+    listen_only: bool = True
+    """Transmit nothing (the default): OBD-II polling and J1939 requests need ``listen_only = false``."""
     receive_interval_s: float = 0.02
     batch_interval_s: float = 0.2
     obd: ObdSection = field(default_factory=ObdSection)

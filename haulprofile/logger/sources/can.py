@@ -58,6 +58,21 @@ def allowed_tx_ids(section: CanSection) -> frozenset[int]:
     return frozenset(ids)
 
 
+def transmit_warning(section: CanSection) -> str | None:
+    """The one line said at start when the configuration lets the logger transmit (None if not)."""
+    if not allowed_tx_ids(section):
+        return None
+    what = []
+    if section.obd.enabled:
+        what.append(f"OBD-II requests at {section.obd.rate_hz:g} Hz ({section.obd.addressing}) with ISO-TP flow control")
+    if section.j1939.enabled and section.j1939.request_pgns:
+        what.append(f"J1939 requests for PGN {', '.join(map(str, section.j1939.request_pgns))} every "
+                    f"{section.j1939.request_interval_s:g} s from SA {section.j1939.source_address:#04x}")
+    if section.j1939.enabled and section.j1939.answer_rts:
+        what.append("J1939 CTS/ACK answers to RTS")
+    return f"TRANSMITTING on {section.channel} (listen_only = false): {'; '.join(what)}"
+
+
 class TxGuard:
     """The only way the logger transmits: checks the allow-list, logs what it sent."""
 
@@ -111,6 +126,8 @@ class CanSource(Source):
         self._offset_ns = clock.mono_offset_ns()
         self._thread: threading.Thread | None = None
         self.guard = TxGuard(self.bus, allowed_tx_ids(section), self._record_tx, self._say)
+        if (warning := transmit_warning(section)) is not None:
+            self.say(warning)
         sa = section.j1939.source_address
         self._tp_keys = {(j1939.PGN_TP_CM | sa), (j1939.PGN_TP_DT | sa)} if (
             section.j1939.enabled and section.j1939.answer_rts and not section.listen_only) else set()
