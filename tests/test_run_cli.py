@@ -48,6 +48,9 @@ def test_run_writes_every_output(first_run):
     assert summary["stages"][-1] == "report"
     for name in ("report.html", "cycle.csv", "cycle.vdri", "loads/comparison.csv", "simulation/summary.json"):
         assert (out / name).is_file(), name
+    for name in ("signals.parquet", "report.html", "summary.json", "simulation/summary.json"):  # positions, times
+        assert (out / name).stat().st_mode & 0o777 == 0o640, name
+    assert out.stat().st_mode & 0o777 == 0o750
 
 
 def test_rerun_with_one_changed_option_reruns_only_what_depends_on_it(first_run, demo_inputs, capsys):

@@ -93,9 +93,11 @@ def run(ctx: RunContext, until: str | None = None, cache: bool = False, progress
     options, vehicle and DEM it depends on (`DEPENDS_ON`) and the stages before it, so a rerun with one
     changed option reruns only the stages that depend on it.
     """
+    from haulprofile.private_files import make_dirs, restrict_tree, write_bytes
+
     from .stage_cache import StageCache
 
-    ctx.out_dir.mkdir(parents=True, exist_ok=True)
+    make_dirs(ctx.out_dir)
     load_inputs(ctx)
     ctx.summary.setdefault("stages", [])
     stages = available_stages()
@@ -126,7 +128,8 @@ def run(ctx: RunContext, until: str | None = None, cache: bool = False, progress
         raise UserError("no signals: the inputs are logs but no ingest stage is installed")
     if until is None:
         signals_table.write_signals(ctx.signals, ctx.out_dir / "signals.parquet")
-        (ctx.out_dir / "summary.json").write_text(json.dumps(ctx.summary, indent=2, default=jsonable))
+        write_bytes(ctx.out_dir / "summary.json", json.dumps(ctx.summary, indent=2, default=jsonable).encode())
+    restrict_tree(ctx.out_dir)
     return ctx
 
 

@@ -85,13 +85,16 @@ def read_signals(path: str | Path) -> pd.DataFrame:
 
 
 def write_signals(frame: pd.DataFrame, path: str | Path) -> Path:
-    """Write a signals table; the suffix (.csv or .parquet) chooses the format."""
+    """Write a signals table; the suffix (.csv or .parquet) chooses the format. Mode 0640 (it may
+    hold positions and times: `haulprofile.private_files`)."""
+    from haulprofile.private_files import make_dirs, open_new
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if path.suffix.lower() == ".csv":
-        frame.to_csv(path, index=False)
-    else:
-        frame.to_parquet(path, index=False)
+    make_dirs(path.parent)
+    with open_new(path, exclusive=False) as stream:
+        if path.suffix.lower() == ".csv":
+            frame.to_csv(stream, index=False)
+        else:
+            frame.to_parquet(stream, index=False)
     return path
 
 

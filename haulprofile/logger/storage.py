@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from haulprofile.contract.naming import log_files, log_name_parts
+from haulprofile.private_files import make_dirs, open_new, write_bytes
 
 from .writer import LogWriter
 
@@ -42,7 +43,7 @@ def next_sequence(directory: Path, prefix: str) -> int:
     sequence = max([last] + [log_name_parts(path)[1] for path in log_files(directory, prefix)]) + 1
     partial = marker.with_name(marker.name + ".partial")
     try:
-        partial.write_text(f"{sequence}\n")
+        write_bytes(partial, f"{sequence}\n".encode())
         os.replace(partial, marker)
     except OSError:
         pass  # a full disk: the names of the files still carry the order
@@ -96,7 +97,7 @@ class LogDirectory:
         self.options = options
         self._fsync = (fsync or True) if options.fsync else False
         self.directory = Path(options.directory)
-        self.directory.mkdir(parents=True, exist_ok=True)
+        make_dirs(self.directory)
         self.boot_id = boot_id()
         self.channel_metadata = channel_metadata or {}
         self.header_metadata = header_metadata or {}
@@ -122,7 +123,7 @@ class LogDirectory:
         """Start a new file (closing the current one with its summary)."""
         self.close()
         self.path = self._next_path()
-        self._stream = open(self.path, "xb")
+        self._stream = open_new(self.path)
         self.writer = LogWriter(self._stream, chunk_size=self.options.chunk_size_bytes,
                                 compression=self.options.compression, channel_metadata=self.channel_metadata,
                                 chunk_interval_s=self.options.chunk_interval_s, fsync=self._fsync)
@@ -146,7 +147,7 @@ class LogDirectory:
                 self.current_marker.unlink(missing_ok=True)
                 return
             temporary = self.directory / f"{CURRENT_MARKER}.tmp"
-            temporary.write_text(name + "\n")
+            write_bytes(temporary, (name + "\n").encode())
             os.replace(temporary, self.current_marker)
         except OSError:
             pass  # a full disk must not stop logging for a convenience file

@@ -30,9 +30,10 @@ def build_report(signals, summary: dict, out_dir, title: str = "haulprofile repo
 
 
 def stage(ctx) -> None:
+    from haulprofile.private_files import write_bytes
     vehicle = f" — {ctx.vehicle.name}" if ctx.vehicle is not None else ""
     text = build_report(ctx.signals, ctx.summary, ctx.out_dir, title=f"haulprofile report{vehicle}")
     path = ctx.out_dir / "report.html"
-    path.write_text(text, encoding="utf-8")
+    write_bytes(path, text.encode("utf-8"))
     ctx.summary["report"] = str(path.name)
     ctx.say(f"report: {path}")
