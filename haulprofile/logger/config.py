@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from haulprofile.contract import obd
+from haulprofile.contract.privacy import zones_from_tables
 
 
 class ConfigError(Exception):
@@ -122,6 +123,25 @@ class GpsSection:
 
 
 @dataclass
+class PrivacySection:
+    """Privacy zones and coarsening, applied before anything reaches the disk (docs/privacy.md)."""
+
+    zones: list[dict] = field(default_factory=list)
+    """``[[privacy.zones]]``: circles (``lat``, ``lon``, ``radius_m``) or ``polygon = [[lat, lon], …]``."""
+    position_grid_m: float = 0.0
+    """> 0: every position written is the centre of its cell of this size [m] (0: full precision)."""
+    time_resolution_s: float = 0.0
+    """> 0: wall-clock and GPS time are kept only to this resolution [s], e.g. 60 (0: full)."""
+    drop_can_pgns: list[int] = field(default_factory=lambda: [65267, 65254])
+    """J1939 PGNs not logged while any privacy setting is in use: Vehicle Position (65267) and
+    Time/Date (65254), a telematics unit's broadcast of what the zones and coarsening withhold."""
+
+    @property
+    def active(self) -> bool:
+        return bool(self.zones) or self.position_grid_m > 0 or self.time_resolution_s > 0
+
+
+@dataclass
 class EmulationSection:
     """Run the device emulators inside the daemon (tests, demo, crash drills); never on a truck."""
 
@@ -139,6 +159,7 @@ class Config:
     can: CanSection = field(default_factory=CanSection)
     i2c: I2cSection = field(default_factory=I2cSection)
     gps: GpsSection = field(default_factory=GpsSection)
+    privacy: PrivacySection = field(default_factory=PrivacySection)
     emulation: EmulationSection = field(default_factory=EmulationSection)
 
 
@@ -174,6 +195,10 @@ def _convert(key: str, value, annotation):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"config: {key} must be a number, got {value!r}")
         return float(value)
+    if annotation is dict:
+        if not isinstance(value, dict):
+            raise ConfigError(f"config: {key} must be a table, got {value!r}")
+        return value
     if annotation is str:
         if not isinstance(value, str):
             raise ConfigError(f"config: {key} must be a string, got {value!r}")
@@ -243,6 +268,13 @@ def _check(config: Config) -> None:
         raise ConfigError("config: i2c.lsm9ds1.mag_odr_hz must be one of 0.625, 1.25, 2.5, 5, 10, 20, 40, 80")
     if config.i2c.hts221.odr_hz not in (1.0, 7.0, 12.5):
         raise ConfigError("config: i2c.hts221.odr_hz must be 1, 7 or 12.5")
+    try:
+        zones_from_tables(config.privacy.zones, "privacy.zones")
+    except ValueError as exc:
+        raise ConfigError(f"config: {exc}") from None
+    for key in ("position_grid_m", "time_resolution_s"):
+        if not getattr(config.privacy, key) >= 0:
+            raise ConfigError(f"config: privacy.{key} must be >= 0 (0: off), got {getattr(config.privacy, key)!r}")
     if config.logger.time_scale != 1.0 and not config.emulation.enabled:
         raise ConfigError("config: logger.time_scale other than 1 needs [emulation] enabled = true")
 

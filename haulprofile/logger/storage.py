@@ -92,9 +92,11 @@ class LogDirectory:
     """Owns the current `LogWriter`; opens, rotates and closes files; enforces free space."""
 
     def __init__(self, options: StorageOptions, channel_metadata: dict | None = None,
-                 header_metadata: dict[str, str] | None = None, fsync=None):
-        """``fsync``: a callable ``fsync(fd)`` to use instead of a blocking ``os.fsync``."""
+                 header_metadata: dict[str, str] | None = None, fsync=None, privacy=None):
+        """``fsync``: a callable ``fsync(fd)`` to use instead of a blocking ``os.fsync``;
+        ``privacy``: a `Privacy` whose time resolution applies to ``log_time`` and file names."""
         self.options = options
+        self.privacy = privacy
         self._fsync = (fsync or True) if options.fsync else False
         self.directory = Path(options.directory)
         make_dirs(self.directory)
@@ -116,7 +118,8 @@ class LogDirectory:
 
     def _next_path(self) -> Path:
         sequence = next_sequence(self.directory, self.options.prefix)
-        utc = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+        now = self.privacy.file_time() if self.privacy is not None else time.gmtime()
+        utc = time.strftime("%Y%m%dT%H%M%SZ", now)
         return self.directory / f"{self.options.prefix}_{self.boot_id}_{utc}_{sequence:04d}.mcap"
 
     def open(self) -> Path:
@@ -126,7 +129,9 @@ class LogDirectory:
         self._stream = open_new(self.path)
         self.writer = LogWriter(self._stream, chunk_size=self.options.chunk_size_bytes,
                                 compression=self.options.compression, channel_metadata=self.channel_metadata,
-                                chunk_interval_s=self.options.chunk_interval_s, fsync=self._fsync)
+                                chunk_interval_s=self.options.chunk_interval_s, fsync=self._fsync,
+                                log_time=self.privacy.log_time if self.privacy is not None and self.privacy.resolution_ns
+                                else None)
         if self.header_metadata:
             self.writer.write_metadata("haulprofile.logger", dict(self.header_metadata))
             self.writer.flush()

@@ -28,8 +28,11 @@ class LogWriter:
 
     def __init__(self, stream: BinaryIO, chunk_size: int = 256 * 1024, compression: str = "zstd",
                  channel_metadata: dict[str, dict[str, str]] | None = None,
-                 chunk_interval_s: float | None = None, fsync=False):
+                 chunk_interval_s: float | None = None, fsync=False, log_time=None):
+        """``log_time(t_realtime_ns, t_mono_ns)``: the MCAP ``log_time`` to write (privacy
+        coarsening of wall-clock time); default the realtime stamp as it is."""
         self._stream = stream
+        self._log_time = log_time
         self._writer = Writer(stream, chunk_size=chunk_size, compression=CompressionType[compression.upper()])
         self._writer.start(profile=contract.PROFILE, library=f"haulprofile-contract-{contract.CONTRACT_VERSION}")
         self._channels: dict[str, int] = {}
@@ -56,6 +59,8 @@ class LogWriter:
         """Add one message; ``publish_time`` is monotonic, ``log_time`` wall-clock (contract)."""
         channel = self.channel_id(topic)
         self._sequence[topic.name] += 1
+        if self._log_time is not None:
+            t_realtime_ns = self._log_time(t_realtime_ns, t_mono_ns)
         self._writer.add_message(channel_id=channel, log_time=int(t_realtime_ns), data=payload,
                                  publish_time=int(t_mono_ns), sequence=self._sequence[topic.name])
         self.message_count += 1

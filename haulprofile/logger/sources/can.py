@@ -113,9 +113,13 @@ class CanSource(Source):
 
     name = "can"
 
-    def __init__(self, queue, clock, section: CanSection, bus: can.BusABC | None = None, say=None):
+    def __init__(self, queue, clock, section: CanSection, bus: can.BusABC | None = None, say=None,
+                 drop_pgns: frozenset[int] = frozenset()):
+        """``drop_pgns``: J1939 PGNs (PDU2) never logged (`..config.PrivacySection.drop_can_pgns`)."""
         super().__init__(queue, clock, say)
         self.section = section
+        self.drop_pgns = frozenset(drop_pgns)
+        self.privacy_dropped = 0
         self.bus = bus if bus is not None else can.Bus(interface=section.interface, channel=section.channel,
                                                        bitrate=section.bitrate)
         self._hw_stamp = section.interface in HW_TIMESTAMP_INTERFACES
@@ -185,6 +189,7 @@ class CanSource(Source):
         hw_flag = contract.CAN_FLAG_HW_TIMESTAMP if self._hw_stamp else 0
         extended_flag = contract.CAN_FLAG_EXTENDED
         obd_ids, tp_keys = self._obd_ids, self._tp_keys
+        drop_pgns = self.drop_pgns
         records: list[bytes] = []
         taken = 0
         now_ns = clock.monotonic_ns()
@@ -193,6 +198,9 @@ class CanSource(Source):
                 taken += 1
                 arb = msg.arbitration_id
                 extended = msg.is_extended_id
+                if drop_pgns and extended and ((arb >> 8) & 0x3FFFF) in drop_pgns:
+                    self.privacy_dropped += 1
+                    continue
                 flags = hw_flag | extended_flag if extended else hw_flag
                 if msg.is_remote_frame:
                     flags |= contract.CAN_FLAG_REMOTE
@@ -294,6 +302,8 @@ class CanSource(Source):
     def update_extra(self) -> None:
         extra = {"tx_sent": self.guard.sent, "tx_blocked": self.guard.blocked, "tx_errors": self.guard.errors,
                  "listen_only": self.section.listen_only}
+        if self.drop_pgns:
+            extra["privacy_dropped"] = self.privacy_dropped
         if self.obd is not None:
             extra.update(self.obd.stats())
         if self.j1939 is not None:

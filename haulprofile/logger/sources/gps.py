@@ -5,6 +5,12 @@ kept raw in ``/gps/nmea`` (checksum-valid or not); RMC, GGA, GSA, GST and VTG of
 UTC time of day) are merged into one ``foxglove.LocationFix``-compatible ``/gps/fix``, with the
 horizontal and vertical accuracy from GST. Bad checksums, proprietary sentences, binary UBX
 bytes and truncated lines are counted and skipped, never fatal.
+
+With privacy zones or coarsening (`..privacy.Privacy`) the raw lines of an epoch are held until
+the epoch is judged: inside a zone its fix, its NMEA (every line, checksum-valid or not) and its
+GPS time are dropped and ``/privacy/zone`` says where such a stretch begins and ends; outside,
+the fix is coarsened and the NMEA kept only if nothing is coarsened. Before the first fix, and
+while fixless epochs follow a fix inside a zone, epochs count as inside.
 """
 
 from __future__ import annotations
@@ -147,8 +153,13 @@ class GpsSource(Source):
     name = "gps"
 
     def __init__(self, queue, clock, port: str, baudrate: int = 9600, configure_rate_hz: float | None = None,
-                 say=None):
+                 say=None, privacy=None):
         super().__init__(queue, clock, say)
+        self.privacy = privacy if privacy is not None and privacy.active else None
+        self._pending: list[tuple[str, int]] = []
+        """Lines of the epoch being read, held until it is judged (privacy only)."""
+        self._inside: bool | None = None
+        """Last judgement: in a zone (True), outside (False), no fix yet (None)."""
         self.port_path = port
         self.baudrate = baudrate
         self.configure_rate_hz = configure_rate_hz
@@ -160,7 +171,7 @@ class GpsSource(Source):
         self.last_gps_time = None
         self._reading: int | None = None
         self._last_try_ns = 0
-        for key in ("lines", "fixes", "bad_checksum", "parse_errors", "skipped"):
+        for key in ("lines", "fixes", "bad_checksum", "parse_errors", "skipped", "zone_epochs"):
             self.stats.extra[key] = 0
 
     def open(self) -> None:
@@ -191,8 +202,11 @@ class GpsSource(Source):
             return
         text = line[start:].decode("ascii", errors="replace")
         self.stats.extra["lines"] += 1
-        self._raw.append(text)
-        self._raw_t.append(t_mono_ns)
+        if self.privacy is None:
+            self._raw.append(text)
+            self._raw_t.append(t_mono_ns)
+        else:
+            self._pending.append((text, t_mono_ns))
         if not nmea_checksum_ok(text):
             last = text.rfind("$")
             if last > 0 and nmea_checksum_ok(text[last:]):
@@ -215,28 +229,52 @@ class GpsSource(Source):
         timestamp = getattr(msg, "timestamp", None)
         key = timestamp.isoformat() if timestamp else ""
         if self._epoch is None or key != self._epoch.time_key:
-            self.flush_epoch()
+            self.flush_epoch(carry=1)
             self._epoch = Epoch(key, t_mono_ns)
         try:
             self._epoch.add(msg)
         except (ValueError, TypeError, AttributeError):
             self.stats.extra["parse_errors"] += 1
 
-    def flush_epoch(self) -> None:
-        if self._epoch is None:
-            return
+    def flush_epoch(self, carry: int = 0) -> None:
+        """Judge the epoch read so far and hand on its fix (and, with privacy, its held lines
+        except the last ``carry``, which begin the next epoch)."""
         epoch, self._epoch = self._epoch, None
-        self.stats.extra["parse_errors"] += epoch.add_fallbacks()
-        try:
-            fix = epoch.fix(epoch.t_mono_ns + self.clock.mono_offset_ns())
-        except (ValueError, TypeError, OverflowError):
-            self.stats.extra["parse_errors"] += 1
-            return
+        fix = None
+        if epoch is not None:
+            self.stats.extra["parse_errors"] += epoch.add_fallbacks()
+            try:
+                fix = epoch.fix(epoch.t_mono_ns + self.clock.mono_offset_ns())
+            except (ValueError, TypeError, OverflowError):
+                self.stats.extra["parse_errors"] += 1
+        if self.privacy is not None:
+            held = self._pending[:len(self._pending) - carry]
+            del self._pending[:len(held)]
+            fix = self._judge(fix, held, epoch.t_mono_ns if epoch is not None else None)
         if fix is not None:
             self.emit_json(contract.GPS_FIX, fix, epoch.t_mono_ns)
             self.stats.extra["fixes"] += 1
             if fix["gps_time_utc_ns"] is not None:
                 self.last_gps_time = (epoch.t_mono_ns, fix["gps_time_utc_ns"])
+
+    def _judge(self, fix: dict | None, held: list[tuple[str, int]], t_mono_ns: int | None) -> dict | None:
+        """Privacy: the fix to write (None inside a zone); the held lines go on or are dropped."""
+        was = self._inside
+        inside = self.privacy.inside(fix["latitude"], fix["longitude"]) if fix is not None else (was is not False)
+        if fix is not None and inside != bool(was) and t_mono_ns is not None:
+            self.emit_json(contract.PRIVACY_ZONE, {"t_mono_ns": t_mono_ns, "event": "entered" if inside else "left",
+                                                   "source": "logger"}, t_mono_ns)
+        if fix is not None:
+            self._inside = inside
+        if inside:
+            self.stats.extra["zone_epochs"] += t_mono_ns is not None
+            self.last_gps_time = None
+            return None
+        if self.privacy.keep_nmea:
+            for text, t in held:
+                self._raw.append(text)
+                self._raw_t.append(t)
+        return self.privacy.coarsen_fix(fix) if fix is not None else None
 
     def flush_raw(self) -> None:
         if self._raw:
