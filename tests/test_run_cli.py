@@ -133,3 +133,24 @@ def test_no_valid_cycle(demo_inputs, tmp_path, capsys):
                            "--out", tmp_path / "o", "--quiet", "--candidates", "1", "--cycle-duration", "60")
     line = one_line_error(err)
     assert code == 3 and "no valid cycle" in line and "--candidates" in line
+
+
+def test_private_run_keeps_positions_out_of_the_outputs(demo_inputs, first_run, tmp_path):
+    _, normal = first_run
+    assert {"latitude_deg", "longitude_deg", "wall_time_ns"} <= set(pd.read_parquet(normal / "signals.parquet"))
+    out = tmp_path / "private"
+    code = main(["run", str(demo_inputs / "logs"), "--vehicle", "rigid-18t", "--dem", str(demo_inputs / "dem"),
+                 "--out", str(out), "--candidates", "1000", "--quiet", "--private"])
+    assert code in (0, 3)
+    signals = pd.read_parquet(out / "signals.parquet")
+    assert not {"latitude_deg", "longitude_deg", "wall_time_ns"} & set(signals)
+    for column in ("height_m", "gradient_pct", "distance_m"):  # the DEM was still used, in memory
+        assert signals[column].notna().mean() > 0.5
+    truth = pd.read_parquet(demo_inputs / "truth.parquet")
+    lat_col = next(c for c in truth if c.startswith("lat"))
+    lon_col = next(c for c in truth if c.startswith("lon"))
+    texts = [f"{v:.4f}".encode() for v in (*truth[lat_col].iloc[::50], *truth[lon_col].iloc[::50])]
+    for name in ("report.html", "summary.json"):
+        data = (out / name).read_bytes()
+        assert not [t for t in texts if t in data], name
+    assert not (out / ".cache").exists()

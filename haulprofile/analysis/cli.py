@@ -17,6 +17,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "info": ("haulprofile.analysis.commands.info", "topics, duration, rates, gaps and coverage of logs"),
     "signals": ("haulprofile.analysis.commands.signals", "decode and align logs into a signals table"),
     "recover": ("haulprofile.analysis.commands.recover", "write a repaired, indexed copy of a cut MCAP log"),
+    "redact": ("haulprofile.analysis.commands.redact", "copies of logs without positions, NMEA and GPS times in zones"),
     "gradient": ("haulprofile.analysis.commands.gradient", "road height and gradient (DEM, barometer, IMU, fused)"),
     "mass": ("haulprofile.analysis.commands.mass", "vehicle mass per segment (LS, RLS, Levenberg-Marquardt)"),
     "cycle": ("haulprofile.analysis.commands.cycle", "representative driving cycle (Markov chain, Monte Carlo)"),

@@ -114,6 +114,8 @@ def run(ctx: RunContext, until: str | None = None, cache: bool = False, progress
         ctx.say(f"[{name}] unchanged, from cache")
     bar = _progress(stages[start:], progress)
     for name, stage in bar:
+        if name == "report" and ctx.options.get("private"):
+            ctx.signals = signals_table.without_positions(ctx.signals)
         if hasattr(bar, "set_description"):
             bar.set_description(name)
         else:
@@ -126,6 +128,8 @@ def run(ctx: RunContext, until: str | None = None, cache: bool = False, progress
             store.save(name)
     if ctx.signals is None:
         raise UserError("no signals: the inputs are logs but no ingest stage is installed")
+    if ctx.options.get("private"):
+        ctx.signals = signals_table.without_positions(ctx.signals)
     if until is None:
         signals_table.write_signals(ctx.signals, ctx.out_dir / "signals.parquet")
         write_bytes(ctx.out_dir / "summary.json", json.dumps(ctx.summary, indent=2, default=jsonable).encode())

@@ -29,6 +29,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
     parser.add_argument("--payload-kg", type=float, help="payload of the simulated electric truck [kg]")
     parser.add_argument("--no-cache", action="store_true", help="rerun every stage (default: reuse unchanged ones)")
+    parser.add_argument("--private", action="store_true",
+                        help="keep positions and wall-clock time out of signals.parquet and the report (they are "
+                             "used in memory for the DEM; heights and gradients stay); no stage cache is written")
     output = parser.add_mutually_exclusive_group()
     output.add_argument("--quiet", action="store_true", help="print only errors")
     output.add_argument("--json", action="store_true", help="print the summary as JSON on stdout, nothing else")
@@ -41,6 +44,8 @@ def options_from(args) -> dict:
         options["ingest"]["dbc"] = str(args.dbc)
     if args.payload_kg is not None:
         options["simulate"] = {"payload_kg": args.payload_kg}
+    if getattr(args, "private", False):
+        options["private"] = True
     return options
 
 
@@ -61,7 +66,7 @@ def run(args) -> int:
     quiet = args.quiet or args.json
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle),
                      dem_dir=args.dem, options=options_from(args), say=(lambda _msg: None) if quiet else print)
-    run_pipeline(ctx, cache=not args.no_cache, progress=not quiet and sys.stderr.isatty())
+    run_pipeline(ctx, cache=not (args.no_cache or args.private), progress=not quiet and sys.stderr.isatty())
     problem = verdict(ctx.summary)
     if args.json:
         print(json.dumps(ctx.summary, default=jsonable))
