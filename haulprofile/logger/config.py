@@ -142,6 +142,14 @@ class PrivacySection:
 
 
 @dataclass
+class EncryptionSection:
+    """Encryption at rest (age): each closed log becomes ``.mcap.age`` for these public keys."""
+
+    recipients: list[str] = field(default_factory=list)
+    """age (``age1…``) or SSH public keys of the fleet; empty: logs stay plaintext."""
+
+
+@dataclass
 class EmulationSection:
     """Run the device emulators inside the daemon (tests, demo, crash drills); never on a truck."""
 
@@ -160,6 +168,7 @@ class Config:
     i2c: I2cSection = field(default_factory=I2cSection)
     gps: GpsSection = field(default_factory=GpsSection)
     privacy: PrivacySection = field(default_factory=PrivacySection)
+    encryption: EncryptionSection = field(default_factory=EncryptionSection)
     emulation: EmulationSection = field(default_factory=EmulationSection)
 
 
@@ -275,6 +284,12 @@ def _check(config: Config) -> None:
     for key in ("position_grid_m", "time_resolution_s"):
         if not getattr(config.privacy, key) >= 0:
             raise ConfigError(f"config: privacy.{key} must be >= 0 (0: off), got {getattr(config.privacy, key)!r}")
+    if config.encryption.recipients:
+        from .encryption import EncryptionUnavailable, parse_recipients
+        try:
+            parse_recipients(config.encryption.recipients)
+        except EncryptionUnavailable as exc:
+            raise ConfigError(f"config: {exc}") from None
     if config.logger.time_scale != 1.0 and not config.emulation.enabled:
         raise ConfigError("config: logger.time_scale other than 1 needs [emulation] enabled = true")
 

@@ -17,9 +17,11 @@ from haulprofile.contract.naming import log_files
 def status_lines(directory: str | Path, prefix: str | None = None) -> tuple[list[str], bool]:
     """Lines describing the newest log's last `/diagnostics`, and whether all looks healthy."""
     files = log_files(Path(directory), prefix)
-    if not files:
-        return [f"no logs in {directory}"], False
-    newest = files[-1]
+    plain = [f for f in files if f.suffix == ".mcap"]  # encrypted ones (.mcap.age) cannot be read here
+    if not plain:
+        return [f"no logs being written in {directory} ({len(files)} encrypted)" if files
+                else f"no logs in {directory}"], False
+    newest = plain[-1]
     record = last_diagnostics(newest)
     if record is None:
         return [f"{newest.name}: no /diagnostics yet"], False

@@ -92,10 +92,12 @@ class LogDirectory:
     """Owns the current `LogWriter`; opens, rotates and closes files; enforces free space."""
 
     def __init__(self, options: StorageOptions, channel_metadata: dict | None = None,
-                 header_metadata: dict[str, str] | None = None, fsync=None, privacy=None):
+                 header_metadata: dict[str, str] | None = None, fsync=None, privacy=None, on_closed=None):
         """``fsync``: a callable ``fsync(fd)`` to use instead of a blocking ``os.fsync``;
-        ``privacy``: a `Privacy` whose time resolution applies to ``log_time`` and file names."""
+        ``privacy``: a `Privacy` whose time resolution applies to ``log_time`` and file names;
+        ``on_closed(path)``: called with each file once it is closed (encryption at rest)."""
         self.options = options
+        self.on_closed = on_closed
         self.privacy = privacy
         self._fsync = (fsync or True) if options.fsync else False
         self.directory = Path(options.directory)
@@ -164,6 +166,11 @@ class LogDirectory:
             self.writer = None
             self._stream = None
             self._mark_current(None)
+            self._closed(self.path)
+
+    def _closed(self, path: Path | None) -> None:
+        if self.on_closed is not None and path is not None:
+            self.on_closed(path)
 
     def rotate_if_due(self) -> bool:
         """Rotate by size or age of the current file; True if a new file was started."""
@@ -196,6 +203,7 @@ class LogDirectory:
             self.writer = None
             self._stream = None
             self._mark_current(None)
+            self._closed(self.path)
         self.paused = True
         try:
             free = self.free_bytes()

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..encrypted import read_bytes
 from ..errors import UserError
 from ..redact import load_zones, redact_files
 
@@ -34,6 +35,6 @@ def inputs_of(paths: list[Path]) -> list[Path]:
 
 def run(args) -> int:
     zones = load_zones(args.zones)
-    for report in redact_files(inputs_of(args.inputs), zones, args.out):
+    for report in redact_files(inputs_of(args.inputs), zones, args.out, read=read_bytes):
         print(report.line())
     return 0
