@@ -106,3 +106,11 @@ def test_the_logger_s_own_can_adapter_is_named_by_serial_or_port(args, rule):
 def test_can_adapter_arguments_are_checked(args, message):
     result = run("--dry-run", *args)
     assert result.returncode == 2 and message in result.stderr and result.stderr.count("\n") == 1
+
+
+def test_recipient_turns_encryption_on_and_is_checked():
+    key = "age1pquupsq8hn9xj5x3h7fdszz4y9l5sd6wl0gqzh3vxrwgf7e4vydsxsxvnt"
+    result = run("--dry-run", "--can-serial", "0043A1B2", "--recipient", key)
+    assert result.returncode == 0 and f'recipients = ["{key}"]' in result.stdout
+    bad = run("--dry-run", "--can-serial", "0043A1B2", "--recipient", "AGE-SECRET-KEY-1QQQ")
+    assert bad.returncode == 2 and "--recipient must be an age public key" in bad.stderr

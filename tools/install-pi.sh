@@ -5,11 +5,14 @@
 # See docs/raspberry-pi.md.
 #
 #   sudo tools/install-pi.sh (--can-serial SERIAL | --can-path USB-PORT | --mcp2515)
-#                            [--bitrate 250000|500000] [--transmit] [--no-start] [--dry-run]
+#                            [--bitrate 250000|500000] [--recipient AGE-PUBLIC-KEY] [--transmit]
+#                            [--no-start] [--dry-run]
 #
 #   --can-serial  the logger's USB CAN adapter by its serial number (udevadm info -a
 #                 /sys/class/net/can0 | grep serial); it becomes hpcan0, other adapters keep can1...
 #   --can-path    ... or by the USB port it is plugged into (e.g. 1-1.3)
+#   --recipient   the fleet's age public key (age1...): closed logs are encrypted to it and the
+#                 plaintext removed (docs/privacy.md); the Pi never holds the identity
 #   (default) listen-only: the CAN controller (networkd ListenOnly=yes) and the daemon
 #               (can.listen_only = true) put nothing on the truck's bus
 #   --transmit  let the logger send OBD-II requests and J1939 requests (ListenOnly=no,
@@ -29,6 +32,7 @@ TRANSMIT=0
 CAN_SERIAL=""
 CAN_PATH=""
 CAN_NAME=hpcan0
+RECIPIENT=""
 PREFIX=/opt/haulprofile
 CONFIG_DIR=/etc/haulprofile
 SERVICE_USER=haulprofile
@@ -44,11 +48,12 @@ while [[ $# -gt 0 ]]; do
         --bitrate=*) BITRATE="${1#*=}"; shift ;;
         --mcp2515) MCP2515=1; shift ;;
         --transmit) TRANSMIT=1; shift ;;
+        --recipient) [[ $# -ge 2 ]] || die "--recipient needs the fleet's age public key (age1...)"; RECIPIENT="$2"; shift 2 ;;
         --can-serial) [[ $# -ge 2 ]] || die "--can-serial needs the adapter's serial number"; CAN_SERIAL="$2"; shift 2 ;;
         --can-path) [[ $# -ge 2 ]] || die "--can-path needs the USB port (e.g. 1-1.3)"; CAN_PATH="$2"; shift 2 ;;
         --no-start) START=0; shift ;;
         --dry-run) DRY_RUN=1; shift ;;
-        -h|--help) sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,27p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) die "unknown option $1 (see --help)" ;;
     esac
 done
@@ -57,6 +62,9 @@ case "$BITRATE" in
     500000) NETWORKD_BITRATE=500K ;;
     *) die "--bitrate must be 250000 (J1939) or 500000 (OBD-II), got $BITRATE" ;;
 esac
+if [[ -n $RECIPIENT && ! $RECIPIENT =~ ^age1[02-9ac-hj-np-z]{58}$ ]]; then
+    die "--recipient must be an age public key (age1 and 58 more characters), got $RECIPIENT"
+fi
 if [[ -n $CAN_SERIAL ]]; then
     [[ $CAN_SERIAL =~ ^[A-Za-z0-9._:-]+$ ]] || die "--can-serial: letters, digits and . _ : - only, got $CAN_SERIAL"
     CAN_RULE="SUBSYSTEM==\"net\", ACTION==\"add\", KERNEL==\"can*\", ATTRS{serial}==\"$CAN_SERIAL\", NAME=\"$CAN_NAME\""
@@ -145,6 +153,9 @@ if [[ $DRY_RUN -eq 1 || ! -f "$CONFIG_DIR/logger.toml" ]]; then
     run sed -i -e "s|^bitrate = [0-9]*|bitrate = $BITRATE|" \
         -e "s|^channel = \"can0\"|channel = \"$CAN_NAME\"|" \
         -e 's|^port = "/dev/ttyACM0"|port = "/dev/haulprofile-gps"|' "$CONFIG_DIR/logger.toml"
+    if [[ -n $RECIPIENT ]]; then
+        run sed -i "s|^recipients = \[\]|recipients = [\"$RECIPIENT\"]|" "$CONFIG_DIR/logger.toml"
+    fi
     if [[ $TRANSMIT -eq 1 ]]; then
         echo "   WARNING: --transmit: the logger will send OBD-II and J1939 requests on the truck's CAN bus"
         run sed -i "s|^listen_only = true |listen_only = false|" "$CONFIG_DIR/logger.toml"
