@@ -133,3 +133,19 @@ def test_plaintext_is_removed_only_after_the_ciphertext_is_durable(fleet_key, tm
 def test_bad_recipients_are_one_line_config_errors():
     with pytest.raises(cfg.ConfigError, match=r"encryption.recipients\[0\] is not an age or SSH public key"):
         cfg.from_dict({"encryption": {"recipients": ["age1notakey"]}})
+
+
+def test_linear_read_and_repair_survive_a_cut_anywhere(encrypted_run, fleet_key, tmp_path):
+    """A power cut can end a file inside any record, even inside a length field (struct.error)."""
+    from haulprofile.logger.readback import iter_records, repair
+    out, _ = encrypted_run
+    identity, _, _ = fleet_key
+    whole = decrypt(next(out.glob("*.mcap.age")), identity)
+    cut = tmp_path / "cut.mcap"
+    for end in range(9, len(whole), max(1, len(whole) // 40)) :
+        for extra in (0, 3, 5):
+            cut.write_bytes(whole[:end + extra])
+            read = sum(1 for _ in iter_records(cut))
+            expected = recover(cut, tmp_path / "reference.mcap").messages if read else 0
+            assert repair(cut) == read == expected
+            assert is_complete(cut)

@@ -30,7 +30,7 @@ def iter_records(path: str | Path, topics: set[str] | None = None) -> Iterator[t
                     topic = channels.get(record.channel_id)
                     if topics is None or topic in topics:
                         yield topic, record.publish_time, record.data
-        except (McapError, EOFError, ValueError, KeyError):
+        except (McapError, EOFError, ValueError, KeyError, struct.error):  # a cut inside a length field
             return
 
 
