@@ -149,3 +149,27 @@ def test_linear_read_and_repair_survive_a_cut_anywhere(encrypted_run, fleet_key,
             expected = recover(cut, tmp_path / "reference.mcap").messages if read else 0
             assert repair(cut) == read == expected
             assert is_complete(cut)
+
+
+def test_redact_reads_encrypted_logs_and_writes_plain_copies(encrypted_run, fleet_key, tmp_path, capsys):
+    """The drive starts from standstill at 48.137 N 11.575 E: a 1 m zone there takes out its first fixes."""
+    import json
+    out, _ = encrypted_run
+    identity, _, key_file = fleet_key
+    zones = tmp_path / "zones.toml"
+    zones.write_text("[[zones]]\nname = \"depot\"\nlat = 48.137\nlon = 11.575\nradius_m = 1.0\n")
+    redacted = tmp_path / "redacted"
+    assert main(["--identity", str(key_file), "redact", str(out), "--zones", str(zones), "--out", str(redacted)]) == 0
+    (copy,) = redacted.iterdir()
+    assert copy.name.endswith(".mcap") and not copy.name.endswith(".age")
+    original = tmp_path / "original.mcap"
+    original.write_bytes(decrypt(next(out.glob("*.mcap.age")), identity))
+    fixes = {}
+    for path in (original, copy):
+        with open(path, "rb") as stream:
+            fixes[path] = [json.loads(m.data) for _, c, m in make_reader(stream).iter_messages() if c.topic == "/gps/fix"]
+    from haulprofile.contract.privacy import distance_m
+    first_outside = next(i for i, f in enumerate(fixes[original])
+                         if distance_m(48.137, 11.575, f["latitude"], f["longitude"]) > 1.0)
+    assert 0 < first_outside and fixes[copy] == fixes[original][first_outside:]
+    assert "1 stretch(es) in zones" in capsys.readouterr().out
