@@ -142,7 +142,7 @@ def test_linear_read_and_repair_survive_a_cut_anywhere(encrypted_run, fleet_key,
     identity, _, _ = fleet_key
     whole = decrypt(next(out.glob("*.mcap.age")), identity)
     cut = tmp_path / "cut.mcap"
-    for end in range(9, len(whole), max(1, len(whole) // 40)) :
+    for end in range(9, len(whole), max(1, len(whole) // 40)):
         for extra in (0, 3, 5):
             cut.write_bytes(whole[:end + extra])
             read = sum(1 for _ in iter_records(cut))
