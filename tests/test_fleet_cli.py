@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from haulprofile.analysis.cli import main
-from haulprofile.analysis.markov.synthetic import synthetic_drive
+from haulprofile.testing.drives import synthetic_drive
 
 
 def write_table(path, seed: int, duration_s: float = 900.0):

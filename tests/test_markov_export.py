@@ -8,10 +8,10 @@ import pandas as pd
 import pytest
 
 from haulprofile.analysis import cli
-from haulprofile.analysis.markov import (count_transitions, cycle_to_vdri, select_cycle, stage,
+from haulprofile.analysis.markov import (count_transitions, cycle_to_vdri, select_cycle, cycle_stage,
                              vdri_to_time_cycle, write_cycle)
-from haulprofile.analysis.markov.synthetic import synthetic_drive
-from haulprofile.analysis.pipeline import RunContext
+from haulprofile.testing.drives import synthetic_drive
+from haulprofile.analysis.pipeline import RunContext, run
 from haulprofile.analysis.vecto import read_vdri
 
 VALID_VECTO_ROUTES = ["Construction", "HeavyUrban", "Suburban", "UrbanDelivery"]
@@ -94,7 +94,7 @@ def test_stage_writes_the_cycle_and_its_summary(drive, tmp_path):
     messages = []
     ctx = RunContext(inputs=[], out_dir=tmp_path, signals=drive.copy(), say=messages.append,
                      options={"cycle": {"n_candidates": 500, "seed": 3, "widths": {"mass_kg": 200.0}}})
-    stage(ctx)
+    run(ctx, start="cycle", until="cycle")
     for name in ("cycle.csv", "cycle.vdri", "cycle.parquet", "cycle.png"):
         assert (tmp_path / name).stat().st_size > 0
     summary = ctx.summary["cycle"]
@@ -108,7 +108,7 @@ def test_stage_writes_the_cycle_and_its_summary(drive, tmp_path):
 def test_stage_without_mass_says_so_and_writes_nothing(drive, tmp_path):
     messages = []
     ctx = RunContext(inputs=[], out_dir=tmp_path, signals=drive.drop(columns=["mass_kg"]), say=messages.append)
-    stage(ctx)
+    cycle_stage(ctx)
     assert "cycle" not in ctx.summary and "mass_kg" in messages[0]
     assert not (tmp_path / "cycle.csv").exists()
 

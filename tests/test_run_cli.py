@@ -30,7 +30,7 @@ def run_cli(capsys, *argv):
 
 @pytest.fixture(scope="module")
 def first_run(demo_inputs, tmp_path_factory):
-    out = tmp_path_factory.mktemp("out")
+    out = tmp_path_factory.mktemp("out") / "run"  # made by the run
     code = main(["run", str(demo_inputs / "logs"), "--vehicle", "rigid-18t", "--dem", str(demo_inputs / "dem"),
                  "--out", str(out), "--candidates", "1000", "--quiet"])
     return code, out
@@ -50,7 +50,10 @@ def test_run_writes_every_output(first_run):
         assert (out / name).is_file(), name
     for name in ("signals.parquet", "report.html", "summary.json", "simulation/summary.json"):  # positions, times
         assert (out / name).stat().st_mode & 0o777 == 0o640, name
-    assert out.stat().st_mode & 0o777 == 0o750
+    for folder in (out, out / "loads", out / "simulation"):
+        assert folder.stat().st_mode & 0o777 == 0o750, folder
+    cached = [p for p in (out / ".cache").rglob("*") if p.is_file()]
+    assert cached and all(p.stat().st_mode & 0o777 == 0o640 for p in cached)
 
 
 def test_rerun_with_one_changed_option_reruns_only_what_depends_on_it(first_run, demo_inputs, capsys):

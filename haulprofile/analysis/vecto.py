@@ -24,7 +24,18 @@ class CycleFileError(UserError):
 
 
 def read_vdri(path: str | Path) -> pd.DataFrame:
-    """Read a VECTO distance-based cycle into SI columns (`COLUMNS`)."""
+    """Read a VECTO distance-based cycle into SI columns (`COLUMNS`).
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.vdri`` with the columns ``<s>`` [m], ``<v>`` [km/h], ``<grad>`` [%], ``<stop>`` [s].
+
+    Returns
+    -------
+    DataFrame
+        ``distance_m`` [m], ``target_speed_mps`` [m/s], ``gradient_pct`` [%], ``stop_time_s`` [s].
+    """
     path = Path(path)
     if not path.is_file():
         raise CycleFileError(f"cycle file {path} not found")
@@ -52,7 +63,20 @@ def read_vdri(path: str | Path) -> pd.DataFrame:
 
 
 def write_vdri(cycle: pd.DataFrame, path: str | Path) -> Path:
-    """Write SI columns (`COLUMNS`) as a VECTO ``.vdri`` file."""
+    """Write SI columns (`COLUMNS`) as a VECTO ``.vdri`` file.
+
+    Parameters
+    ----------
+    cycle : DataFrame
+        ``distance_m`` [m], ``target_speed_mps`` [m/s], ``gradient_pct`` [%], ``stop_time_s`` [s].
+    path : str or Path
+        Where; its folder is made.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     out = pd.DataFrame({

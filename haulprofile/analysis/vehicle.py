@@ -13,7 +13,7 @@ from importlib import resources
 from pathlib import Path
 
 from .errors import UserError
-from .toml_tables import check_number, check_text, is_number, table_kwargs
+from ..toml_tables import check_number, check_text, is_number, table_kwargs
 
 
 class VehicleFileError(UserError):
@@ -162,7 +162,23 @@ EXAMPLES = {"rigid-18t": "rigid-18t.toml", "tractor-40t": "tractor-40t.toml"}
 
 
 def load_vehicle(path_or_name: str | Path) -> Vehicle:
-    """Load a vehicle file, or one of the shipped `EXAMPLES` by name."""
+    """Load a vehicle file, or one of the shipped `EXAMPLES` by name.
+
+    Parameters
+    ----------
+    path_or_name : str or Path
+        A TOML vehicle file (docs/vehicle-file.md) or ``"rigid-18t"`` / ``"tractor-40t"``.
+
+    Returns
+    -------
+    Vehicle
+        Masses [kg], wheel radius [m], driving resistances, drivetrain ratios and the optional
+        electric powertrain; every value checked against its physically possible range.
+
+    References
+    ----------
+    The parameters of paper equations (1)-(4).
+    """
     name = str(path_or_name)
     if name in EXAMPLES:
         text = resources.files("haulprofile.analysis.data.vehicles").joinpath(EXAMPLES[name]).read_text()

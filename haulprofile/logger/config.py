@@ -14,6 +14,7 @@ from pathlib import Path
 
 from haulprofile.contract import obd
 from haulprofile.contract.privacy import zones_from_tables
+from haulprofile.toml_tables import check_typed, table_kwargs
 
 
 class ConfigError(Exception):
@@ -184,63 +185,25 @@ _POSITIVE = {"logger.queue_size", "logger.time_scale", "storage.rotate_size_mb",
              "i2c.lsm9ds1.mag_odr_hz", "gps.baudrate", "gps.rate_hz", "can.bitrate"}
 
 
-def _convert(key: str, value, annotation):
-    """Check ``value`` against the field's annotation; ints are accepted for floats."""
-    origin = typing.get_origin(annotation)
-    if origin is list:
-        (item_type,) = typing.get_args(annotation)
-        if not isinstance(value, list):
-            raise ConfigError(f"config: {key} must be a list, got {value!r}")
-        return [_convert(f"{key}[{i}]", v, item_type) for i, v in enumerate(value)]
-    if annotation is bool:
-        if not isinstance(value, bool):
-            raise ConfigError(f"config: {key} must be true or false, got {value!r}")
-        return value
-    if annotation is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"config: {key} must be an integer, got {value!r}")
-        return value
-    if annotation is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"config: {key} must be a number, got {value!r}")
-        return float(value)
-    if annotation is dict:
-        if not isinstance(value, dict):
-            raise ConfigError(f"config: {key} must be a table, got {value!r}")
-        return value
-    if annotation is str:
-        if not isinstance(value, str):
-            raise ConfigError(f"config: {key} must be a string, got {value!r}")
-        return value
-    raise TypeError(annotation)
-
-
 def _build(cls, data: dict, prefix: str):
+    """``cls`` from its table, nested sections by their own tables (`toml_tables.table_kwargs`)."""
     hints = typing.get_type_hints(cls)
-    names = {f.name for f in dataclasses.fields(cls)}
-    for key in data:
-        if key not in names:
-            where = f"[{prefix}]" if prefix else "top level"
-            raise ConfigError(f"config: unknown key {prefix + '.' if prefix else ''}{key} in {where}; "
-                              f"known: {', '.join(sorted(names))}")
-    kwargs = {}
-    for f in dataclasses.fields(cls):
-        if f.name not in data:
-            continue
-        key = f"{prefix}.{f.name}" if prefix else f.name
-        value = data[f.name]
-        if dataclasses.is_dataclass(hints[f.name]):
+
+    def check(_where, name, value, _annotation):
+        key = f"{prefix}.{name}" if prefix else name
+        if dataclasses.is_dataclass(hints[name]):
             if not isinstance(value, dict):
                 raise ConfigError(f"config: {key} must be a table [{key}]")
-            kwargs[f.name] = _build(hints[f.name], value, key)
-            continue
-        value = _convert(key, value, hints[f.name])
+            return _build(hints[name], value, key)
+        value = check_typed(f"config: {key}", value, hints[name], ConfigError)
         if key in _CHOICES and value not in _CHOICES[key]:
             raise ConfigError(f"config: {key} must be one of {', '.join(_CHOICES[key])}, got {value!r}")
         if key in _POSITIVE and not value > 0:
             raise ConfigError(f"config: {key} must be > 0, got {value!r}")
-        kwargs[f.name] = value
-    return cls(**kwargs)
+        return value
+
+    return cls(**table_kwargs(cls, data, "config", check, ConfigError,
+                              key_name=lambda name: f"{prefix}.{name}" if prefix else name))
 
 
 MAX_RECEIVE_INTERVAL_S = 0.05

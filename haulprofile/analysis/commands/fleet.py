@@ -13,7 +13,9 @@ import sys
 from pathlib import Path
 
 from ..fleet import FleetSpec, run_fleet
-from ..pipeline import jsonable
+from ..ingest.stage import IngestOptions
+from ..jsonable import jsonable
+from ..pipeline import Options
 from ..vehicle import load_vehicle
 
 EXIT_INCOMPLETE = 3
@@ -44,7 +46,8 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     vehicles = [load_vehicle(v) for v in args.vehicle]
     spec = FleetSpec.of(args.log_dirs, vehicles, dem_dir=args.dem, duration_s=args.duration,
-                        n_candidates=args.candidates, seed=args.seed, options={"ingest": {"rate_hz": args.rate_hz}},
+                        n_candidates=args.candidates, seed=args.seed,
+                        options=Options(ingest=IngestOptions(rate_hz=args.rate_hz)),
                         figures=not args.no_figures)
     quiet = args.quiet or args.json
     fleet = run_fleet(spec, args.out, workers=args.workers, scheduler=args.scheduler,

@@ -3,13 +3,12 @@ beside the truck's own CAN estimate; a figure like the paper's Fig. 6."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
+from ..errors import UserError
 from ..vehicle import load_vehicle
-from .gradient import signals_for
 
 
 def add_arguments(parser) -> None:
@@ -37,22 +36,27 @@ def format_segments(segments: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def run(args) -> int:
-    from ..gradient import stage as gradient_stage
-    from ..mass import SegmentSettings, estimate_mass
-    from ..mass.figure import draw_estimates
+def _mass_json(ctx):
+    return {"segments": ctx.summary["mass"]["segments"]} if ctx.results.mass is not None else None
 
-    vehicle = load_vehicle(args.vehicle)
-    ctx = signals_for(args.inputs, print, args.out, vehicle=vehicle, dem_dir=args.dem)
-    if "gradient_pct" not in ctx.signals.columns:
-        gradient_stage(ctx)
-    result = estimate_mass(ctx.signals, vehicle, segment_settings=SegmentSettings(forgetting_factor=args.forgetting_factor))
-    for note in result.notes:
-        print(f"note: {note}")
-    print(format_segments(result.segments))
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "mass.json").write_text(json.dumps({"segments": result.segments}, indent=2))
+
+def run(args) -> int:
+    from ..gradient.stage import GradientOptions
+    from ..mass import SegmentSettings
+    from ..mass.stage import MassOptions
+    from ..pipeline import Options, RunContext, run as run_pipeline
+
+    options = Options(gradient=GradientOptions(keep_existing=True),
+                      mass=MassOptions(segments=SegmentSettings(forgetting_factor=args.forgetting_factor),
+                                       true_mass_kg=tuple(args.true_mass) if args.true_mass else None))
+    ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle),
+                     dem_dir=args.dem, options=options, figures=not args.no_figure,
+                     json_files={"mass.json": _mass_json})
+    ctx = run_pipeline(ctx, until="mass")
+    if ctx.results.mass is None:
+        raise UserError(ctx.skipped.get("mass", "no mass estimated"))
+    print(format_segments(ctx.results.mass.segments))
     print(f"wrote {args.out / 'mass.json'}")
-    if not args.no_figure:
-        print(f"wrote {draw_estimates(ctx.signals, result, args.out / 'mass.png', args.true_mass)}")
+    for name in ctx.summary["mass"]["files"]:
+        print(f"wrote {args.out / name}")
     return 0

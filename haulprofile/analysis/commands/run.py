@@ -11,7 +11,12 @@ import json
 import sys
 from pathlib import Path
 
-from ..pipeline import RunContext, jsonable, run as run_pipeline
+from ..ingest.stage import IngestOptions
+from ..jsonable import jsonable
+from ..markov.stage import CycleOptions
+from ..outputs import OutputOptions
+from ..pipeline import Options, RunContext, run as run_pipeline
+from ..simulate.stage import SimulateOptions
 from ..vehicle import load_vehicle
 
 EXIT_UNTRUSTWORTHY_RESULT = 3
@@ -37,16 +42,11 @@ def add_arguments(parser) -> None:
     output.add_argument("--json", action="store_true", help="print the summary as JSON on stdout, nothing else")
 
 
-def options_from(args) -> dict:
-    options = {"ingest": {"rate_hz": args.rate_hz}, "cycle": {"duration_s": args.cycle_duration,
-                                                              "n_candidates": args.candidates, "seed": args.seed}}
-    if args.dbc is not None:
-        options["ingest"]["dbc"] = str(args.dbc)
-    if args.payload_kg is not None:
-        options["simulate"] = {"payload_kg": args.payload_kg}
-    if getattr(args, "private", False):
-        options["private"] = True
-    return options
+def options_from(args) -> Options:
+    return Options(ingest=IngestOptions(rate_hz=args.rate_hz, dbc=args.dbc),
+                   cycle=CycleOptions(duration_s=args.cycle_duration, n_candidates=args.candidates, seed=args.seed),
+                   simulate=SimulateOptions(payload_kg=args.payload_kg),
+                   output=OutputOptions(private=args.private))
 
 
 def verdict(summary: dict) -> str | None:
@@ -66,7 +66,7 @@ def run(args) -> int:
     quiet = args.quiet or args.json
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle),
                      dem_dir=args.dem, options=options_from(args), say=(lambda _msg: None) if quiet else print)
-    run_pipeline(ctx, cache=not (args.no_cache or args.private), progress=not quiet and sys.stderr.isatty())
+    run_pipeline(ctx, cache=not args.no_cache, progress=not quiet and sys.stderr.isatty())
     problem = verdict(ctx.summary)
     if args.json:
         print(json.dumps(ctx.summary, default=jsonable))

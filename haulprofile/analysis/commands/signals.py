@@ -5,8 +5,6 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .. import signals as signals_table
-from ..ingest import ingest_logs
 
 
 def add_arguments(parser) -> None:
@@ -19,10 +17,15 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from ..ingest.stage import IngestOptions
+    from ..pipeline import Options, RunContext, run as run_pipeline
+
     say = (lambda _msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    frame, summary = ingest_logs(args.inputs, rate_hz=args.rate, dbc=args.dbc,
-                                 progress=not args.quiet and sys.stderr.isatty(), say=say)
-    path = signals_table.write_signals(frame, args.output)
-    say(f"wrote {path}: {len(frame)} rows at {args.rate:g} Hz, {summary.get('valid_fraction', 1.0):.0%} valid, "
+    options = IngestOptions(rate_hz=args.rate, dbc=args.dbc, progress=not args.quiet and sys.stderr.isatty())
+    ctx = RunContext(inputs=list(args.inputs), out_dir=args.output.parent, options=Options(ingest=options),
+                     signals_name=args.output.name, say=say)
+    ctx = run_pipeline(ctx, until="ingest")
+    frame, summary = ctx.signals, ctx.summary.get("ingest", {})
+    say(f"wrote {args.output}: {len(frame)} rows at {args.rate:g} Hz, {summary.get('valid_fraction', 1.0):.0%} valid, "
         f"columns {', '.join(c for c in frame.columns if c not in ('time_s', 'valid'))}")
     return 0

@@ -40,19 +40,20 @@ def power_input(text: str | None, name: str):
 
 
 def run(args) -> int:
-    from ..simulate import DriverSettings, read_cycle, simulate
-    from ..simulate.output import write_outputs
+    from ..pipeline import Options, RunContext, run as run_pipeline
+    from ..simulate import DriverSettings
+    from ..simulate.stage import SimulateOptions
 
     if not 0.01 <= args.time_step_s <= 1.0:
         raise UserError(f"--time-step-s {args.time_step_s} is outside 0.01..1 s")
-    vehicle = load_vehicle(args.vehicle)
-    cycle = read_cycle(args.cycle, vehicle, args.payload_kg)
-    result = simulate(cycle, vehicle, aux_power_w=power_input(args.aux_power_w, "--aux-power-w"),
-                      epto_power_w=power_input(args.epto_power_w, "--epto-power-w"),
-                      obc_power_w=power_input(args.obc_power_w, "--obc-power-w"),
-                      settings=DriverSettings(time_step_s=args.time_step_s))
-    write_outputs(result, args.out)
-    s = result.summary
+    options = SimulateOptions(payload_kg=args.payload_kg, aux_power_w=power_input(args.aux_power_w, "--aux-power-w"),
+                              epto_power_w=power_input(args.epto_power_w, "--epto-power-w"),
+                              obc_power_w=power_input(args.obc_power_w, "--obc-power-w"),
+                              driver=DriverSettings(time_step_s=args.time_step_s), cycle_file=args.cycle)
+    ctx = RunContext(inputs=[], out_dir=args.out, vehicle=load_vehicle(args.vehicle),
+                     options=Options(simulate=options), subdirs={"simulate": ""}, say=lambda _msg: None)
+    ctx = run_pipeline(ctx, start="simulate", until="simulate")
+    s = ctx.results.simulation.summary
     print(f"{s['cycle']}: {s['distance_km']:.2f} km in {s['duration_s']:.0f} s, "
           f"battery {s['battery_kwh_per_km']:.3f} kWh/km, wheel (positive) {s['wheel_positive_kwh_per_km']:.3f} kWh/km, "
           f"SOC {s['initial_soc']:.3f} -> {s['final_soc']:.3f}, "

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from ..markov import ClassWidths, TransitionCounts, write_cycle
-from ..pipeline import jsonable
+from ..jsonable import jsonable
 
 VALUE_NAMES = {"rainflow_range_mean_counts": "cycles", "level_crossings_torque": "upward_crossings"}
 

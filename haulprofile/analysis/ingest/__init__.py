@@ -6,7 +6,7 @@ Public entry points:
 * `ingest_logs(...)` → (signals table, summary dict) — what `stage` and ``analyze signals`` use.
 * `iter_log_messages(paths)` → every recoverable MCAP message, in time order across files.
 * `read_frames(paths)` → raw CAN records and IMU records (contract dtypes) and JSON records.
-* `stage(ctx)` → the pipeline's ingest stage.
+* the pipeline's ingest stage is `analysis.ingest.stage.ingest_stage`.
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ import numpy as np
 import pandas as pd
 
 from .. import signals as signals_table
-from ..errors import UserError
 from . import dbc as dbc_module
 from . import foreign
 from .columns import build_table
@@ -26,7 +25,7 @@ from .logs import (LogArrays, LogError, LogMessage, Timeline, expand, is_mcap, i
                    read_frames)
 from .table import BLOCK_FRAMES, Ingest
 
-__all__ = ["read_logs", "ingest_logs", "iter_log_messages", "read_frames", "stage", "LogArrays",
+__all__ = ["read_logs", "ingest_logs", "iter_log_messages", "read_frames", "LogArrays",
            "LogMessage", "Timeline", "expand"]
 
 
@@ -118,24 +117,3 @@ def read_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, progr
     frame, summary = ingest_logs(paths, rate_hz=rate_hz, dbc=dbc, progress=progress)
     frame.attrs["ingest"] = summary
     return frame
-
-
-def stage(ctx) -> None:
-    """Pipeline stage: ``ctx.inputs`` → ``ctx.signals`` and ``ctx.summary["ingest"]``.
-
-    Options (``ctx.options["ingest"]``): ``rate_hz`` (10), ``dbc`` (a DBC file for further signals), ``progress``.
-    """
-    options = ctx.options.get("ingest", {})
-    frame, summary = ingest_logs(ctx.inputs, rate_hz=float(options.get("rate_hz", 10.0)),
-                                 dbc=options.get("dbc"), progress=bool(options.get("progress", False)),
-                                 say=ctx.say)
-    if "speed_mps" not in frame.columns:
-        raise UserError("the logs hold no vehicle speed (neither J1939 CCVS1 wheel-based speed nor OBD-II "
-                        "PID 0x0D): log the vehicle's CAN bus, or give a signals table with speed_mps")
-    ctx.signals = frame
-    ctx.summary["ingest"] = summary
-    if "rate_hz" in summary:
-        ctx.say(f"ingest: {summary['rows']} rows at {summary['rate_hz']:g} Hz, "
-                f"{summary['valid_fraction']:.0%} valid, {summary['can_frames']} CAN frames")
-    else:
-        ctx.say(f"ingest: signals table, {summary['rows']} rows")

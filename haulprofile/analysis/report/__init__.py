@@ -1,10 +1,13 @@
 """The run's report: one self-contained ``report.html`` that reads like the paper's results section.
 
-The pipeline's last stage. Chapters come from what the stages left in ``ctx.summary`` and
-``ctx.out_dir``; a stage that did not run gives no chapter and is named in the lead.
+The last file of the pipeline's output step. Chapters come from what the stages left in the summary
+and the figures the output step drew; a stage that did not run gives no chapter and is named in
+the lead.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 from .chapters import cycle_section, gradient_section, loads_section, mass_section, simulation_section
 from .drive import drive_section
@@ -29,11 +32,10 @@ def build_report(signals, summary: dict, out_dir, title: str = "haulprofile repo
     return render(title, lead, sections)
 
 
-def stage(ctx) -> None:
-    from haulprofile.private_files import write_bytes
-    vehicle = f" — {ctx.vehicle.name}" if ctx.vehicle is not None else ""
-    text = build_report(ctx.signals, ctx.summary, ctx.out_dir, title=f"haulprofile report{vehicle}")
-    path = ctx.out_dir / "report.html"
-    write_bytes(path, text.encode("utf-8"))
-    ctx.summary["report"] = str(path.name)
-    ctx.say(f"report: {path}")
+def write_report(signals, summary: dict, directory, vehicle=None) -> str:
+    """``report.html`` from the summary and the figures already written into ``directory``;
+    returns its name."""
+    title = "haulprofile report" + (f" — {vehicle.name}" if vehicle is not None else "")
+    path = Path(directory) / "report.html"
+    path.write_text(build_report(signals, summary, directory, title=title), encoding="utf-8")
+    return path.name

@@ -85,7 +85,23 @@ def time_cycle(frame: pd.DataFrame, default_mass: float, name: str = "cycle") ->
 
 
 def read_cycle(path: str | Path, vehicle: Vehicle, payload_kg: float | None = None) -> SimCycle:
-    """A ``.vdri`` (distance-based), or a CSV/Parquet time-based trace or signals table."""
+    """A ``.vdri`` (distance-based), or a CSV/Parquet time-based trace or signals table.
+
+    Parameters
+    ----------
+    path : str or Path
+        VECTO ``.vdri`` (``<s>,<v>,<grad>,<stop>``), or a CSV/Parquet with ``time_s`` [s],
+        ``speed_mps`` [m/s] and optionally ``gradient_pct`` [%], ``mass_kg`` [kg].
+    vehicle : Vehicle
+        For the default mass.
+    payload_kg : float, optional
+        Payload [kg] where the cycle has no mass; default half the vehicle's maximum payload.
+
+    Returns
+    -------
+    SimCycle
+        The rows the simulation kernel reads, with the road forces of paper equations (2)-(3).
+    """
     path = Path(path)
     mass = default_mass_kg(vehicle, payload_kg)
     if not path.is_file():

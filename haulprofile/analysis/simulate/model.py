@@ -128,10 +128,32 @@ def kernel_arguments(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, ept
             p, ratios, map_speed, map_torque, map_eff, out)
 
 
-def simulate(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, epto_power_w=0.0, obc_power_w=0.0,
+def simulate_cycle(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, epto_power_w=0.0, obc_power_w=0.0,
              settings: DriverSettings = DriverSettings()) -> SimulationResult:
     """Drive ``vehicle``'s electric powertrain over ``cycle``. Powers [W] are constants or
-    (time_s, power_w) series; auxiliary power defaults to the vehicle file's."""
+    (time_s, power_w) series; auxiliary power defaults to the vehicle file's.
+
+    Parameters
+    ----------
+    cycle : SimCycle
+        Distance-based (`distance_cycle`, `read_cycle` of a ``.vdri``) or time-based (`time_cycle`).
+    vehicle : Vehicle
+        With an ``[electric_powertrain]`` table.
+    aux_power_w, epto_power_w, obc_power_w : float or (time_s, power_w), optional
+        Auxiliary, ePTO and on-board charger power [W]; the charger feeds the DC bus.
+    settings : DriverSettings
+        Integration step [s] and the driver model.
+
+    Returns
+    -------
+    SimulationResult
+        ``trace`` (per step: speed [m/s], wheel and machine torque [Nm], battery power [W], SOC),
+        ``summary`` (energy per km [kWh/km], SOC, missed targets), machine residence [s], ``misses``.
+
+    References
+    ----------
+    physics.md, simulation section: road forces from paper equations (2)-(3), acceleration (4).
+    """
     args = kernel_arguments(cycle, vehicle, aux_power_w=aux_power_w, epto_power_w=epto_power_w,
                             obc_power_w=obc_power_w, settings=settings)
     n = K.run_kernel(*args)

@@ -58,7 +58,16 @@ class EmulatedDevices(Devices):
         return self
 
     def run_emulators(self) -> None:
-        """Start the emulators' own threads (after the daemon opened its ends)."""
+        """Start the drive once the daemon opened its ends: signal time 0 is now.
+
+        A daemon slow to get ready (a loaded machine, a high time scale) would otherwise start
+        logging a truck that is already moving; before time 0 every device reports the drive's
+        first state, a truck standing still.
+        """
+        self.t0_ns = self.clock.monotonic_ns()
+        for model in self.board.models.values():
+            model.t0_ns = self.t0_ns
+        self.gps.t0_ns = self.t0_ns
         self.ecu.start(self.t0_ns)
         self.gps.start()
 
