@@ -64,8 +64,8 @@ def check_number(where: str, key: str, value, possible: tuple[float, float], err
 
 
 def check_typed(name: str, value, annotation, error: type[Exception]):
-    """``value`` of the key ``name`` as its annotation asks (bool, int, float, str or a list of
-    them); an int is accepted for a float."""
+    """``value`` of the key ``name`` as its annotation asks (bool, int, float, str, a table (dict,
+    checked by the caller) or a list of them); an int is accepted for a float."""
     if typing.get_origin(annotation) is list:
         (item_type,) = typing.get_args(annotation)
         if not isinstance(value, list):
@@ -86,5 +86,9 @@ def check_typed(name: str, value, annotation, error: type[Exception]):
     if annotation is str:
         if not isinstance(value, str):
             raise error(f"{name} must be a string, got {value!r}")
+        return value
+    if annotation is dict:
+        if not isinstance(value, dict):
+            raise error(f"{name} must be a table, got {value!r}")
         return value
     raise TypeError(annotation)

@@ -55,12 +55,27 @@ def test_the_pages_hold_commands_and_examples():
     assert BLOCKS
 
 
+GLOBAL_OPTIONS = {"--debug": False, "--help": False, "-h": False, "--identity": True}
+"""``analyze``'s own options, before the command → whether it takes a value."""
+
+
+def test_global_options_are_analyzes():
+    help_text = cli.build_parser({}).format_help()
+    assert set(GLOBAL_OPTIONS) <= set(re.findall(r"(?<![\w-])(--?[a-z][a-z0-9-]*)", help_text))
+
+
+def without_global_options(words: list[str]) -> list[str]:
+    while words and words[0].split("=")[0] in GLOBAL_OPTIONS:
+        words = words[1 + (GLOBAL_OPTIONS[words[0]] if words[0] in GLOBAL_OPTIONS else 0):]
+    return words
+
+
 @pytest.mark.parametrize("page,command", CASES)
 def test_documented_command_exists_with_its_options(page, command):
-    words = command.replace("…", "").split()[1:]
+    words = without_global_options(command.replace("…", "").split()[1:])
     if not words or words[0].startswith("-"):
         known = set(re.findall(r"(?<![\w-])(--?[a-z][a-z0-9-]*)", cli.build_parser({}).format_help()))
-        assert set(w for w in words if w.startswith("-")) <= known, command
+        assert set(w for w in words if w.startswith("-")) <= known, f"{page}: {command}"
         return
     name = words[0].split("|")[0]
     assert name in cli.COMMANDS, f"{page}: {command}"

@@ -30,7 +30,7 @@ def run_cli(capsys, *argv):
 
 @pytest.fixture(scope="module")
 def first_run(demo_inputs, tmp_path_factory):
-    out = tmp_path_factory.mktemp("out")
+    out = tmp_path_factory.mktemp("out") / "run"  # made by the run
     code = main(["run", str(demo_inputs / "logs"), "--vehicle", "rigid-18t", "--dem", str(demo_inputs / "dem"),
                  "--out", str(out), "--candidates", "1000", "--quiet"])
     return code, out
@@ -48,6 +48,12 @@ def test_run_writes_every_output(first_run):
     assert summary["stages"][-1] == "report"
     for name in ("report.html", "cycle.csv", "cycle.vdri", "loads/comparison.csv", "simulation/summary.json"):
         assert (out / name).is_file(), name
+    for name in ("signals.parquet", "report.html", "summary.json", "simulation/summary.json"):  # positions, times
+        assert (out / name).stat().st_mode & 0o777 == 0o640, name
+    for folder in (out, out / "loads", out / "simulation"):
+        assert folder.stat().st_mode & 0o777 == 0o750, folder
+    cached = [p for p in (out / ".cache").rglob("*") if p.is_file()]
+    assert cached and all(p.stat().st_mode & 0o777 == 0o640 for p in cached)
 
 
 def test_rerun_with_one_changed_option_reruns_only_what_depends_on_it(first_run, demo_inputs, capsys):
@@ -174,3 +180,22 @@ def test_json_on_stdout_is_strict(demo_inputs, first_run, capsys):
     code, stdout, _ = run_cli(capsys, "run", demo_inputs / "logs", "--vehicle", "rigid-18t", "--dem",
                               demo_inputs / "dem", "--out", out, "--candidates", "1000", "--json")
     assert code in (0, 3) and _strict(stdout)["schema_version"] == 1
+def test_private_run_keeps_positions_out_of_the_outputs(demo_inputs, first_run, tmp_path):
+    _, normal = first_run
+    assert {"latitude_deg", "longitude_deg", "wall_time_ns"} <= set(pd.read_parquet(normal / "signals.parquet"))
+    out = tmp_path / "private"
+    code = main(["run", str(demo_inputs / "logs"), "--vehicle", "rigid-18t", "--dem", str(demo_inputs / "dem"),
+                 "--out", str(out), "--candidates", "1000", "--quiet", "--private"])
+    assert code in (0, 3)
+    signals = pd.read_parquet(out / "signals.parquet")
+    assert not {"latitude_deg", "longitude_deg", "wall_time_ns"} & set(signals)
+    for column in ("height_m", "gradient_pct", "distance_m"):  # the DEM was still used, in memory
+        assert signals[column].notna().mean() > 0.5
+    truth = pd.read_parquet(demo_inputs / "truth.parquet")
+    lat_col = next(c for c in truth if c.startswith("lat"))
+    lon_col = next(c for c in truth if c.startswith("lon"))
+    texts = [f"{v:.4f}".encode() for v in (*truth[lat_col].iloc[::50], *truth[lon_col].iloc[::50])]
+    for name in ("report.html", "summary.json"):
+        data = (out / name).read_bytes()
+        assert not [t for t in texts if t in data], name
+    assert not (out / ".cache").exists()

@@ -18,6 +18,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "info": ("haulprofile.analysis.commands.info", "topics, duration, rates, gaps and coverage of logs"),
     "signals": ("haulprofile.analysis.commands.signals", "decode and align logs into a signals table"),
     "recover": ("haulprofile.analysis.commands.recover", "write a repaired, indexed copy of a cut MCAP log"),
+    "redact": ("haulprofile.analysis.commands.redact", "copies of logs without positions, NMEA and GPS times in zones"),
     "gradient": ("haulprofile.analysis.commands.gradient", "road height and gradient (DEM, barometer, IMU, fused)"),
     "mass": ("haulprofile.analysis.commands.mass", "vehicle mass per segment (LS, RLS, Levenberg-Marquardt)"),
     "cycle": ("haulprofile.analysis.commands.cycle", "representative driving cycle (Markov chain, Monte Carlo)"),
@@ -68,14 +69,33 @@ def build_parser(commands: dict[str, tuple[str, str]]) -> argparse.ArgumentParse
         prog="analyze", description="haulprofile analysis: truck logs to load profiles.")
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
     parser.add_argument("--version", action="version", version=f"analyze (haulprofile) {version()}")
+    parser.add_argument("--identity", metavar="FILE",
+                        help="age identity (or OpenSSH private key) to read .mcap.age logs; also after the command")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (_, help_text) in commands.items():
         sub.add_parser(name, help=help_text, add_help=False)
     return parser
 
 
+def _take_identity(argv: list[str]) -> tuple[list[str], list[str]]:
+    """``--identity FILE`` (any number, anywhere): the age identities for ``.mcap.age`` logs."""
+    rest, identities, i = [], [], 0
+    while i < len(argv):
+        if argv[i] == "--identity" and i + 1 < len(argv):
+            identities.append(argv[i + 1])
+            i += 2
+            continue
+        if argv[i].startswith("--identity="):
+            identities.append(argv[i].split("=", 1)[1])
+        else:
+            rest.append(argv[i])
+        i += 1
+    return rest, identities
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
+    argv, identities = _take_identity(argv)
     commands = available_commands()
     parser = build_parser(commands)
     known, rest = parser.parse_known_args(argv)
@@ -89,6 +109,8 @@ def main(argv: list[str] | None = None) -> int:
     args = sub.parse_args(rest)
     args.debug = known.debug
     try:
+        from .encrypted import use_identity_files
+        use_identity_files(identities)
         return int(module.run(args) or 0)
     except UserError as exc:
         if known.debug:

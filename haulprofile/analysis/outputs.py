@@ -7,6 +7,10 @@ file is moved, and the new one is moved last. Interrupted while writing, the dir
 the earlier run as it was; interrupted while moving, it holds no ``summary.json``. A full run also
 removes the files of stages that did not run this time, so nothing of an earlier run stays beside
 the new summary.
+
+Every file and folder it writes is 0640 / 0750 whatever the umask (`haulprofile.private_files`):
+the signals table, the report and the summary hold a driver's positions and times. With
+`OutputOptions.private` the positions and wall-clock times stay out of the files altogether.
 """
 
 from __future__ import annotations
@@ -16,7 +20,10 @@ import json
 import os
 import shutil
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
+
+from haulprofile.private_files import make_dirs, restrict_tree
 
 from . import checks, jsonable
 from .errors import UserError
@@ -25,6 +32,16 @@ SUMMARY = "summary.json"
 RUN_FILES = ("gradient.csv", "gradient.png", "mass.png", "cycle.csv", "cycle.parquet", "cycle.vdri", "cycle.png",
              "loads", "simulation", "report.html", "signals.parquet")
 """What a full run may write besides the summary; what it did not write this time is removed."""
+
+
+@dataclass
+class OutputOptions:
+    """What the output step writes (``analyze run --private``)."""
+
+    private: bool = False
+    """Keep positions and wall-clock time (`signals.POSITION_COLUMNS`) out of the signals table and
+    the report; heights, gradients, distances and times since the start stay. The stages used them
+    in memory (the DEM); the pipeline keeps no stage cache, which would hold them."""
 
 
 def _kept(ctx, stage: str, staging: Path, write):
@@ -84,17 +101,20 @@ def _stage_files(ctx, staging: Path, full: bool) -> None:
         value = content(ctx)
         if value is not None:
             (staging / name).write_text(jsonable.dumps(value, indent=2))
-    from .signals import write_signals
+    from .signals import without_positions, write_signals
 
-    if ctx.signals_name is not None and ctx.signals is not None:
-        write_signals(ctx.signals, staging / ctx.signals_name)
+    signals = ctx.signals
+    if signals is not None and ctx.options.output.private:
+        signals = without_positions(signals)
+    if ctx.signals_name is not None and signals is not None:
+        write_signals(signals, staging / ctx.signals_name)
     if full:
         from .report import write_report
 
         summary["stages"].append("report")
-        summary["report"] = write_report(ctx.signals, summary, staging, ctx.vehicle)
+        summary["report"] = write_report(signals, summary, staging, ctx.vehicle)
         ctx.say(f"report: {ctx.out_dir / summary['report']}")
-        write_signals(ctx.signals, staging / "signals.parquet")
+        write_signals(signals, staging / "signals.parquet")
         (staging / SUMMARY).write_text(jsonable.dumps(summary, indent=2))
 
 
@@ -126,12 +146,15 @@ def write_outputs(ctx, full: bool) -> list[Path]:
     summary) into ``ctx.out_dir``; returns the paths written, the summary last."""
     out = ctx.out_dir
     try:
-        out.mkdir(parents=True, exist_ok=True)
+        make_dirs(out)
         staging = Path(tempfile.mkdtemp(prefix=".partial-", dir=out))
     except OSError as exc:
         raise UserError(f"cannot write into {out}: {exc.strerror}") from None
     try:
         _stage_files(ctx, staging, full)
+        restrict_tree(staging)
+        if ctx.cache_dir is not None and ctx.cache_dir.exists():
+            restrict_tree(ctx.cache_dir)
         names = sorted(p.name for p in staging.iterdir())
         if not names:
             return []

@@ -29,7 +29,7 @@ from .markov.stage import CycleOptions, CycleResult, cycle_stage
 from .mass import MassResult
 from .mass.stage import MassOptions, mass_stage
 from .options import options_of
-from .outputs import check as check_outputs, write_outputs
+from .outputs import OutputOptions, check as check_outputs, write_outputs
 from .simulate.model import SimulationResult
 from .simulate.stage import SimulateOptions, simulate_stage
 from .stage_cache import StageCache
@@ -62,7 +62,7 @@ REPORT = "report"
 
 @dataclass
 class Options:
-    """Every stage's options, by stage name."""
+    """Every stage's options, by stage name, and the output step's (``output``)."""
 
     ingest: IngestOptions = field(default_factory=IngestOptions)
     kinematics: KinematicsOptions = field(default_factory=KinematicsOptions)
@@ -71,6 +71,7 @@ class Options:
     cycle: CycleOptions = field(default_factory=CycleOptions)
     loads: LoadsOptions = field(default_factory=LoadsOptions)
     simulate: SimulateOptions = field(default_factory=SimulateOptions)
+    output: OutputOptions = field(default_factory=OutputOptions)
 
     @classmethod
     def of(cls, tables: "Options | dict | None") -> "Options":
@@ -183,7 +184,8 @@ def run(ctx: RunContext, until: str | None = None, start: str | None = None, cac
     cache : bool
         Keep each stage's state under ``out_dir/.cache``, keyed by the content of the inputs, the
         options, vehicle and DEM it reads and the stages before it, so a rerun with one changed
-        option reruns only the stages that depend on it.
+        option reruns only the stages that depend on it. Not with ``options.output.private``: the
+        cache would hold the positions.
     progress : bool
         A progress bar of the stages on stderr.
 
@@ -201,7 +203,7 @@ def run(ctx: RunContext, until: str | None = None, start: str | None = None, cac
     stages = STAGES[first:last + 1]
     if ctx.signals is not None:
         stages = [stage for stage in stages if stage.name != "ingest"]
-    store = StageCache(ctx, stages) if cache and ctx.inputs else None
+    store = StageCache(ctx, stages) if cache and ctx.inputs and not ctx.options.output.private else None
     done = store.restore() if store else 0
     ctx.cache_dir = store.directory if store else None
     ctx.from_cache = {stage.name for stage in stages[:done]}

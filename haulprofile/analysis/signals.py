@@ -153,6 +153,15 @@ def read_signals(path: str | Path) -> pd.DataFrame:
     return validate(frame, str(path))
 
 
+POSITION_COLUMNS = ("latitude_deg", "longitude_deg", "wall_time_ns")
+"""What ``analyze run --private`` keeps out of its outputs: where and when (heights, gradients,
+distances and times since the start stay)."""
+
+
+def without_positions(frame: pd.DataFrame) -> pd.DataFrame:
+    return frame.drop(columns=[c for c in POSITION_COLUMNS if c in frame.columns])
+
+
 def write_signals(frame: pd.DataFrame, path: str | Path) -> Path:
     """Write a signals table; the suffix (.csv, or .parquet/.pq) chooses the format, any other is refused.
 

@@ -22,6 +22,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from haulprofile.private_files import make_dirs
+
 from .jsonable import jsonable
 
 HASH_BLOCK_BYTES = 1 << 20
@@ -110,7 +112,7 @@ class StageCache:
         target = self.directory / name
         if target.exists():
             shutil.rmtree(target)
-        target.mkdir(parents=True)
+        make_dirs(target)  # 0750: the cache holds positions (the output step sets its files 0640)
         if self.ctx.signals is not None:
             self.ctx.signals.to_parquet(target / "signals.parquet", index=False)
         with open(target / "state.pickle", "wb") as stream:

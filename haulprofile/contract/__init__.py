@@ -277,9 +277,30 @@ DIAGNOSTICS = Topic(
     ),
 )
 
+PRIVACY_ZONE = Topic(
+    name="/privacy/zone",
+    schema_name="haulprofile.PrivacyZone",
+    encoding=JSON_ENCODING,
+    rate_hz=0.0,
+    description=("Written instead of /gps/fix where a privacy zone begins or ends: no position, no NMEA "
+                 "and no GPS time between an 'entered' and the next 'left'."),
+    json_schema=_obj(
+        {**_T_MONO,
+         "event": {"type": "string", "enum": ["entered", "left"]},
+         "source": {"type": "string", "enum": ["logger", "redact"],
+                    "description": "cut by the logger before writing, or later by analyze redact"}},
+        title="haulprofile.PrivacyZone",
+    ),
+)
+"""``t_mono_ns`` is the first epoch inside (``entered``) or the first fix outside again (``left``).
+The zone is not named: its name ("home") would say what the stop was."""
+
+PRIVACY_EVENTS = ("entered", "left")
+
 TOPICS: dict[str, Topic] = {
     t.name: t
-    for t in (CAN_FRAMES, IMU, BAROMETER, HUMIDITY, MAGNETOMETER, GPS_FIX, GPS_NMEA, TIME_SYNC, DIAGNOSTICS)
+    for t in (CAN_FRAMES, IMU, BAROMETER, HUMIDITY, MAGNETOMETER, GPS_FIX, GPS_NMEA, TIME_SYNC, DIAGNOSTICS,
+              PRIVACY_ZONE)
 }
 
 PROFILE = "haulprofile"

@@ -125,11 +125,14 @@ class EpochFixes:
     """Checksum-valid sentences → one fix per receiver epoch, handed to ``on_fix(epoch, fix)``.
 
     ``counts`` gets ``bad_checksum`` and ``parse_errors`` added up; ``wall_offset_ns()`` [ns] turns
-    an epoch's monotonic time into wall time for a fix without a date.
+    an epoch's monotonic time into wall time for a fix without a date. With ``fixless`` every flush is
+    handed on, ``fix`` None where the epoch gave none, ``epoch`` None where there was none (the
+    logger judges privacy per epoch).
     """
 
-    def __init__(self, on_fix, counts: dict, wall_offset_ns=lambda: 0):
+    def __init__(self, on_fix, counts: dict, wall_offset_ns=lambda: 0, fixless: bool = False):
         self.on_fix = on_fix
+        self.fixless = fixless
         self.counts = counts
         self.wall_offset_ns = wall_offset_ns
         self.epoch: Epoch | None = None
@@ -170,6 +173,8 @@ class EpochFixes:
     def flush(self) -> None:
         """Close the current epoch: its fix, if it has one, goes to ``on_fix``."""
         if self.epoch is None:
+            if self.fixless:
+                self.on_fix(None, None)
             return
         epoch, self.epoch = self.epoch, None
         self.counts["parse_errors"] += epoch.add_fallbacks()
@@ -177,6 +182,6 @@ class EpochFixes:
             fix = epoch.fix(epoch.t_mono_ns + self.wall_offset_ns())
         except (ValueError, TypeError, OverflowError):
             self.counts["parse_errors"] += 1
-            return
-        if fix is not None:
+            fix = None
+        if fix is not None or self.fixless:
             self.on_fix(epoch, fix)

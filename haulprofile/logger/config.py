@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from haulprofile.contract import obd
+from haulprofile.contract.privacy import zones_from_tables
 from haulprofile.toml_tables import check_typed, table_kwargs
 
 
@@ -70,7 +71,8 @@ class CanSection:
     interface: str = "socketcan"
     channel: str = "can0"
     bitrate: int = 250000
-    listen_only: bool = False
+    listen_only: bool = True
+    """Transmit nothing (the default): OBD-II polling and J1939 requests need ``listen_only = false``."""
     receive_interval_s: float = 0.02
     batch_interval_s: float = 0.2
     obd: ObdSection = field(default_factory=ObdSection)
@@ -122,6 +124,33 @@ class GpsSection:
 
 
 @dataclass
+class PrivacySection:
+    """Privacy zones and coarsening, applied before anything reaches the disk (docs/privacy.md)."""
+
+    zones: list[dict] = field(default_factory=list)
+    """``[[privacy.zones]]``: circles (``lat``, ``lon``, ``radius_m``) or ``polygon = [[lat, lon], …]``."""
+    position_grid_m: float = 0.0
+    """> 0: every position written is the centre of its cell of this size [m] (0: full precision)."""
+    time_resolution_s: float = 0.0
+    """> 0: wall-clock and GPS time are kept only to this resolution [s], e.g. 60 (0: full)."""
+    drop_can_pgns: list[int] = field(default_factory=lambda: [65267, 65254])
+    """J1939 PGNs not logged while any privacy setting is in use: Vehicle Position (65267) and
+    Time/Date (65254), a telematics unit's broadcast of what the zones and coarsening withhold."""
+
+    @property
+    def active(self) -> bool:
+        return bool(self.zones) or self.position_grid_m > 0 or self.time_resolution_s > 0
+
+
+@dataclass
+class EncryptionSection:
+    """Encryption at rest (age): each closed log becomes ``.mcap.age`` for these public keys."""
+
+    recipients: list[str] = field(default_factory=list)
+    """age (``age1…``) or SSH public keys of the fleet; empty: logs stay plaintext."""
+
+
+@dataclass
 class EmulationSection:
     """Run the device emulators inside the daemon (tests, demo, crash drills); never on a truck."""
 
@@ -139,6 +168,8 @@ class Config:
     can: CanSection = field(default_factory=CanSection)
     i2c: I2cSection = field(default_factory=I2cSection)
     gps: GpsSection = field(default_factory=GpsSection)
+    privacy: PrivacySection = field(default_factory=PrivacySection)
+    encryption: EncryptionSection = field(default_factory=EncryptionSection)
     emulation: EmulationSection = field(default_factory=EmulationSection)
 
 
@@ -220,6 +251,19 @@ def _check(config: Config) -> None:
                          ("i2c.lsm9ds1.address_m", config.i2c.lsm9ds1.address_m)):
         if address not in I2C_ADDRESSES:
             raise ConfigError(f"config: {key} must be a 7-bit I2C address 0x08 to 0x77, got {address:#x}")
+    try:
+        zones_from_tables(config.privacy.zones, "privacy.zones")
+    except ValueError as exc:
+        raise ConfigError(f"config: {exc}") from None
+    for key in ("position_grid_m", "time_resolution_s"):
+        if not getattr(config.privacy, key) >= 0:
+            raise ConfigError(f"config: privacy.{key} must be >= 0 (0: off), got {getattr(config.privacy, key)!r}")
+    if config.encryption.recipients:
+        from .encryption import EncryptionUnavailable, parse_recipients
+        try:
+            parse_recipients(config.encryption.recipients)
+        except EncryptionUnavailable as exc:
+            raise ConfigError(f"config: {exc}") from None
     if config.logger.time_scale != 1.0 and not config.emulation.enabled:
         raise ConfigError("config: logger.time_scale other than 1 needs [emulation] enabled = true")
 

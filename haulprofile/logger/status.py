@@ -20,9 +20,11 @@ def status_lines(directory: str | Path, prefix: str | None = None,
     is fresh and every ``expected`` source (the enabled ones) is open and running."""
     expected = list(expected or [])
     files = log_files(Path(directory), prefix)
-    if not files:
-        return [f"no logs in {directory}"], False
-    newest = files[-1]
+    plain = [f for f in files if f.suffix == ".mcap"]  # encrypted ones (.mcap.age) cannot be read here
+    if not plain:
+        return [f"no logs being written in {directory} ({len(files)} encrypted)" if files
+                else f"no logs in {directory}"], False
+    newest = plain[-1]
     record = last_diagnostics(newest)
     if record is None:
         return [f"{newest.name}: no /diagnostics yet"], False

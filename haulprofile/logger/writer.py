@@ -28,8 +28,11 @@ class LogWriter(TopicWriter):
 
     def __init__(self, stream: BinaryIO, chunk_size: int = 256 * 1024, compression: str = "zstd",
                  channel_metadata: dict[str, dict[str, str]] | None = None,
-                 chunk_interval_s: float | None = None, fsync=False):
+                 chunk_interval_s: float | None = None, fsync=False, log_time=None):
+        """``log_time(t_realtime_ns, t_mono_ns)``: the MCAP ``log_time`` to write (privacy
+        coarsening of wall-clock time); default the realtime stamp as it is."""
         super().__init__(stream, chunk_size=chunk_size, compression=compression, channel_metadata=channel_metadata)
+        self._log_time = log_time
         self._chunk_interval_ns = None if chunk_interval_s is None else int(chunk_interval_s * 1e9)
         self._fsync = fsync
         self._chunk_first_mono_ns: int | None = None
@@ -37,6 +40,8 @@ class LogWriter(TopicWriter):
 
     def write(self, topic: contract.Topic, payload: bytes, t_mono_ns: int, t_realtime_ns: int) -> None:
         """Add one message; ``publish_time`` is monotonic, ``log_time`` wall-clock (contract)."""
+        if self._log_time is not None:
+            t_realtime_ns = self._log_time(t_realtime_ns, t_mono_ns)
         super().write(topic, payload, t_mono_ns, t_realtime_ns)
         if self._chunk_first_mono_ns is None:
             self._chunk_first_mono_ns = int(t_mono_ns)

@@ -14,6 +14,7 @@ from .. import checks, jsonable
 from ..errors import UserError
 from ..ingest.stage import IngestOptions
 from ..markov.stage import CycleOptions
+from ..outputs import OutputOptions
 from ..pipeline import Options, RunContext, run as run_pipeline
 from ..simulate.stage import SimulateOptions
 from ..vehicle import load_vehicle
@@ -35,6 +36,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
     parser.add_argument("--payload-kg", type=float, help="payload of the simulated electric truck [kg]")
     parser.add_argument("--no-cache", action="store_true", help="rerun every stage (default: reuse unchanged ones)")
+    parser.add_argument("--private", action="store_true",
+                        help="keep positions and wall-clock time out of signals.parquet and the report (they are "
+                             "used in memory for the DEM; heights and gradients stay); no stage cache is written")
     output = parser.add_mutually_exclusive_group()
     output.add_argument("--quiet", action="store_true", help="print only errors")
     output.add_argument("--json", action="store_true", help="print the summary as JSON on stdout, nothing else")
@@ -43,7 +47,8 @@ def add_arguments(parser) -> None:
 def options_from(args) -> Options:
     return Options(ingest=IngestOptions(rate_hz=args.rate_hz, dbc=args.dbc),
                    cycle=CycleOptions(duration_s=args.cycle_duration, n_candidates=args.candidates, seed=args.seed),
-                   simulate=SimulateOptions(payload_kg=args.payload_kg))
+                   simulate=SimulateOptions(payload_kg=args.payload_kg),
+                   output=OutputOptions(private=args.private))
 
 
 def verdict(summary: dict) -> str | None:

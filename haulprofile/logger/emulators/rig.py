@@ -124,9 +124,13 @@ async def run_daemon_for(daemon, devices: EmulatedDevices, duration_s: float) ->
     return code
 
 
-def emulation_config(out_dir: str | Path, time_scale: float = 1.0, base: Config | None = None) -> Config:
-    """A configuration for logging from the emulators into ``out_dir``."""
+def emulation_config(out_dir: str | Path, time_scale: float = 1.0, base: Config | None = None,
+                     transmit: bool = True) -> Config:
+    """A configuration for logging from the emulators into ``out_dir``. On this bench the only
+    ECU is the emulator, so the logger polls it (``transmit=False``: listen-only, as on a truck
+    by default)."""
     config = copy.deepcopy(base) if base is not None else Config()
+    config.can.listen_only = not transmit
     config.logger.directory = str(out_dir)
     config.logger.time_scale = time_scale
     config.emulation.enabled = True

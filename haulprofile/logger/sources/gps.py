@@ -4,6 +4,12 @@ The port is read without blocking (``loop.add_reader`` on its file descriptor). 
 kept raw in ``/gps/nmea`` (checksum-valid or not); the sentences of one epoch become one
 ``/gps/fix`` (`haulprofile.contract.nmea`). Bad checksums, proprietary sentences, binary UBX
 bytes and truncated lines are counted and skipped, never fatal.
+
+With privacy zones or coarsening (`..privacy.Privacy`) the raw lines of an epoch are held until
+the epoch is judged: inside a zone its fix, its NMEA (every line, checksum-valid or not) and its
+GPS time are dropped and ``/privacy/zone`` says where such a stretch begins and ends; outside,
+the fix is coarsened and the NMEA kept only if nothing is coarsened. Before the first fix, and
+while fixless epochs follow a fix inside a zone, epochs count as inside.
 """
 
 from __future__ import annotations
@@ -41,8 +47,15 @@ class GpsSource(Source):
     name = "gps"
 
     def __init__(self, queue, clock, port: str, baudrate: int = 9600, configure_rate_hz: float | None = None,
-                 say=None):
+                 say=None, privacy=None):
         super().__init__(queue, clock, say)
+        self.privacy = privacy if privacy is not None and privacy.active else None
+        self._pending: list[tuple[str, int]] = []
+        """Lines of the epoch being read, held until it is judged (privacy only)."""
+        self._inside: bool | None = None
+        """Last judgement: in a zone (True), outside (False), no fix yet (None)."""
+        self._carry = 0
+        """Held lines that begin the next epoch (1 while a sentence is being handled)."""
         self.port_path = port
         self.baudrate = baudrate
         self.configure_rate_hz = configure_rate_hz
@@ -53,9 +66,10 @@ class GpsSource(Source):
         self.last_gps_time = None
         self._reading: int | None = None
         self._last_try_ns = 0
-        for key in ("lines", "fixes", "bad_checksum", "parse_errors", "skipped"):
+        for key in ("lines", "fixes", "bad_checksum", "parse_errors", "skipped", "zone_epochs"):
             self.stats.extra[key] = 0
-        self._nmea = EpochFixes(self._on_fix, self.stats.extra, lambda: self.clock.mono_offset_ns())
+        self._nmea = EpochFixes(self._on_epoch, self.stats.extra, lambda: self.clock.mono_offset_ns(),
+                                fixless=True)
 
     def open(self) -> None:
         import serial
@@ -85,18 +99,53 @@ class GpsSource(Source):
             return
         text = line[start:].decode("ascii", errors="replace")
         self.stats.extra["lines"] += 1
-        self._raw.append(text)
-        self._raw_t.append(t_mono_ns)
-        self._nmea.sentence(text, t_mono_ns)
+        if self.privacy is None:
+            self._raw.append(text)
+            self._raw_t.append(t_mono_ns)
+        else:
+            self._pending.append((text, t_mono_ns))
+        self._carry = 1
+        try:
+            self._nmea.sentence(text, t_mono_ns)
+        finally:
+            self._carry = 0
 
     def flush_epoch(self) -> None:
         self._nmea.flush()
 
-    def _on_fix(self, epoch, fix: dict) -> None:
-        self.emit_json(contract.GPS_FIX, fix, epoch.t_mono_ns)
+    def _on_epoch(self, epoch, fix: dict | None) -> None:
+        """A closed epoch (``fix`` None: it had none; ``epoch`` None: there was none): with privacy its held lines, except the one
+        that begins the next epoch, are judged with it; the fix that may be written is written."""
+        t_mono_ns = epoch.t_mono_ns if epoch is not None else None
+        if self.privacy is not None:
+            held = self._pending[:len(self._pending) - self._carry]
+            del self._pending[:len(held)]
+            fix = self._judge(fix, held, t_mono_ns)
+        if fix is None:
+            return
+        self.emit_json(contract.GPS_FIX, fix, t_mono_ns)
         self.stats.extra["fixes"] += 1
         if fix["gps_time_utc_ns"] is not None:
-            self.last_gps_time = (epoch.t_mono_ns, fix["gps_time_utc_ns"])
+            self.last_gps_time = (t_mono_ns, fix["gps_time_utc_ns"])
+
+    def _judge(self, fix: dict | None, held: list[tuple[str, int]], t_mono_ns: int | None) -> dict | None:
+        """Privacy: the fix to write (None inside a zone); the held lines go on or are dropped."""
+        was = self._inside
+        inside = self.privacy.inside(fix["latitude"], fix["longitude"]) if fix is not None else (was is not False)
+        if fix is not None and inside != bool(was) and t_mono_ns is not None:
+            self.emit_json(contract.PRIVACY_ZONE, {"t_mono_ns": t_mono_ns, "event": "entered" if inside else "left",
+                                                   "source": "logger"}, t_mono_ns)
+        if fix is not None:
+            self._inside = inside
+        if inside:
+            self.stats.extra["zone_epochs"] += t_mono_ns is not None
+            self.last_gps_time = None
+            return None
+        if self.privacy.keep_nmea:
+            for text, t in held:
+                self._raw.append(text)
+                self._raw_t.append(t)
+        return self.privacy.coarsen_fix(fix) if fix is not None else None
 
     def flush_raw(self) -> None:
         if self._raw:
