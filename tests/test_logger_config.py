@@ -51,7 +51,6 @@ def test_unreadable_and_invalid_files(tmp_path):
 def test_listen_only_empties_the_allow_list():
     config = cfg.from_dict({"can": {"listen_only": True}})
     assert allowed_tx_ids(config.can) == frozenset()
-    assert allowed_tx_ids(cfg.Config().can)
 
 
 def test_the_wiring_guide_shows_configuration_the_logger_accepts():
