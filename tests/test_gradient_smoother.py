@@ -112,8 +112,8 @@ def test_without_dem_and_with_gps_outages(world):
 
 def test_paper_method_is_selectable_and_a_bad_method_is_a_user_error(world):
     signals, _, dem = world
-    grid = estimate_gradient(signals, dem, GradientSettings(method="paper")).grid
+    grid = estimate_gradient(signals, dem, GradientSettings(gradient_method="paper")).grid
     np.testing.assert_array_equal(grid["gradient_pct"], grid["gradient_paper_pct"])
     assert "gradient_smooth_pct" in grid
     with pytest.raises(UserError, match="unknown method"):
-        estimate_gradient(signals, dem, GradientSettings(method="kalman"))
+        estimate_gradient(signals, dem, GradientSettings(gradient_method="kalman"))

@@ -1,22 +1,27 @@
 """``analyze mass INPUT… --vehicle FILE [--dem DIR]``: per-segment vehicle mass by LS, RLS and LM
-beside the truck's own CAN estimate; a figure like the paper's Fig. 6."""
+beside the truck's own CAN estimate, and the joint estimate (all segments' masses with the drive's
+c_r and c_d·A, calibrated by ``--known-mass``); a figure like the paper's Fig. 6."""
 
 from __future__ import annotations
 
-import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
+from .. import checks
+from ..errors import UserError
 from ..vehicle import load_vehicle
-from .gradient import signals_for
+
+EXIT_UNTRUSTWORTHY_RESULT = 3
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
     parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles or GeoTIFFs (for the gradient)")
-    parser.add_argument("--out", type=Path, default=Path("mass-out"), help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("mass-out"),
+                        help="output directory")
     parser.add_argument("--true-mass", type=float, nargs="+", metavar="KG",
                         help="the real total mass [kg], if weighed, for the figure: one value, or one per segment")
     parser.add_argument("--forgetting-factor", type=float, default=0.9985, help="lambda of RLS and LM (default 0.9985)")
@@ -48,26 +53,40 @@ def format_segments(segments: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def run(args) -> int:
-    from ..gradient import stage as gradient_stage
-    from ..mass import SegmentSettings, estimate_mass
-    from ..mass.calibration import parse_known_masses
-    from ..mass.figure import draw_estimates
+def _mass_json(ctx):
+    if ctx.results.mass is None:
+        return None
+    return {"segments": ctx.summary["mass"]["segments"], "road_load": ctx.summary["mass"]["road_load"]}
 
-    vehicle = load_vehicle(args.vehicle)
-    ctx = signals_for(args.inputs, print, args.out, vehicle=vehicle, dem_dir=args.dem,
-                      options={"gradient": {"method": args.gradient_method}})
-    if "gradient_pct" not in ctx.signals.columns:
-        gradient_stage(ctx)
-    result = estimate_mass(ctx.signals, vehicle, segment_settings=SegmentSettings(forgetting_factor=args.forgetting_factor),
-                           known_masses=parse_known_masses(args.known_mass))
-    for note in result.notes:
-        print(f"note: {note}")
-    print(format_segments(result.segments))
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "mass.json").write_text(json.dumps({"segments": result.segments, "road_load": result.road_load},
-                                                   indent=2))
+
+def run(args) -> int:
+    from ..gradient.stage import GradientOptions
+    from ..gradient import GradientSettings
+    from ..mass import SegmentSettings
+    from ..mass.calibration import parse_known_masses
+    from ..mass.stage import MassOptions
+    from ..pipeline import Options, RunContext, run as run_pipeline
+
+    checks.forgetting_factor(args.forgetting_factor)
+    for mass in args.true_mass or []:
+        checks.positive(mass, "--true-mass", "kg")
+    weighed = tuple(parse_known_masses(args.known_mass).items())
+    options = Options(gradient=GradientOptions(GradientSettings(gradient_method=args.gradient_method),
+                                               keep_existing=True),
+                      mass=MassOptions(segments=SegmentSettings(forgetting_factor=args.forgetting_factor),
+                                       true_mass_kg=tuple(args.true_mass) if args.true_mass else None,
+                                       weighed_masses_kg=weighed))
+    ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle),
+                     dem_dir=args.dem, options=options, figures=not args.no_figure,
+                     json_files={"mass.json": _mass_json})
+    ctx = run_pipeline(ctx, until="mass")
+    if ctx.results.mass is None:
+        raise UserError(ctx.skipped.get("mass", "no mass estimated"))
+    print(format_segments(ctx.results.mass.segments))
     print(f"wrote {args.out / 'mass.json'}")
-    if not args.no_figure:
-        print(f"wrote {draw_estimates(ctx.signals, result, args.out / 'mass.png', args.true_mass)}")
+    for name in ctx.summary["mass"]["files"]:
+        print(f"wrote {args.out / name}")
+    if not any("ok" in (s["status"], s.get("mass_joint_status")) for s in ctx.results.mass.segments):
+        print("analyze mass: warning: no segment has enough excitation for a confident mass", file=sys.stderr)
+        return EXIT_UNTRUSTWORTHY_RESULT
     return 0

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
-from .. import kinematics
+from .. import checks, kinematics
 from ..errors import UserError
 from . import grid as distance_grid
 from . import kalman, sources
@@ -23,7 +23,7 @@ class GradientSettings:
     (see ``docs/estimation.md``)."""
 
     spacing_m: float = 10.0
-    method: str = "smoother"
+    gradient_method: str = "smoother"
     """Which estimate becomes ``gradient_pct``/``height_m``: "smoother" (Kalman smoother over
     distance, all sources) or "paper" (fusion (8)); both are always written as columns."""
     smoother: SmootherSettings = SmootherSettings()
@@ -80,8 +80,8 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     ``dem`` anything with ``height_m(lat, lon)`` (`analysis.dem.open_dem`). Raises `UserError`
     when neither a DEM with GPS nor a barometer is available, or no sample is valid.
     """
-    if settings.method not in METHODS:
-        raise UserError(f"gradient: unknown method {settings.method!r} (choose {' or '.join(METHODS)})")
+    if settings.gradient_method not in METHODS:
+        raise UserError(f"gradient: unknown method {settings.gradient_method!r} (choose {' or '.join(METHODS)})")
     if isinstance(settings.smoother, dict):
         settings = replace(settings, smoother=SmootherSettings(**settings.smoother))
     notes: list[str] = []
@@ -98,6 +98,8 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     spacing = settings.spacing_m
     index = np.where(valid, distance_grid.grid_index(distance, spacing), -1)
     n_bins = int(index.max()) + 1
+    checks.rows(n_bins, f"the {spacing:g} m distance grid of {distance[valid].max() / 1000:.3g} km",
+                "is speed_mps in m/s and time_s in s?")
     s_grid = np.arange(n_bins) * spacing
     out = pd.DataFrame({"distance_m": s_grid})
 
@@ -161,7 +163,7 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     out["map_gated"] = smoothed.map_gated
     for name, weight in smoothed.weights.items():
         out[f"weight_smooth_{name}"] = weight
-    if settings.method == "smoother":
+    if settings.gradient_method == "smoother":
         out["height_m"], out["gradient_pct"] = out["height_smooth_m"], out["gradient_smooth_pct"]
     else:
         notes.extend(paper_notes)
@@ -170,7 +172,7 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     samples = {name: np.interp(distance, s_grid, out[name].to_numpy(), left=np.nan, right=np.nan)
                for name in out.columns if name != "distance_m"}
     return GradientResult(grid=out, samples=samples, notes=notes, map_sigma_m=map_sigma,
-                          smoother={"method": settings.method, **smoothed.noise,
+                          smoother={"method": settings.gradient_method, **smoothed.noise,
                                     "imu_bias_mps2": (float(np.median(smoothed.imu_bias_mps2))
                                                       if imu_excess is not None else None),
                                     "map_gated_km": float(smoothed.map_gated.sum() * spacing / 1000),
@@ -286,10 +288,20 @@ def _baro_offset(frame, bin_baro, map_level, weight_map, index, n_bins, s_grid, 
     return np.full(n_bins, np.nanmedian(gap) if np.isfinite(gap).any() else 0.0)
 
 
+MAX_ROAD_SLOPE = 0.30
+"""Steepest gradient of a road a truck drives [-] (public roads stay below some 25-35 %)."""
+
+
 def _fuse(map_slope, weight_map, baro_slope, s_grid, notes):
     """(8): (w_map g_map + w_baro g_baro) / (w_map + w_baro) [-]; bins with no source interpolated."""
     n_bins = len(s_grid)
     w_map = weight_map if map_slope is not None else np.zeros(n_bins)
+    if map_slope is not None:
+        steep = np.abs(np.nan_to_num(map_slope)) > MAX_ROAD_SLOPE
+        if steep.any():
+            notes.append(f"map gradient above {100 * MAX_ROAD_SLOPE:.0f} % (no road is that steep) on "
+                         f"{100 * steep.mean():.1f} % of the distance: the map is left out there")
+            w_map = np.where(steep, 0.0, w_map)
     w_baro = sources.WEIGHT_BARO * np.isfinite(baro_slope) if baro_slope is not None else np.zeros(n_bins)
     g_map = np.nan_to_num(map_slope) if map_slope is not None else np.zeros(n_bins)
     g_baro = np.nan_to_num(baro_slope) if baro_slope is not None else np.zeros(n_bins)

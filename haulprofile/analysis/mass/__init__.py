@@ -4,9 +4,10 @@ between stops, each with an uncertainty; and the joint estimate (``joint``): mas
 segments with the drive's c_r and c_d·A, from the accelerometer where there is one (so the mass
 does not depend on the gradient estimate), calibrated by a known mass (``calibration``).
 
-Public: `estimate_mass(frame, vehicle, filter_settings, segment_settings) -> MassResult`, and the
-pipeline `stage(ctx)` which adds ``mass_kg`` (and ``mass_ls_kg``, ``mass_rls_kg``, ``mass_lm_kg``)
-and ``ctx.summary["mass"]["segments"]``.
+Public: `estimate_mass(frame, vehicle, filter_settings, segment_settings, joint_settings,
+known_masses) -> MassResult`; the
+pipeline's stage, which adds ``mass_kg`` (and ``mass_ls_kg``, ``mass_rls_kg``, ``mass_lm_kg``), is
+`analysis.mass.stage.mass_stage`.
 """
 
 from __future__ import annotations
@@ -16,15 +17,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..errors import UserError
 from ..road_load import G_MPS2
 from . import calibration
 from .joint import JointFit, JointSettings, fit_joint
 from .regression import FilterSettings, Regression, build_regression
-from .figure import draw_estimates
 from .segments import SegmentSettings, estimate_segment, segment_bounds
 
-__all__ = ["estimate_mass", "MassResult", "FilterSettings", "SegmentSettings", "JointSettings", "stage"]
+__all__ = ["estimate_mass", "MassResult", "FilterSettings", "SegmentSettings", "JointSettings"]
 
 
 @dataclass
@@ -166,29 +165,3 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         if isinstance(entry, dict) and "identified" in entry and not entry["identified"]:
             notes.append(f"{name}: {entry['reason']}")
     return road_load, chosen
-
-
-def stage(ctx) -> None:
-    if ctx.vehicle is None:
-        ctx.say("mass: skipped: needs a vehicle file (--vehicle)")
-        return
-    known = {int(k): float(v) for k, v in ctx.options.get("known_mass", {}).items()}
-    try:
-        result = estimate_mass(ctx.signals, ctx.vehicle, FilterSettings(**ctx.options.get("mass_filter", {})),
-                               SegmentSettings(**ctx.options.get("mass", {})),
-                               JointSettings(**ctx.options.get("mass_joint", {})), known)
-    except UserError as exc:
-        ctx.say(f"mass: skipped: {exc}")
-        return
-    for note in result.notes:
-        ctx.say(f"mass: {note}")
-    for name, values in result.columns.items():
-        ctx.signals[name] = values
-    for segment in result.segments:
-        if segment["status"] != "ok":
-            ctx.say(f"mass: segment {segment['start_s']:.0f}-{segment['end_s']:.0f} s: no confident mass "
-                    f"({segment['reason']})")
-    files = [draw_estimates(ctx.signals, result, ctx.out_dir / "mass.png").name] if ctx.figures else []
-    ctx.summary["mass"] = {"segments": result.segments, "samples_used": int(result.regression.usable.sum()),
-                           "road_load": result.road_load,
-                           "rejected_by": result.regression.rejected, "notes": result.notes, "files": files}
