@@ -3,7 +3,8 @@ regional, long-haul; tunnels, bridges, cuttings, payload and trailer changes) at
 levels through the real analysis (MCAP log -> ingest -> gradient -> mass), scored against the
 truth. One JSON line per vehicle file (exact / datasheet-mismatched), level and gradient method:
 gradient RMSE [%-pt] on the 10 m grid per road category (median and p95 over drives) and the mass
-error per segment (median and worst of |error| over all segments, LS and RLS). Drives run in a
+error per segment (median and worst of |error| over all segments, LS, RLS and ``mass_kg``, the
+joint estimate, with the share of segments whose truth is inside its stated ±2σ). Drives run in a
 process pool of 2 workers."""
 
 from __future__ import annotations
@@ -68,6 +69,9 @@ def summarise(results: list[dict]) -> list[dict]:
                     if errors:
                         mass[key] |= {"median_pct": 100 * float(np.median(errors)),
                                       "worst_pct": 100 * float(np.max(errors))}
+                covered = [c for r in have for c in r["mass"][vehicle][method].get("mass_kg_within_2_sigma", [])]
+                if "mass_kg" in mass and covered:
+                    mass["mass_kg"]["within_2_sigma"] = float(np.mean(covered))
                 lines.append(result(name, gradient["outside"]["median"], "%-pt", available=True, level=level,
                                     method=method, vehicle=vehicle, column=METHODS[method], drives=len(have),
                                     gradient_rmse_pct=gradient, mass_error=mass))

@@ -28,7 +28,7 @@ CATEGORIES = {"outside": ("at grade", "embankment"), "cutting": ("cutting",), "b
               "tunnel": ("tunnel",)}
 MIN_BINS = 5
 MIN_SEGMENT_S = 120.0
-MASS_KEYS = ("mass_ls_kg", "mass_rls_kg")
+MASS_KEYS = ("mass_ls_kg", "mass_rls_kg", "mass_kg")
 MISMATCH = {"rolling_resistance_coefficient": 0.15, "drag_coefficient": 0.10}
 MISMATCH_ETA = 0.02
 
@@ -104,21 +104,28 @@ def gradient_errors(signals, virtual, column: str) -> dict:
 
 
 def mass_errors(signals, truth, vehicle, column: str) -> dict:
-    """Relative errors of each confident segment's mass (LS, RLS) when the gradient is ``column``."""
+    """Relative errors of each confident segment's mass when the gradient is ``column``: LS and
+    RLS where the LS is ``ok``; ``mass_kg`` (the joint estimate, else LS) wherever it is given,
+    and in ``mass_kg_within_2_sigma`` whether the truth lies inside its stated ±2σ."""
     from ..mass import estimate_mass
     frame = signals.assign(gradient_pct=signals[column])
     result = estimate_mass(frame, vehicle)
     time_s, mass = truth["time_s"].to_numpy(), truth["mass_kg"].to_numpy()
-    out = {key: [] for key in MASS_KEYS}
+    out = {key: [] for key in MASS_KEYS} | {"mass_kg_within_2_sigma": []}
     for segment in result.segments:
-        if segment["status"] != "ok" or segment["end_s"] - segment["start_s"] < MIN_SEGMENT_S:
+        if segment["end_s"] - segment["start_s"] < MIN_SEGMENT_S:
             continue
         inside = (time_s >= segment["start_s"]) & (time_s <= segment["end_s"])
         if not inside.any() or np.ptp(mass[inside]) > 0:
             continue
+        true = mass[inside][0]
         for key in MASS_KEYS:
-            if segment.get(key) is not None:
-                out[key].append(float(segment[key] / mass[inside][0] - 1))
+            confident = segment["status"] == "ok" if key != "mass_kg" else True
+            if confident and segment.get(key) is not None:
+                out[key].append(float(segment[key] / true - 1))
+        sigma = segment.get("mass_uncertainty_kg")
+        if segment.get("mass_kg") is not None and sigma is not None and np.isfinite(sigma):
+            out["mass_kg_within_2_sigma"].append(bool(abs(segment["mass_kg"] - true) <= 2 * sigma))
     return out
 
 
