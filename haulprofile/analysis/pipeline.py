@@ -54,7 +54,7 @@ DEPENDS_ON: dict[str, dict] = {
     "ingest": {"options": ("ingest",)},
     "gradient": {"options": ("gradient",), "dem": True},
     "mass": {"options": ("mass", "mass_filter"), "vehicle": True},
-    "cycle": {"options": ("cycle",)},
+    "cycle": {"options": ("cycle",), "vehicle": True},
     "loads": {"options": ("loads",), "vehicle": True},
     "simulate": {"options": ("simulate",), "vehicle": True},
     "report": {"vehicle": True},

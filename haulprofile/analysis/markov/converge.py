@@ -1,0 +1,103 @@
+"""The default selection: a Monte Carlo pool, its best walks refined towards the criteria.
+
+The paper's selection (`select.select_cycle`) keeps the best of a fixed budget of independent
+walks; on one-way drives one walk in 10⁴–10⁵ is valid, so whether a user gets a cycle is luck.
+Here the pool only provides starting points: the ``n_chains`` walks closest to validity (by the
+kinematic part of the objective) are refined (`refine.refine_walk`) towards the fifteen criteria
+and, when a vehicle and the measured drive's loads are given (`load_criteria.LoadTarget`), the
+load criteria. The fifteen stay the validity gate; the objective adds the loads to the score.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .chain import Chain, build_chain
+from .counting import TransitionCounts
+from .criteria import _Q, _S, ALLOWANCE, IS_MASS, deviations, evaluate, scales, scores
+from .generate import cycle_frame, run_batch
+from .load_criteria import LOAD_ALLOWANCE, N_LOADS, LoadTarget, evaluate_loads
+from .refine import refine_walk
+from .score_kernels import KINEMATIC_PENALTY
+from .select import BATCH, Selection
+
+POOL = 20_000
+CHAINS = 4
+MOVES = 4_000
+MAX_WINDOW_S = 120
+
+
+def kinematic_objective(deviation: np.ndarray) -> np.ndarray:
+    """The objective without loads, for pool candidates (…, 15) (`score_kernels.objective`)."""
+    ratio = deviation / ALLOWANCE
+    return ratio.mean(axis=-1) + KINEMATIC_PENALTY * np.clip(ratio - 1.0, 0.0, None).sum(axis=-1)
+
+
+def _pool(chain, counts, duration_s, n_pool, seed, update_counts):
+    measured = counts.statistics
+    all_scores, objective = np.empty(n_pool), np.empty(n_pool)
+    valid, valid_without_mass = np.empty(n_pool, bool), np.empty(n_pool, bool)
+    for first in range(0, n_pool, BATCH):
+        size = min(BATCH, n_pool - first)
+        stats, _ = run_batch(chain, duration_s, size, seed, first, update_counts)
+        deviation = deviations(stats, measured, counts.widths)
+        all_scores[first:first + size] = scores(deviation)
+        objective[first:first + size] = kinematic_objective(deviation)
+        passed = deviation <= ALLOWANCE
+        valid[first:first + size] = passed.all(axis=1)
+        valid_without_mass[first:first + size] = passed[:, ~IS_MASS].all(axis=1)
+    return all_scores, objective, valid, valid_without_mass
+
+
+def _load_arrays(chain: Chain, target: LoadTarget | None):
+    if target is None:
+        edges = np.array([0.0, 1.0])
+        return (np.zeros(chain.n_states), 1.0, edges, edges, np.zeros((1, 1)), 1.0, np.zeros(N_LOADS),
+                np.ones(N_LOADS))
+    return (target.resistance_n, target.wheel_radius_m, target.speed_edges_rpm, target.torque_edges_nm,
+            target.residence_share, target.range_scale_nm, target.measured, target.scale)
+
+
+def refine(chain: Chain, counts: TransitionCounts, path: np.ndarray, target: LoadTarget | None, n_moves: int,
+           seed: int, stream: int, max_window_s: int = MAX_WINDOW_S) -> tuple[np.ndarray, np.ndarray]:
+    """A refined copy of ``path`` and the objective after each move."""
+    path = np.array(path, dtype=np.int64)
+    trace = np.empty(n_moves)
+    resistance, radius, speed_edges, torque_edges, share, range_scale, load_measured, load_scale = \
+        _load_arrays(chain, target)
+    refine_walk(path, chain.row_ptr, chain.dest, chain.cum_count, chain.speed_mps, chain.gradient_pct,
+                chain.mass_kg, counts.statistics, scales(counts.statistics, counts.widths), _Q, _S, ALLOWANCE,
+                target is not None, resistance, radius, speed_edges, torque_edges, share, range_scale,
+                load_measured, load_scale, LOAD_ALLOWANCE, int(n_moves), int(max(2, min(max_window_s, len(path) - 1))),
+                int(seed), int(stream), trace)
+    return path, trace
+
+
+def select_refined(counts: TransitionCounts, duration_s: float = 1800.0, seed: int = 0, chain: Chain | None = None,
+                   target: LoadTarget | None = None, vehicle=None, n_cycles: int = 1, n_pool: int = POOL,
+                   n_chains: int | None = None, n_moves: int = MOVES,
+                   update_counts: bool = False) -> list[Selection]:
+    """``n_cycles`` cycles of ``duration_s`` [s], best first: the ``n_chains`` (at least ``n_cycles``)
+    pool walks closest to validity, each refined over ``n_moves`` moves. ``target`` and
+    ``vehicle`` add the load criteria to the objective and to each selection's report."""
+    chain = chain or build_chain(counts)
+    n_chains = max(n_chains or CHAINS, n_cycles)
+    n_pool = max(int(n_pool), n_chains)
+    all_scores, objective, valid, valid_without_mass = _pool(chain, counts, duration_s, n_pool, seed, update_counts)
+    starts = np.argsort(objective, kind="stable")[:n_chains]
+    results = []
+    for stream, index in enumerate(starts):
+        _, path = run_batch(chain, duration_s, 1, seed, int(index), update_counts, keep_paths=True)
+        refined, trace = refine(chain, counts, path[0], target, n_moves, seed, stream)
+        cycle = cycle_frame(chain, refined)
+        criteria = evaluate(cycle, counts)
+        loads = evaluate_loads(cycle, vehicle, target) if target is not None and vehicle is not None else None
+        results.append(Selection(cycle, criteria, int(index), int(seed), n_pool, int(valid.sum()),
+                                 int(valid_without_mass.sum()), all_scores, chain, method="refined",
+                                 objective=float(trace[-1]) if n_moves else float(objective[index]),
+                                 start_score=float(all_scores[index]), load_criteria=loads, trace=trace))
+    results.sort(key=lambda s: (not s.criteria.valid, s.objective))
+    refined_scores = np.array([s.criteria.score for s in results])
+    for s in results:
+        s.refined_scores = refined_scores
+    return results[:n_cycles]

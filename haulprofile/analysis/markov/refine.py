@@ -1,0 +1,130 @@
+"""Score-guided refinement of a walk: it stays a walk the chain allows, and improves.
+
+A move re-draws a window of the walk from the chain: from the state at second ``a`` a new walk is
+drawn until it meets a state the old walk visits later in the window (second ``c``), and the old
+walk goes on from there; or the walk's tail is drawn anew. Every transition of the result is one
+of the chain's (the re-drawn part from its rows, the joins at equal states), so the result is
+still a walk of the measured transitions. A splice that shortens the walk is continued from its
+end by the chain, one that lengthens it is cut at the cycle's duration. A move is kept when the
+objective (`score_kernels.objective`) falls; the kernel works on paths and statistics only.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from .generate import GOLDEN, _mix, _path_statistics, _uniform
+from .score_kernels import objective, path_loads
+
+TAIL_SHARE = 0.2
+"""Share of moves that re-draw the walk's tail instead of a window inside it."""
+
+
+@numba.njit(cache=True)
+def _next_state(row_ptr, dest, cum_count, s, rng):
+    a = row_ptr[s]
+    b = row_ptr[s + 1]
+    u = _uniform(rng) * cum_count[b - 1]
+    j = a
+    while j < b - 1 and cum_count[j] <= u:
+        j += 1
+    return dest[j]
+
+
+@numba.njit(cache=True)
+def _kinematic_deviation(path, speed, gradient, mass, measured, scale, q_index, s_index, stats, out):
+    _path_statistics(path, speed, gradient, mass, stats)
+    for i in range(out.shape[0]):
+        out[i] = abs(stats[q_index[i], s_index[i]] - measured[q_index[i], s_index[i]]) / scale[i]
+
+
+@numba.njit(cache=True)
+def _propose(current, n, row_ptr, dest, cum_count, max_window, mark, rng, proposal):
+    """A re-drawn window or tail of ``current[:n]`` into ``proposal[:n]``; False if the re-drawn
+    window found no way back into the walk."""
+    if _uniform(rng) < 0.2:
+        a = n - 2 - int(_uniform(rng) * min(max_window, n - 1))
+        a = max(a, 0)
+        for k in range(a + 1):
+            proposal[k] = current[k]
+        s = current[a]
+        for k in range(a + 1, n):
+            s = _next_state(row_ptr, dest, cum_count, s, rng)
+            proposal[k] = s
+        return True
+    a = int(_uniform(rng) * (n - 1))
+    window = 2 + int(_uniform(rng) * (max_window - 1))
+    last = min(a + window, n - 1)
+    if _uniform(rng) < 0.5:
+        for c in range(a + 1, last + 1):
+            mark[current[c]] = c
+    else:
+        for c in range(last, a, -1):
+            mark[current[c]] = c
+    for k in range(a + 1):
+        proposal[k] = current[k]
+    s = current[a]
+    hit = -1
+    j = 0
+    limit = window + window // 2
+    while j < limit:
+        j += 1
+        s = _next_state(row_ptr, dest, cum_count, s, rng)
+        if a + j < proposal.shape[0]:
+            proposal[a + j] = s
+        if mark[s] >= 0:
+            hit = mark[s]
+            break
+    for c in range(a + 1, last + 1):
+        mark[current[c]] = -1
+    if hit < 0:
+        return False
+    k = a + j
+    c = hit
+    while k < n - 1 and c < n - 1:
+        k += 1
+        c += 1
+        proposal[k] = current[c]
+    s = proposal[min(k, n - 1)]
+    while k < n - 1:
+        k += 1
+        s = _next_state(row_ptr, dest, cum_count, s, rng)
+        proposal[k] = s
+    return True
+
+
+@numba.njit(cache=True)
+def refine_walk(path, row_ptr, dest, cum_count, speed, gradient, mass, measured, kin_scale, q_index, s_index,
+                kin_allowance, use_loads, resistance, radius, speed_edges, torque_edges, share, range_scale,
+                load_measured, load_scale, load_allowance, n_moves, max_window, seed, stream, trace):
+    """Improve ``path`` in place over ``n_moves`` proposals; ``trace[m]`` the objective after move m.
+    Returns the final objective."""
+    n = path.shape[0]
+    rng = np.empty(1, np.uint64)
+    rng[0] = _mix(np.uint64(seed) ^ _mix(np.uint64(stream) + GOLDEN + GOLDEN))
+    mark = np.full(speed.shape[0], -1, np.int64)
+    proposal = np.empty(n + 2 * max_window + 2, np.int64)
+    stats = np.empty((4, 4))
+    kin = np.empty(q_index.shape[0])
+    loads = np.empty(load_measured.shape[0])
+    torque = np.empty(n)
+    power = np.empty(n)
+    residence = np.empty((speed_edges.shape[0] - 1, torque_edges.shape[0] - 1))
+
+    def value_of(p):
+        _kinematic_deviation(p, speed, gradient, mass, measured, kin_scale, q_index, s_index, stats, kin)
+        if use_loads:
+            path_loads(p, n, speed, mass, resistance, radius, speed_edges, torque_edges, share, range_scale,
+                       loads, torque, power, residence)
+        return objective(kin, kin_allowance, loads, load_measured, load_scale, load_allowance, use_loads)
+
+    current = value_of(path)
+    for m in range(n_moves):
+        if _propose(path, n, row_ptr, dest, cum_count, max_window, mark, rng, proposal):
+            value = value_of(proposal[:n])
+            if value < current:
+                current = value
+                path[:] = proposal[:n]
+        trace[m] = current
+    return current
