@@ -82,12 +82,12 @@ def test_refined_cycle_is_a_walk_of_counted_transitions_and_better_than_its_star
 def test_refinement_without_loads_keeps_the_walk_valid_and_the_start_fixed(counts):
     chain = build_chain(counts)
     _, paths = run_batch(chain, 1200, 1, seed=5, first_index=17, keep_paths=True)
-    refined, trace = refine(chain, counts, paths[0], None, 800, seed=5, stream=0)
+    refined, trace, best = refine(chain, counts, paths[0], None, 800, seed=5, stream=0)
     assert refined[0] == paths[0][0] and len(refined) == len(paths[0])
     rows = [np.flatnonzero(chain.dest[chain.row_ptr[a]:chain.row_ptr[a + 1]] == b).size
             for a, b in zip(refined[:-1], refined[1:])]
     assert min(rows) == 1
-    assert np.all(np.diff(trace) <= 0)
+    assert np.all(np.diff(trace) <= 0) and best == trace[-1]
 
 
 def test_a_cycle_set_is_valid_distinct_and_reproducible(counts, target, vehicle):

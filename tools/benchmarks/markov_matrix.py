@@ -1,8 +1,10 @@
 """Paper selection against the refined default on many drives: virtual-truck scenarios (ground truth
 speed, gradient, mass; three seeds each and their concatenation) and synthetic drives.
 
-``python tools/benchmarks/markov_matrix.py [OUT.json]`` prints one line per drive and method: score
-S (15), valid, the load criteria's plain relative deviations and the selection's wall time.
+``python tools/benchmarks/markov_matrix.py [OUT.json [paper,refined]]`` prints one line per drive and
+method: score S (15), valid, the load criteria's plain relative deviations and the selection's wall
+time. ``paper-fwd-accel`` is the paper's cycle with the forward-difference acceleration column
+cycles had before (its loads as the loads stage saw them).
 """
 
 from __future__ import annotations
@@ -43,26 +45,32 @@ def drives(seeds=(0, 1, 2)):
                    load_vehicle(vehicle))
 
 
-def main(out=None):
+def main(out=None, methods=("paper", "refined")):
     rows = []
     for name, frame, vehicle in drives():
         counts = count_transitions(frame)
         chain = build_chain(counts)
         target = load_target(frame, vehicle, chain)
-        t0 = time.perf_counter()
-        paper = select_cycle(counts, 1800, 100_000, seed=0, chain=chain)
-        t1 = time.perf_counter()
-        refined = select_refined(counts, 1800, 0, chain, target, vehicle)[0]
-        t2 = time.perf_counter()
-        for method, s, wall in (("paper", paper, t1 - t0), ("refined", refined, t2 - t1)):
-            loads = s.load_criteria or evaluate_loads(s.cycle, vehicle, target)
+        runs = []
+        if "paper" in methods:
+            t0 = time.perf_counter()
+            paper = select_cycle(counts, 1800, 100_000, seed=0, chain=chain)
+            wall = time.perf_counter() - t0
+            forward = paper.cycle.assign(accel_mps2=np.append(np.diff(paper.cycle["speed_mps"]), 0.0))
+            runs += [("paper", paper, paper.cycle, wall), ("paper-fwd-accel", paper, forward, wall)]
+        if "refined" in methods:
+            t0 = time.perf_counter()
+            refined = select_refined(counts, 1800, 0, chain, target, vehicle)[0]
+            runs.append(("refined", refined, refined.cycle, time.perf_counter() - t0))
+        for method, s, cycle, wall in runs:
+            loads = evaluate_loads(cycle, vehicle, target)
             row = {"drive": name, "method": method, "score": s.criteria.score, "valid": s.criteria.valid,
                    "wall_s": wall, "loads_ok": all(v["passed"] for v in loads.values()),
                    "loads": {k: v["relative"] for k, v in loads.items()},
                    "load_deviation": {k: v["deviation"] for k, v in loads.items()}}
             rows.append(row)
             rel = [v["relative"] for v in loads.values()]
-            print(f"{name:24s} {method:8s} S {s.criteria.score:.3f} valid {s.criteria.valid!s:5s} "
+            print(f"{name:24s} {method:15s} S {s.criteria.score:.3f} valid {s.criteria.valid!s:5s} "
                   f"{wall:5.2f} s loads_ok {row['loads_ok']!s:5s} E+ {rel[0]:+.3f} E- {rel[1]:+.3f} "
                   f"DET {min(rel[2:8]):+.3f}..{max(rel[2:8]):+.3f} P {rel[8] if rel[8] is not None else float('nan'):+.3f} "
                   f"{rel[9] if rel[9] is not None else float('nan'):+.3f} {rel[10]:+.3f} "
@@ -73,4 +81,5 @@ def main(out=None):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else None)
+    main(sys.argv[1] if len(sys.argv) > 1 else None,
+         tuple(sys.argv[2].split(",")) if len(sys.argv) > 2 else ("paper", "refined"))

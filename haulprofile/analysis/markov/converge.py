@@ -24,7 +24,10 @@ from .select import BATCH, Selection
 POOL = 20_000
 CHAINS = 4
 MOVES = 4_000
-MAX_WINDOW_S = 120
+SHORTLIST = 16
+MAX_WINDOW_S = 300
+TEMPERATURE = 0.05
+"""Start temperature of the annealing, in objective units (5 % of one allowance, averaged)."""
 
 
 def kinematic_objective(deviation: np.ndarray) -> np.ndarray:
@@ -59,24 +62,39 @@ def _load_arrays(chain: Chain, target: LoadTarget | None):
 
 
 def refine(chain: Chain, counts: TransitionCounts, path: np.ndarray, target: LoadTarget | None, n_moves: int,
-           seed: int, stream: int, max_window_s: int = MAX_WINDOW_S) -> tuple[np.ndarray, np.ndarray]:
-    """A refined copy of ``path`` and the objective after each move."""
+           seed: int, stream: int, max_window_s: int = MAX_WINDOW_S,
+           temperature: float = TEMPERATURE) -> tuple[np.ndarray, np.ndarray, float]:
+    """A refined copy of ``path``, the best objective after each move, and the objective of the
+    best walk (of ``path`` itself when ``n_moves`` is 0)."""
     path = np.array(path, dtype=np.int64)
     trace = np.empty(n_moves)
     resistance, radius, speed_edges, torque_edges, share, range_scale, load_measured, load_scale = \
         _load_arrays(chain, target)
-    refine_walk(path, chain.row_ptr, chain.dest, chain.cum_count, chain.speed_mps, chain.gradient_pct,
+    best = refine_walk(path, chain.row_ptr, chain.dest, chain.cum_count, chain.speed_mps, chain.gradient_pct,
                 chain.mass_kg, counts.statistics, scales(counts.statistics, counts.widths), _Q, _S, ALLOWANCE,
                 target is not None, resistance, radius, speed_edges, torque_edges, share, range_scale,
                 load_measured, load_scale, LOAD_ALLOWANCE, int(n_moves), int(max(2, min(max_window_s, len(path) - 1))),
-                int(seed), int(stream), trace)
-    return path, trace
+                float(temperature), int(seed), int(stream), trace)
+    return path, trace, float(best)
+
+
+def _starts(chain, counts, duration_s, seed, update_counts, objective, target, n_chains) -> np.ndarray:
+    """Pool indices to refine: the ``n_chains`` best by the whole objective among the
+    `SHORTLIST` × ``n_chains`` best by its kinematic part (the pool keeps no paths and no loads)."""
+    order = np.argsort(objective, kind="stable")
+    if target is None:
+        return order[:n_chains]
+    shortlist = order[:SHORTLIST * n_chains]
+    whole = np.array([refine(chain, counts, run_batch(chain, duration_s, 1, seed, int(i), update_counts,
+                                                        keep_paths=True)[1][0], target, 0, seed, 0)[2]
+                      for i in shortlist])
+    return shortlist[np.argsort(whole, kind="stable")[:n_chains]]
 
 
 def select_refined(counts: TransitionCounts, duration_s: float = 1800.0, seed: int = 0, chain: Chain | None = None,
                    target: LoadTarget | None = None, vehicle=None, n_cycles: int = 1, n_pool: int = POOL,
-                   n_chains: int | None = None, n_moves: int = MOVES,
-                   update_counts: bool = False) -> list[Selection]:
+                   n_chains: int | None = None, n_moves: int = MOVES, update_counts: bool = False,
+                   max_window_s: int = MAX_WINDOW_S, temperature: float = TEMPERATURE) -> list[Selection]:
     """``n_cycles`` cycles of ``duration_s`` [s], best first: the ``n_chains`` (at least ``n_cycles``)
     pool walks closest to validity, each refined over ``n_moves`` moves. ``target`` and
     ``vehicle`` add the load criteria to the objective and to each selection's report."""
@@ -84,17 +102,18 @@ def select_refined(counts: TransitionCounts, duration_s: float = 1800.0, seed: i
     n_chains = max(n_chains or CHAINS, n_cycles)
     n_pool = max(int(n_pool), n_chains)
     all_scores, objective, valid, valid_without_mass = _pool(chain, counts, duration_s, n_pool, seed, update_counts)
-    starts = np.argsort(objective, kind="stable")[:n_chains]
+    starts = _starts(chain, counts, duration_s, seed, update_counts, objective, target, n_chains)
     results = []
     for stream, index in enumerate(starts):
         _, path = run_batch(chain, duration_s, 1, seed, int(index), update_counts, keep_paths=True)
-        refined, trace = refine(chain, counts, path[0], target, n_moves, seed, stream)
+        refined, trace, best = refine(chain, counts, path[0], target, n_moves, seed, stream, max_window_s,
+                                      temperature)
         cycle = cycle_frame(chain, refined)
         criteria = evaluate(cycle, counts)
         loads = evaluate_loads(cycle, vehicle, target) if target is not None and vehicle is not None else None
         results.append(Selection(cycle, criteria, int(index), int(seed), n_pool, int(valid.sum()),
                                  int(valid_without_mass.sum()), all_scores, chain, method="refined",
-                                 objective=float(trace[-1]) if n_moves else float(objective[index]),
+                                 objective=best,
                                  start_score=float(all_scores[index]), load_criteria=loads, trace=trace))
     results.sort(key=lambda s: (not s.criteria.valid, s.objective))
     refined_scores = np.array([s.criteria.score for s in results])

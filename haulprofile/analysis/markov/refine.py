@@ -97,9 +97,11 @@ def _propose(current, n, row_ptr, dest, cum_count, max_window, mark, rng, propos
 @numba.njit(cache=True)
 def refine_walk(path, row_ptr, dest, cum_count, speed, gradient, mass, measured, kin_scale, q_index, s_index,
                 kin_allowance, use_loads, resistance, radius, speed_edges, torque_edges, share, range_scale,
-                load_measured, load_scale, load_allowance, n_moves, max_window, seed, stream, trace):
-    """Improve ``path`` in place over ``n_moves`` proposals; ``trace[m]`` the objective after move m.
-    Returns the final objective."""
+                load_measured, load_scale, load_allowance, n_moves, max_window, temperature, seed, stream, trace):
+    """Improve ``path`` in place over ``n_moves`` proposals; ``trace[m]`` the best objective after
+    move m. Returns the best objective. A worse proposal is taken with probability exp(−Δ/T)
+    (simulated annealing, T falling geometrically from ``temperature`` to a thousandth of it; 0 is
+    greedy), so a walk can leave a local optimum; the best walk seen is the result."""
     n = path.shape[0]
     rng = np.empty(1, np.uint64)
     rng[0] = _mix(np.uint64(seed) ^ _mix(np.uint64(stream) + GOLDEN + GOLDEN))
@@ -119,12 +121,20 @@ def refine_walk(path, row_ptr, dest, cum_count, speed, gradient, mass, measured,
                        loads, torque, power, residence)
         return objective(kin, kin_allowance, loads, load_measured, load_scale, load_allowance, use_loads)
 
-    current = value_of(path)
+    walk = path.copy()
+    current = value_of(walk)
+    best = current
+    cooling = 0.001 ** (1.0 / max(n_moves, 1))
+    t = temperature
     for m in range(n_moves):
-        if _propose(path, n, row_ptr, dest, cum_count, max_window, mark, rng, proposal):
+        if _propose(walk, n, row_ptr, dest, cum_count, max_window, mark, rng, proposal):
             value = value_of(proposal[:n])
-            if value < current:
+            if value < current or (t > 0 and _uniform(rng) < np.exp((current - value) / t)):
                 current = value
-                path[:] = proposal[:n]
-        trace[m] = current
-    return current
+                walk[:] = proposal[:n]
+                if value < best:
+                    best = value
+                    path[:] = walk
+        trace[m] = best
+        t *= cooling
+    return best

@@ -18,6 +18,9 @@ KINEMATIC_PENALTY = 10.0
 """Weight of a kinematic criterion's excess over its allowance: validity comes before closeness."""
 LOAD_PENALTY = 1.0
 """Weight of a load criterion's excess over its allowance."""
+LOAD_WEIGHT = 0.5
+"""Weight of the mean load deviation (over allowance) beside the score (15): within their
+allowances the loads count half as much as the kinematic criteria, which define the cycle."""
 
 
 @numba.njit(cache=True)
@@ -181,7 +184,7 @@ def path_loads(path, n, speed, mass, resistance, radius, speed_edges, torque_edg
 @numba.njit(cache=True)
 def objective(kin_deviation, kin_allowance, load_values, load_measured, load_scale, load_allowance, use_loads):
     """What the refinement minimises: the score (15) of the kinematic criteria plus, with loads,
-    the mean of the load deviations over their allowances, plus every excess over an allowance
+    `LOAD_WEIGHT` times the mean of the load deviations over their allowances, plus every excess over an allowance
     (kinematic ones weighted `KINEMATIC_PENALTY`, load ones `LOAD_PENALTY`). 0 is a perfect copy."""
     total = 0.0
     excess = 0.0
@@ -205,5 +208,5 @@ def objective(kin_deviation, kin_allowance, load_values, load_measured, load_sca
             total += r
             if r > 1.0:
                 excess += LOAD_PENALTY * (r - 1.0)
-        value += total / load_values.shape[0]
+        value += LOAD_WEIGHT * total / load_values.shape[0]
     return value + excess
