@@ -2,6 +2,7 @@
 the paper's selection unchanged, load kernels equal to the loads module."""
 
 import hashlib
+import json
 
 import numpy as np
 import pandas as pd
@@ -142,3 +143,32 @@ def test_time_quantiles_with_ties_and_half_seconds_at_the_ends():
         out = np.empty(3)
         kernel(values, 2, 0, 100, SHARES, out)
         np.testing.assert_array_equal(out, expected)
+
+
+def test_cli_paper_selection_writes_the_golden_cycle(drive, tmp_path):
+    from haulprofile.analysis.cli import main
+    drive.to_parquet(tmp_path / "drive.parquet")
+    code = main(["cycle", str(tmp_path / "drive.parquet"), "--selection", "paper", "--candidates", "3000",
+                 "--duration", "900", "--seed", "7", "--out", str(tmp_path / "paper"), "--quiet"])
+    summary = json.loads((tmp_path / "paper" / "cycle.json").read_text())
+    assert code == 0 and summary["method"] == "paper" and summary["candidate_index"] == 238
+    assert _key(pd.read_csv(tmp_path / "paper" / "cycle.csv")) == "586b3422dde47ab0"
+
+
+def test_stage_writes_a_cycle_set_with_loads_and_the_score_figure(drive, vehicle, tmp_path):
+    from haulprofile.analysis.markov import stage
+    from haulprofile.analysis.pipeline import RunContext
+    ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=vehicle, say=lambda _m: None,
+                     options={"cycle": {"n_cycles": 2, "n_candidates": 2000, "n_moves": 800}})
+    ctx.signals = drive
+    stage(ctx)
+    c = ctx.summary["cycle"]
+    assert c["method"] == "refined" and c["valid"] and set(c["load_criteria"]) == set(LOAD_NAMES)
+    assert c["cycle_set"]["n_cycles"] == 2 and c["cycle_set"]["spread"]["all_valid"]
+    for i in (1, 2):
+        cycle = pd.read_csv(tmp_path / "cycles" / f"cycle-{i}.csv")
+        assert _transitions_counted(count_transitions(drive), cycle).all()
+    assert (tmp_path / "cycle-scores.png").stat().st_size > 10_000
+    with pytest.raises(Exception, match="refined selection"):
+        ctx.options["cycle"] = {"n_cycles": 2, "selection": "paper"}
+        stage(ctx)

@@ -1,9 +1,10 @@
 """Paper selection against the refined default on many drives: virtual-truck scenarios (ground truth
 speed, gradient, mass; three seeds each and their concatenation) and synthetic drives.
 
-``python tools/benchmarks/markov_matrix.py [OUT.json [paper,refined]]`` prints one line per drive and
+``python tools/benchmarks/markov_matrix.py [OUT.json [paper,refined,kinematic]]`` prints one line per drive and
 method: score S (15), valid, the load criteria's plain relative deviations and the selection's wall
-time. ``paper-fwd-accel`` is the paper's cycle with the forward-difference acceleration column
+time. ``refined-no-loads`` is the refined selection without a vehicle (kinematic criteria only).
+``paper-fwd-accel`` is the paper's cycle with the forward-difference acceleration column
 cycles had before (its loads as the loads stage saw them).
 """
 
@@ -62,6 +63,10 @@ def main(out=None, methods=("paper", "refined")):
             t0 = time.perf_counter()
             refined = select_refined(counts, 1800, 0, chain, target, vehicle)[0]
             runs.append(("refined", refined, refined.cycle, time.perf_counter() - t0))
+        if "kinematic" in methods:
+            t0 = time.perf_counter()
+            kinematic = select_refined(counts, 1800, 0, chain)[0]
+            runs.append(("refined-no-loads", kinematic, kinematic.cycle, time.perf_counter() - t0))
         for method, s, cycle, wall in runs:
             loads = evaluate_loads(cycle, vehicle, target)
             row = {"drive": name, "method": method, "score": s.criteria.score, "valid": s.criteria.valid,

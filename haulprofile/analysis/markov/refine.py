@@ -15,7 +15,7 @@ import numba
 import numpy as np
 
 from .generate import GOLDEN, _mix, _path_statistics, _uniform
-from .score_kernels import objective, path_loads
+from .score_kernels import kinematic_objective, load_objective, path_loads
 
 TAIL_SHARE = 0.2
 """Share of moves that re-draw the walk's tail instead of a window inside it."""
@@ -114,22 +114,27 @@ def refine_walk(path, row_ptr, dest, cum_count, speed, gradient, mass, measured,
     power = np.empty(n)
     residence = np.empty((speed_edges.shape[0] - 1, torque_edges.shape[0] - 1))
 
-    def value_of(p):
+    def value_of(p, threshold):
+        """Objective of walk ``p``; its kinematic part alone when that reaches ``threshold``."""
         _kinematic_deviation(p, speed, gradient, mass, measured, kin_scale, q_index, s_index, stats, kin)
-        if use_loads:
+        value = kinematic_objective(kin, kin_allowance)
+        if use_loads and value < threshold:
             path_loads(p, n, speed, mass, resistance, radius, speed_edges, torque_edges, share, range_scale,
                        loads, torque, power, residence)
-        return objective(kin, kin_allowance, loads, load_measured, load_scale, load_allowance, use_loads)
+            value += load_objective(loads, load_measured, load_scale, load_allowance)
+        return value
 
     walk = path.copy()
-    current = value_of(walk)
+    current = value_of(walk, np.inf)
     best = current
     cooling = 0.001 ** (1.0 / max(n_moves, 1))
     t = temperature
     for m in range(n_moves):
         if _propose(walk, n, row_ptr, dest, cum_count, max_window, mark, rng, proposal):
-            value = value_of(proposal[:n])
-            if value < current or (t > 0 and _uniform(rng) < np.exp((current - value) / t)):
+            # taken if value < current + t·ln(1/u): Metropolis, exp(−Δ/t) > u
+            threshold = current - t * np.log(1.0 - _uniform(rng)) if t > 0 else current
+            value = value_of(proposal[:n], threshold)
+            if value < threshold:
                 current = value
                 walk[:] = proposal[:n]
                 if value < best:
