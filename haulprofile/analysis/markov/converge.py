@@ -23,11 +23,11 @@ from .select import BATCH, Selection
 
 POOL = 20_000
 CHAINS = 4
-MOVES = 4_000
+MOVES = 8_000
 SHORTLIST = 16
 MAX_WINDOW_S = 300
-TEMPERATURE = 0.05
-"""Start temperature of the annealing, in objective units (5 % of one allowance, averaged)."""
+TEMPERATURE = 0.1
+"""Start temperature of the annealing, in objective units (a tenth of one allowance, averaged)."""
 
 
 def kinematic_objective(deviation: np.ndarray) -> np.ndarray:

@@ -66,6 +66,8 @@ def plot_scores(selections, path: str | Path) -> Path:
             ax.annotate("", xy=(s.criteria.score, 0.5), xytext=(s.start_score, 0.5), xycoords=("data", "axes fraction"),
                         arrowprops={"arrowstyle": "->", "color": "C1", "lw": 0.8})
             label = "refined cycle(s), arrow from its start" if i == 0 else None
+        if i == 1:
+            label = "other cycles of the set"
         ax.axvline(s.criteria.score, color="C1" if i == 0 else "C2", lw=1.2, label=label)
     ax.set_yscale("log")
     ax.set_xlabel("score S (15) of the paper's criteria, lower is better")

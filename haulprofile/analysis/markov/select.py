@@ -39,7 +39,8 @@ class Selection:
     def loads_within_allowance(self) -> bool | None:
         if self.load_criteria is None:
             return None
-        return all(v["passed"] for v in self.load_criteria.values())
+        from .load_criteria import within_allowance
+        return within_allowance(self.load_criteria)
 
     def as_dict(self) -> dict:
         extra = {}
