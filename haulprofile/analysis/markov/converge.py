@@ -70,11 +70,12 @@ def refine(chain: Chain, counts: TransitionCounts, path: np.ndarray, target: Loa
     trace = np.empty(n_moves)
     resistance, radius, speed_edges, torque_edges, share, range_scale, load_measured, load_scale = \
         _load_arrays(chain, target)
-    best = refine_walk(path, chain.row_ptr, chain.dest, chain.cum_count, chain.speed_mps, chain.gradient_pct,
-                chain.mass_kg, counts.statistics, scales(counts.statistics, counts.widths), _Q, _S, ALLOWANCE,
-                target is not None, resistance, radius, speed_edges, torque_edges, share, range_scale,
-                load_measured, load_scale, LOAD_ALLOWANCE, int(n_moves), int(max(2, min(max_window_s, len(path) - 1))),
-                float(temperature), int(seed), int(stream), trace)
+    window = int(max(2, min(max_window_s, len(path) - 1)))
+    best = refine_walk(path, chain.row_ptr, chain.dest, chain.cum_count, chain.start_state, chain.start_cum,
+                       chain.speed_mps, chain.gradient_pct, chain.mass_kg, counts.statistics,
+                       scales(counts.statistics, counts.widths), _Q, _S, ALLOWANCE, target is not None, resistance,
+                       radius, speed_edges, torque_edges, share, range_scale, load_measured, load_scale,
+                       LOAD_ALLOWANCE, int(n_moves), window, float(temperature), int(seed), int(stream), trace)
     return path, trace, float(best)
 
 

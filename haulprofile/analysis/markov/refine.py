@@ -2,7 +2,8 @@
 
 A move re-draws a window of the walk from the chain: from the state at second ``a`` a new walk is
 drawn until it meets a state the old walk visits later in the window (second ``c``), and the old
-walk goes on from there; or the walk's tail is drawn anew. Every transition of the result is one
+walk goes on from there; or the walk's tail is drawn anew; or the walk starts in another start
+state and is drawn until it meets the old walk's first window. Every transition of the result is one
 of the chain's (the re-drawn part from its rows, the joins at equal states), so the result is
 still a walk of the measured transitions. A splice that shortens the walk is continued from its
 end by the chain, one that lengthens it is cut at the cycle's duration. A move is kept when the
@@ -18,7 +19,10 @@ from .generate import GOLDEN, _mix, _path_statistics, _uniform
 from .score_kernels import kinematic_objective, load_objective, path_loads
 
 TAIL_SHARE = 0.2
-"""Share of moves that re-draw the walk's tail instead of a window inside it."""
+"""Share of moves that re-draw the walk's tail."""
+HEAD_SHARE = 0.1
+"""Share of moves that start the walk in another start state (the first second of a stop) and
+draw from there until the old walk's first window is met."""
 
 
 @numba.njit(cache=True)
@@ -40,48 +44,9 @@ def _kinematic_deviation(path, speed, gradient, mass, measured, scale, q_index, 
 
 
 @numba.njit(cache=True)
-def _propose(current, n, row_ptr, dest, cum_count, max_window, mark, rng, proposal):
-    """A re-drawn window or tail of ``current[:n]`` into ``proposal[:n]``; False if the re-drawn
-    window found no way back into the walk."""
-    if _uniform(rng) < 0.2:
-        a = n - 2 - int(_uniform(rng) * min(max_window, n - 1))
-        a = max(a, 0)
-        for k in range(a + 1):
-            proposal[k] = current[k]
-        s = current[a]
-        for k in range(a + 1, n):
-            s = _next_state(row_ptr, dest, cum_count, s, rng)
-            proposal[k] = s
-        return True
-    a = int(_uniform(rng) * (n - 1))
-    window = 2 + int(_uniform(rng) * (max_window - 1))
-    last = min(a + window, n - 1)
-    if _uniform(rng) < 0.5:
-        for c in range(a + 1, last + 1):
-            mark[current[c]] = c
-    else:
-        for c in range(last, a, -1):
-            mark[current[c]] = c
-    for k in range(a + 1):
-        proposal[k] = current[k]
-    s = current[a]
-    hit = -1
-    j = 0
-    limit = window + window // 2
-    while j < limit:
-        j += 1
-        s = _next_state(row_ptr, dest, cum_count, s, rng)
-        if a + j < proposal.shape[0]:
-            proposal[a + j] = s
-        if mark[s] >= 0:
-            hit = mark[s]
-            break
-    for c in range(a + 1, last + 1):
-        mark[current[c]] = -1
-    if hit < 0:
-        return False
-    k = a + j
-    c = hit
+def _continue(current, n, k, c, row_ptr, dest, cum_count, rng, proposal):
+    """``proposal[k]`` is ``current[c]``: go on with the old walk after ``c``, then with the chain,
+    up to ``n`` states."""
     while k < n - 1 and c < n - 1:
         k += 1
         c += 1
@@ -91,11 +56,63 @@ def _propose(current, n, row_ptr, dest, cum_count, max_window, mark, rng, propos
         k += 1
         s = _next_state(row_ptr, dest, cum_count, s, rng)
         proposal[k] = s
+
+
+@numba.njit(cache=True)
+def _rejoin(current, n, first, last, k, s, row_ptr, dest, cum_count, rng, limit, mark, proposal):
+    """From state ``s`` at ``proposal[k]``, draw until a state of ``current[first..last]`` is met
+    (within ``limit`` steps) and go on with the old walk from there; False if none is met."""
+    if _uniform(rng) < 0.5:
+        for c in range(first, last + 1):
+            mark[current[c]] = c
+    else:
+        for c in range(last, first - 1, -1):
+            mark[current[c]] = c
+    hit = mark[s]
+    j = 0
+    while hit < 0 and j < limit:
+        j += 1
+        s = _next_state(row_ptr, dest, cum_count, s, rng)
+        if k + j < proposal.shape[0]:
+            proposal[k + j] = s
+        hit = mark[s]
+    for c in range(first, last + 1):
+        mark[current[c]] = -1
+    if hit < 0:
+        return False
+    _continue(current, n, k + j, hit, row_ptr, dest, cum_count, rng, proposal)
     return True
 
 
 @numba.njit(cache=True)
-def refine_walk(path, row_ptr, dest, cum_count, speed, gradient, mass, measured, kin_scale, q_index, s_index,
+def _propose(current, n, row_ptr, dest, cum_count, start_state, start_cum, max_window, mark, rng, proposal):
+    """A re-drawn window, tail or head of ``current[:n]`` into ``proposal[:n]``; False if the
+    re-drawn part found no way back into the walk."""
+    move = _uniform(rng)
+    window = 2 + int(_uniform(rng) * (max_window - 1))
+    if move < HEAD_SHARE:
+        u = _uniform(rng) * start_cum[-1]
+        j = 0
+        while j < start_cum.shape[0] - 1 and start_cum[j] <= u:
+            j += 1
+        proposal[0] = start_state[j]
+        return _rejoin(current, n, 0, min(window, n - 1), 0, start_state[j], row_ptr, dest, cum_count, rng,
+                       window + window // 2, mark, proposal)
+    if move < HEAD_SHARE + TAIL_SHARE:
+        a = max(n - 2 - int(_uniform(rng) * min(max_window, n - 1)), 0)
+        for k in range(a + 1):
+            proposal[k] = current[k]
+        _continue(current, n, a, n - 1, row_ptr, dest, cum_count, rng, proposal)
+        return True
+    a = int(_uniform(rng) * (n - 1))
+    for k in range(a + 1):
+        proposal[k] = current[k]
+    return _rejoin(current, n, a + 1, min(a + window, n - 1), a, current[a], row_ptr, dest, cum_count, rng,
+                   window + window // 2, mark, proposal)
+
+
+@numba.njit(cache=True)
+def refine_walk(path, row_ptr, dest, cum_count, start_state, start_cum, speed, gradient, mass, measured, kin_scale, q_index, s_index,
                 kin_allowance, use_loads, resistance, radius, speed_edges, torque_edges, share, range_scale,
                 load_measured, load_scale, load_allowance, n_moves, max_window, temperature, seed, stream, trace):
     """Improve ``path`` in place over ``n_moves`` proposals; ``trace[m]`` the best objective after
@@ -130,7 +147,7 @@ def refine_walk(path, row_ptr, dest, cum_count, speed, gradient, mass, measured,
     cooling = 0.001 ** (1.0 / max(n_moves, 1))
     t = temperature
     for m in range(n_moves):
-        if _propose(walk, n, row_ptr, dest, cum_count, max_window, mark, rng, proposal):
+        if _propose(walk, n, row_ptr, dest, cum_count, start_state, start_cum, max_window, mark, rng, proposal):
             # taken if value < current + t·ln(1/u): Metropolis, exp(−Δ/t) > u
             threshold = current - t * np.log(1.0 - _uniform(rng)) if t > 0 else current
             value = value_of(proposal[:n], threshold)
