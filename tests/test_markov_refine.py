@@ -172,3 +172,17 @@ def test_stage_writes_a_cycle_set_with_loads_and_the_score_figure(drive, vehicle
     with pytest.raises(Exception, match="refined selection"):
         ctx.options["cycle"] = {"n_cycles": 2, "selection": "paper"}
         stage(ctx)
+
+
+def test_the_reported_objective_is_that_of_the_chosen_cycle(counts, target, vehicle):
+    from haulprofile.analysis.markov.converge import kinematic_objective
+    from haulprofile.analysis.markov.criteria import ALLOWANCE
+    from haulprofile.analysis.markov.load_criteria import LOAD_ALLOWANCE
+    from haulprofile.analysis.markov.score_kernels import kinematic_objective as kernel, objective
+    selection = select_refined(counts, 1200, 4, build_chain(counts), target, vehicle, n_pool=500, n_moves=300)[0]
+    deviation = selection.criteria.deviation
+    values = np.array([selection.load_criteria[name]["candidate"] for name in LOAD_NAMES])
+    expected = objective(deviation, ALLOWANCE, values, target.measured, target.scale, LOAD_ALLOWANCE, True)
+    assert selection.objective == pytest.approx(expected, rel=1e-9)
+    for function in (kernel, kernel.py_func):
+        assert function(deviation, ALLOWANCE) == pytest.approx(float(kinematic_objective(deviation)), rel=1e-12)

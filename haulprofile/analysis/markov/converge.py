@@ -31,7 +31,8 @@ TEMPERATURE = 0.1
 
 
 def kinematic_objective(deviation: np.ndarray) -> np.ndarray:
-    """The objective without loads, for pool candidates (…, 15) (`score_kernels.objective`)."""
+    """The objective without loads of pool candidates (…, 15): `score_kernels.kinematic_objective`
+    for many candidates at once."""
     ratio = deviation / ALLOWANCE
     return ratio.mean(axis=-1) + KINEMATIC_PENALTY * np.clip(ratio - 1.0, 0.0, None).sum(axis=-1)
 

@@ -26,7 +26,6 @@ import numpy as np
 import pandas as pd
 
 from .. import road_load
-from ..loads import collectives as lc
 from ..loads import loads_of, median_step_s, resample_mean
 from ..loads.summary import compute, shared_edges
 from ..vehicle import Vehicle
@@ -146,7 +145,3 @@ def judge(values: np.ndarray, target: LoadTarget) -> dict:
             for name, v, m, d, a, r in zip(LOAD_NAMES, values, target.measured, deviation, LOAD_ALLOWANCE,
                                            relative)}
 
-
-def equivalent_cycles(n_samples: int) -> float:
-    """Equivalent cycles of a 1 Hz walk of ``n_samples`` (its duration, the loads module's basis)."""
-    return max(n_samples - 1, 0) * lc.EQUIVALENT_FREQUENCY_HZ

@@ -7,7 +7,7 @@ state and is drawn until it meets the old walk's first window. Every transition 
 of the chain's (the re-drawn part from its rows, the joins at equal states), so the result is
 still a walk of the measured transitions. A splice that shortens the walk is continued from its
 end by the chain, one that lengthens it is cut at the cycle's duration. A move is kept when the
-objective (`score_kernels.objective`) falls; the kernel works on paths and statistics only.
+objective (`score_kernels.objective`, computed in two parts) falls; the kernel works on paths and statistics only.
 """
 
 from __future__ import annotations
