@@ -77,7 +77,7 @@ def test_refined_cycle_is_a_walk_of_counted_transitions_and_better_than_its_star
     assert selection.criteria.score <= 0.2
     assert set(selection.load_criteria) == set(LOAD_NAMES)
     summary = selection.as_dict()
-    assert summary["method"] == "refined" and summary["load_criteria"] and summary["moves"] == 1500
+    assert summary["method"] == "refined" and summary["load_criteria"] and summary["moves"] == len(trace) > 1500
 
 
 def test_refinement_without_loads_keeps_a_walk_from_a_start_state(counts):

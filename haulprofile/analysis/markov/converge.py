@@ -22,8 +22,9 @@ from .score_kernels import KINEMATIC_PENALTY
 from .select import BATCH, Selection
 
 POOL = 20_000
-CHAINS = 4
-MOVES = 8_000
+CHAINS = 12
+MOVES = 3_000
+SURVIVORS = 2
 SHORTLIST = 16
 MAX_WINDOW_S = 300
 TEMPERATURE = 0.1
@@ -96,27 +97,44 @@ def _starts(chain, counts, duration_s, seed, update_counts, objective, target, n
 def select_refined(counts: TransitionCounts, duration_s: float = 1800.0, seed: int = 0, chain: Chain | None = None,
                    target: LoadTarget | None = None, vehicle=None, n_cycles: int = 1, n_pool: int = POOL,
                    n_chains: int | None = None, n_moves: int = MOVES, update_counts: bool = False,
-                   max_window_s: int = MAX_WINDOW_S, temperature: float = TEMPERATURE) -> list[Selection]:
-    """``n_cycles`` cycles of ``duration_s`` [s], best first: the ``n_chains`` (at least ``n_cycles``)
-    pool walks closest to validity, each refined over ``n_moves`` moves. ``target`` and
+                   max_window_s: int = MAX_WINDOW_S, temperature: float = TEMPERATURE,
+                   survivors: int | None = SURVIVORS) -> list[Selection]:
+    """``n_cycles`` cycles of ``duration_s`` [s], best first: the ``n_chains`` pool walks closest to
+    validity, each refined over a quarter of ``n_moves`` moves; then the best ``survivors`` (at
+    least ``n_cycles``) share the rest of the budget (``n_chains`` × ``n_moves`` moves in all),
+    annealed from a third of the temperature (successive halving: a broad start, the effort on
+    the promising walks). ``survivors`` None refines every walk over ``n_moves``. ``target`` and
     ``vehicle`` add the load criteria to the objective and to each selection's report."""
     chain = chain or build_chain(counts)
     n_chains = max(n_chains or CHAINS, n_cycles)
     n_pool = max(int(n_pool), n_chains)
     all_scores, objective, valid, valid_without_mass = _pool(chain, counts, duration_s, n_pool, seed, update_counts)
     starts = _starts(chain, counts, duration_s, seed, update_counts, objective, target, n_chains)
-    results = []
+    walks = []
+    first_moves = n_moves if not survivors else n_moves // 4
     for stream, index in enumerate(starts):
         _, path = run_batch(chain, duration_s, 1, seed, int(index), update_counts, keep_paths=True)
-        refined, trace, best = refine(chain, counts, path[0], target, n_moves, seed, stream, max_window_s,
+        refined, trace, best = refine(chain, counts, path[0], target, first_moves, seed, stream, max_window_s,
                                       temperature)
+        walks.append((best, int(index), refined, trace))
+    if survivors:
+        keep = max(int(survivors), n_cycles)
+        walks.sort(key=lambda w: w[0])
+        more = (len(walks) * (n_moves - first_moves)) // keep
+        for i, (_, index, path, trace) in enumerate(walks[:keep]):
+            refined, more_trace, best = refine(chain, counts, path, target, more, seed, len(walks) + i,
+                                               max_window_s, temperature * 0.3)
+            walks[i] = (best, index, refined, np.concatenate([trace, more_trace]))
+        walks = walks[:keep]
+    results = []
+    for best, index, refined, trace in walks:
         cycle = cycle_frame(chain, refined)
         criteria = evaluate(cycle, counts)
         loads = evaluate_loads(cycle, vehicle, target) if target is not None and vehicle is not None else None
-        results.append(Selection(cycle, criteria, int(index), int(seed), n_pool, int(valid.sum()),
+        results.append(Selection(cycle, criteria, index, int(seed), n_pool, int(valid.sum()),
                                  int(valid_without_mass.sum()), all_scores, chain, method="refined",
-                                 objective=best,
-                                 start_score=float(all_scores[index]), load_criteria=loads, trace=trace))
+                                 objective=best, start_score=float(all_scores[index]), load_criteria=loads,
+                                 trace=trace))
     results.sort(key=lambda s: (not s.criteria.valid, s.objective))
     refined_scores = np.array([s.criteria.score for s in results])
     for s in results:
