@@ -108,7 +108,7 @@ def refined(truths):
 def test_default_selection_is_valid_and_carries_the_drives_wheel_loads(refined, name):
     selection = refined[name]
     assert selection.criteria.valid, selection.criteria.statement()
-    assert selection.criteria.score <= 0.25
+    assert selection.criteria.score <= 0.2
     loads = selection.load_criteria
     assert abs(loads["positive_wheel_energy_kwh_per_km"]["relative"]) <= 0.05
     for k in range(3, 9):
