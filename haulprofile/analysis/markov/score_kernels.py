@@ -18,7 +18,7 @@ KINEMATIC_PENALTY = 10.0
 """Weight of a kinematic criterion's excess over its allowance: validity comes before closeness."""
 LOAD_PENALTY = 1.0
 """Weight of a load criterion's excess over its allowance."""
-LOAD_WEIGHT = 0.2
+LOAD_WEIGHT = 0.1
 """Weight of the mean load deviation (over allowance) beside the score (15): within their
 allowances the loads count half as much as the kinematic criteria, which define the cycle."""
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from .. import signals as signals_table
 from ..errors import UserError
+from .chain import build_chain
 from .classes import ClassWidths
 from .converge import MOVES, POOL, select_refined
 from .counting import count_transitions, resample_1hz
@@ -40,8 +41,7 @@ def _select(ctx, options, counts):
         if n_cycles > 1:
             raise UserError("several cycles need the refined selection (the paper's selection keeps one)")
         return [select_cycle(counts, options["duration_s"], int(options["n_candidates"] or 100_000),
-                             int(options["seed"]), bool(options["update_counts"]))], None
-    from .chain import build_chain
+                             int(options["seed"]), bool(options["update_counts"]))]
     chain = build_chain(counts)
     target = None
     if ctx.vehicle is not None:
@@ -50,7 +50,7 @@ def _select(ctx, options, counts):
         ctx.say("cycle: no vehicle file, so the wheel loads are not part of the score (give --vehicle)")
     return select_refined(counts, options["duration_s"], int(options["seed"]), chain, target, ctx.vehicle,
                           n_cycles, int(options["n_candidates"] or POOL), n_moves=int(options["n_moves"]),
-                          update_counts=bool(options["update_counts"])), target
+                          update_counts=bool(options["update_counts"]))
 
 
 def _spread(selections) -> dict:
@@ -81,7 +81,7 @@ def stage(ctx) -> None:
         widths = ClassWidths(**widths)
     measured = resample_1hz(ctx.signals)
     counts = count_transitions(measured, widths)
-    selections, _ = _select(ctx, options, counts)
+    selections = _select(ctx, options, counts)
     selection = selections[0]
     paths = write_cycle(selection.cycle, ctx.out_dir)
     paths["figure"] = plot_cycle(selection.cycle, measured, ctx.out_dir / "cycle.png",
