@@ -17,8 +17,8 @@ from haulprofile.analysis.markov.generate import run_batch
 from haulprofile.analysis.markov.load_criteria import LOAD_NAMES, evaluate_loads, load_target
 from haulprofile.analysis.markov.score_kernels import (EXPONENTS, SHARES, _time_quantiles, path_loads,
                                                        rainflow_damage_sums)
-from haulprofile.analysis.markov.synthetic import synthetic_drive
 from haulprofile.analysis.vehicle import load_vehicle
+from haulprofile.testing.drives import synthetic_drive
 
 
 @pytest.fixture(scope="module")
@@ -156,22 +156,26 @@ def test_cli_paper_selection_writes_the_golden_cycle(drive, tmp_path):
 
 
 def test_stage_writes_a_cycle_set_with_loads_and_the_score_figure(drive, vehicle, tmp_path):
-    from haulprofile.analysis.markov import stage
-    from haulprofile.analysis.pipeline import RunContext
+    from haulprofile.analysis.markov.stage import cycle_stage
+    from haulprofile.analysis.outputs import write_outputs
+    from haulprofile.analysis.pipeline import Options, RunContext
     ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=vehicle, say=lambda _m: None,
                      options={"cycle": {"n_cycles": 2, "n_candidates": 2000, "n_moves": 800}})
     ctx.signals = drive
-    stage(ctx)
+    cycle_stage(ctx)
+    write_outputs(ctx, full=False)
     c = ctx.summary["cycle"]
     assert c["method"] == "refined" and c["valid"] and set(c["load_criteria"]) == set(LOAD_NAMES)
     assert c["cycle_set"]["n_cycles"] == 2 and c["cycle_set"]["spread"]["all_valid"]
+    assert c["files"]["scores"] == "cycle-scores.png" and c["files"]["set"] == "cycles"
     for i in (1, 2):
         cycle = pd.read_csv(tmp_path / "cycles" / f"cycle-{i}.csv")
         assert _transitions_counted(count_transitions(drive), cycle).all()
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "cycles" / "cycle-1.csv"), pd.read_csv(tmp_path / "cycle.csv"))
     assert (tmp_path / "cycle-scores.png").stat().st_size > 10_000
     with pytest.raises(Exception, match="refined selection"):
-        ctx.options["cycle"] = {"n_cycles": 2, "selection": "paper"}
-        stage(ctx)
+        ctx.options = Options.of({"cycle": {"n_cycles": 2, "selection": "paper"}})
+        cycle_stage(ctx)
 
 
 def test_the_reported_objective_is_that_of_the_chosen_cycle(counts, target, vehicle):

@@ -21,8 +21,8 @@ from haulprofile.analysis import virtual_truck
 from haulprofile.analysis.markov import build_chain, count_transitions, select_cycle
 from haulprofile.analysis.markov.converge import select_refined
 from haulprofile.analysis.markov.load_criteria import evaluate_loads, load_target, within_allowance
-from haulprofile.analysis.markov.synthetic import synthetic_drive
 from haulprofile.analysis.vehicle import load_vehicle
+from haulprofile.testing.drives import synthetic_drive
 
 SCENARIOS = ("urban-delivery", "regional-tunnel", "long-haul")
 

@@ -3,20 +3,24 @@ beside the truck's own CAN estimate; a figure like the paper's Fig. 6."""
 
 from __future__ import annotations
 
-import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
+from .. import checks
+from ..errors import UserError
 from ..vehicle import load_vehicle
-from .gradient import signals_for
+
+EXIT_UNTRUSTWORTHY_RESULT = 3
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
     parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles or GeoTIFFs (for the gradient)")
-    parser.add_argument("--out", type=Path, default=Path("mass-out"), help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("mass-out"),
+                        help="output directory")
     parser.add_argument("--true-mass", type=float, nargs="+", metavar="KG",
                         help="the real total mass [kg], if weighed, for the figure: one value, or one per segment")
     parser.add_argument("--forgetting-factor", type=float, default=0.9985, help="lambda of RLS and LM (default 0.9985)")
@@ -37,22 +41,33 @@ def format_segments(segments: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def run(args) -> int:
-    from ..gradient import stage as gradient_stage
-    from ..mass import SegmentSettings, estimate_mass
-    from ..mass.figure import draw_estimates
+def _mass_json(ctx):
+    return {"segments": ctx.summary["mass"]["segments"]} if ctx.results.mass is not None else None
 
-    vehicle = load_vehicle(args.vehicle)
-    ctx = signals_for(args.inputs, print, args.out, vehicle=vehicle, dem_dir=args.dem)
-    if "gradient_pct" not in ctx.signals.columns:
-        gradient_stage(ctx)
-    result = estimate_mass(ctx.signals, vehicle, segment_settings=SegmentSettings(forgetting_factor=args.forgetting_factor))
-    for note in result.notes:
-        print(f"note: {note}")
-    print(format_segments(result.segments))
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "mass.json").write_text(json.dumps({"segments": result.segments}, indent=2))
+
+def run(args) -> int:
+    from ..gradient.stage import GradientOptions
+    from ..mass import SegmentSettings
+    from ..mass.stage import MassOptions
+    from ..pipeline import Options, RunContext, run as run_pipeline
+
+    checks.forgetting_factor(args.forgetting_factor)
+    for mass in args.true_mass or []:
+        checks.positive(mass, "--true-mass", "kg")
+    options = Options(gradient=GradientOptions(keep_existing=True),
+                      mass=MassOptions(segments=SegmentSettings(forgetting_factor=args.forgetting_factor),
+                                       true_mass_kg=tuple(args.true_mass) if args.true_mass else None))
+    ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle),
+                     dem_dir=args.dem, options=options, figures=not args.no_figure,
+                     json_files={"mass.json": _mass_json})
+    ctx = run_pipeline(ctx, until="mass")
+    if ctx.results.mass is None:
+        raise UserError(ctx.skipped.get("mass", "no mass estimated"))
+    print(format_segments(ctx.results.mass.segments))
     print(f"wrote {args.out / 'mass.json'}")
-    if not args.no_figure:
-        print(f"wrote {draw_estimates(ctx.signals, result, args.out / 'mass.png', args.true_mass)}")
+    for name in ctx.summary["mass"]["files"]:
+        print(f"wrote {args.out / name}")
+    if not any(s["status"] == "ok" for s in ctx.results.mass.segments):
+        print("analyze mass: warning: no segment has enough excitation for a confident mass", file=sys.stderr)
+        return EXIT_UNTRUSTWORTHY_RESULT
     return 0

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .. import kinematics
+from .. import checks, kinematics
 from ..errors import UserError
 from . import grid as distance_grid
 from . import sources
@@ -80,6 +80,8 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     spacing = settings.spacing_m
     index = np.where(valid, distance_grid.grid_index(distance, spacing), -1)
     n_bins = int(index.max()) + 1
+    checks.rows(n_bins, f"the {spacing:g} m distance grid of {distance[valid].max() / 1000:.3g} km",
+                "is speed_mps in m/s and time_s in s?")
     s_grid = np.arange(n_bins) * spacing
     out = pd.DataFrame({"distance_m": s_grid})
 
@@ -195,10 +197,20 @@ def _baro_offset(frame, bin_baro, map_level, weight_map, index, n_bins, s_grid, 
     return np.full(n_bins, np.nanmedian(gap) if np.isfinite(gap).any() else 0.0)
 
 
+MAX_ROAD_SLOPE = 0.30
+"""Steepest gradient of a road a truck drives [-] (public roads stay below some 25-35 %)."""
+
+
 def _fuse(map_slope, weight_map, baro_slope, s_grid, notes):
     """(8): (w_map g_map + w_baro g_baro) / (w_map + w_baro) [-]; bins with no source interpolated."""
     n_bins = len(s_grid)
     w_map = weight_map if map_slope is not None else np.zeros(n_bins)
+    if map_slope is not None:
+        steep = np.abs(np.nan_to_num(map_slope)) > MAX_ROAD_SLOPE
+        if steep.any():
+            notes.append(f"map gradient above {100 * MAX_ROAD_SLOPE:.0f} % (no road is that steep) on "
+                         f"{100 * steep.mean():.1f} % of the distance: the map is left out there")
+            w_map = np.where(steep, 0.0, w_map)
     w_baro = sources.WEIGHT_BARO * np.isfinite(baro_slope) if baro_slope is not None else np.zeros(n_bins)
     g_map = np.nan_to_num(map_slope) if map_slope is not None else np.zeros(n_bins)
     g_baro = np.nan_to_num(baro_slope) if baro_slope is not None else np.zeros(n_bins)

@@ -18,6 +18,7 @@ import numpy as np
 from haulprofile import contract
 from haulprofile.contract.naming import log_name_parts
 
+from ..encrypted import decrypted, is_encrypted
 from ..errors import UserError
 from . import foreign
 from .mcap_read import Channel, RawMessage, ReadReport, read_file, read_file_batches
@@ -38,9 +39,9 @@ def expand(paths) -> list[Path]:
         path = Path(raw)
         if path.is_dir():
             found = sorted(p for p in path.rglob("*") if p.is_file()
-                           and p.suffix.lower() in MCAP_SUFFIXES | foreign.SUFFIXES)
+                           and (p.suffix.lower() in MCAP_SUFFIXES | foreign.SUFFIXES or is_encrypted(p)))
             if not found:
-                raise LogError(f"{path}: directory holds no .mcap (or .log/.asc/.blf/.mf4) files")
+                raise LogError(f"{path}: directory holds no .mcap (or .log/.asc/.blf/.mf4/.nmea/.ubx) files")
             files.extend(found)
         elif path.is_file():
             files.append(path)
@@ -48,7 +49,7 @@ def expand(paths) -> list[Path]:
             raise LogError(f"input {path} not found")
     if not files:
         raise LogError("no input logs given")
-    return files
+    return [decrypted(p) for p in files]
 
 
 def is_mcap(path: Path) -> bool:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .generate import GOLDEN, _mix, _path_statistics, _uniform
+from .generate import GOLDEN, mix, path_statistics, uniform
 from .score_kernels import kinematic_objective, load_objective, path_loads
 
 TAIL_SHARE = 0.2
@@ -29,7 +29,7 @@ draw from there until the old walk's first window is met."""
 def _next_state(row_ptr, dest, cum_count, s, rng):
     a = row_ptr[s]
     b = row_ptr[s + 1]
-    u = _uniform(rng) * cum_count[b - 1]
+    u = uniform(rng) * cum_count[b - 1]
     j = a
     while j < b - 1 and cum_count[j] <= u:
         j += 1
@@ -38,7 +38,7 @@ def _next_state(row_ptr, dest, cum_count, s, rng):
 
 @numba.njit(cache=True)
 def _kinematic_deviation(path, speed, gradient, mass, measured, scale, q_index, s_index, stats, out):
-    _path_statistics(path, speed, gradient, mass, stats)
+    path_statistics(path, speed, gradient, mass, stats)
     for i in range(out.shape[0]):
         out[i] = abs(stats[q_index[i], s_index[i]] - measured[q_index[i], s_index[i]]) / scale[i]
 
@@ -62,7 +62,7 @@ def _continue(current, n, k, c, row_ptr, dest, cum_count, rng, proposal):
 def _rejoin(current, n, first, last, k, s, row_ptr, dest, cum_count, rng, limit, mark, proposal):
     """From state ``s`` at ``proposal[k]``, draw until a state of ``current[first..last]`` is met
     (within ``limit`` steps) and go on with the old walk from there; False if none is met."""
-    if _uniform(rng) < 0.5:
+    if uniform(rng) < 0.5:
         for c in range(first, last + 1):
             mark[current[c]] = c
     else:
@@ -88,10 +88,10 @@ def _rejoin(current, n, first, last, k, s, row_ptr, dest, cum_count, rng, limit,
 def _propose(current, n, row_ptr, dest, cum_count, start_state, start_cum, max_window, mark, rng, proposal):
     """A re-drawn window, tail or head of ``current[:n]`` into ``proposal[:n]``; False if the
     re-drawn part found no way back into the walk."""
-    move = _uniform(rng)
-    window = 2 + int(_uniform(rng) * (max_window - 1))
+    move = uniform(rng)
+    window = 2 + int(uniform(rng) * (max_window - 1))
     if move < HEAD_SHARE:
-        u = _uniform(rng) * start_cum[-1]
+        u = uniform(rng) * start_cum[-1]
         j = 0
         while j < start_cum.shape[0] - 1 and start_cum[j] <= u:
             j += 1
@@ -99,12 +99,12 @@ def _propose(current, n, row_ptr, dest, cum_count, start_state, start_cum, max_w
         return _rejoin(current, n, 0, min(window, n - 1), 0, start_state[j], row_ptr, dest, cum_count, rng,
                        window + window // 2, mark, proposal)
     if move < HEAD_SHARE + TAIL_SHARE:
-        a = max(n - 2 - int(_uniform(rng) * min(max_window, n - 1)), 0)
+        a = max(n - 2 - int(uniform(rng) * min(max_window, n - 1)), 0)
         for k in range(a + 1):
             proposal[k] = current[k]
         _continue(current, n, a, n - 1, row_ptr, dest, cum_count, rng, proposal)
         return True
-    a = int(_uniform(rng) * (n - 1))
+    a = int(uniform(rng) * (n - 1))
     for k in range(a + 1):
         proposal[k] = current[k]
     return _rejoin(current, n, a + 1, min(a + window, n - 1), a, current[a], row_ptr, dest, cum_count, rng,
@@ -121,7 +121,7 @@ def refine_walk(path, row_ptr, dest, cum_count, start_state, start_cum, speed, g
     greedy), so a walk can leave a local optimum; the best walk seen is the result."""
     n = path.shape[0]
     rng = np.empty(1, np.uint64)
-    rng[0] = _mix(np.uint64(seed) ^ _mix(np.uint64(stream) + GOLDEN + GOLDEN))
+    rng[0] = mix(np.uint64(seed) ^ mix(np.uint64(stream) + GOLDEN + GOLDEN))
     mark = np.full(speed.shape[0], -1, np.int64)
     proposal = np.empty(n + 2 * max_window + 2, np.int64)
     stats = np.empty((4, 4))
@@ -149,7 +149,7 @@ def refine_walk(path, row_ptr, dest, cum_count, start_state, start_cum, speed, g
     for m in range(n_moves):
         if _propose(walk, n, row_ptr, dest, cum_count, start_state, start_cum, max_window, mark, rng, proposal):
             # taken if value < current + t·ln(1/u): Metropolis, exp(−Δ/t) > u
-            threshold = current - t * np.log(1.0 - _uniform(rng)) if t > 0 else current
+            threshold = current - t * np.log(1.0 - uniform(rng)) if t > 0 else current
             value = value_of(proposal[:n], threshold)
             if value < threshold:
                 current = value

@@ -2,9 +2,9 @@
 least squares with forgetting and the damped Levenberg-Marquardt form, one mass per segment
 between stops, each with an uncertainty.
 
-Public: `estimate_mass(frame, vehicle, filter_settings, segment_settings) -> MassResult`, and the
-pipeline `stage(ctx)` which adds ``mass_kg`` (and ``mass_ls_kg``, ``mass_rls_kg``, ``mass_lm_kg``)
-and ``ctx.summary["mass"]["segments"]``.
+Public: `estimate_mass(frame, vehicle, filter_settings, segment_settings) -> MassResult`; the
+pipeline's stage, which adds ``mass_kg`` (and ``mass_ls_kg``, ``mass_rls_kg``, ``mass_lm_kg``), is
+`analysis.mass.stage.mass_stage`.
 """
 
 from __future__ import annotations
@@ -14,12 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..errors import UserError
 from .regression import FilterSettings, Regression, build_regression
-from .figure import draw_estimates
 from .segments import SegmentSettings, estimate_segment, segment_bounds
 
-__all__ = ["estimate_mass", "MassResult", "FilterSettings", "SegmentSettings", "stage"]
+__all__ = ["estimate_mass", "MassResult", "FilterSettings", "SegmentSettings"]
 
 
 @dataclass
@@ -67,26 +65,3 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
         notes.append(f"no sample passes the data filter (most fail: {worst}, {regression.rejected[worst]} "
                      f"of {len(frame)}): no mass estimated")
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes)
-
-
-def stage(ctx) -> None:
-    if ctx.vehicle is None:
-        ctx.say("mass: skipped: needs a vehicle file (--vehicle)")
-        return
-    try:
-        result = estimate_mass(ctx.signals, ctx.vehicle, FilterSettings(**ctx.options.get("mass_filter", {})),
-                               SegmentSettings(**ctx.options.get("mass", {})))
-    except UserError as exc:
-        ctx.say(f"mass: skipped: {exc}")
-        return
-    for note in result.notes:
-        ctx.say(f"mass: {note}")
-    for name, values in result.columns.items():
-        ctx.signals[name] = values
-    for segment in result.segments:
-        if segment["status"] != "ok":
-            ctx.say(f"mass: segment {segment['start_s']:.0f}-{segment['end_s']:.0f} s: no confident mass "
-                    f"({segment['reason']})")
-    files = [draw_estimates(ctx.signals, result, ctx.out_dir / "mass.png").name] if ctx.figures else []
-    ctx.summary["mass"] = {"segments": result.segments, "samples_used": int(result.regression.usable.sum()),
-                           "rejected_by": result.regression.rejected, "notes": result.notes, "files": files}

@@ -7,6 +7,7 @@ A stage that did not run gives no chapter, and its absence is stated in the repo
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pandas as pd
@@ -117,14 +118,18 @@ def loads_section(summary: dict, out_dir: Path) -> Section:
     rows = []
     measured, generated = loads.get("measured", {}), loads.get("generated", {})
     for k, value in measured.get("damage_equivalent_torque_range_nm", {}).items():
-        rows.append({"Wöhler exponent k": int(k), "measured [Nm]": value,
-                     "generated [Nm]": generated.get("damage_equivalent_torque_range_nm", {}).get(k)})
+        cycle = generated.get("damage_equivalent_torque_range_nm", {}).get(k)
+        rows.append({"Wöhler exponent k": int(k), "measured [kNm]": value / 1000,
+                     "generated [kNm]": None if cycle is None else cycle / 1000,
+                     "generated vs measured": _deviation(value, cycle)})
     if rows:
         section.tables.append(("Damage-equivalent wheel torque ranges (per second of operation)", rows))
     comparison = out_dir / "loads" / "comparison.csv"
     if comparison.is_file():
-        frame = pd.read_csv(comparison)
-        section.tables.append(("Measured against generated", frame.to_dict("records")))
+        levels, coverage = _comparison_rows(pd.read_csv(comparison))
+        section.tables.append(("Measured against generated", levels))
+        if coverage:
+            section.tables.append(("How the cycle covers the measured speed × torque residence", coverage))
     figures = sorted((out_dir / "loads").glob("*.png")) if (out_dir / "loads").is_dir() else []
     captions = {"time_at_level.png": "Time at level of wheel force, torque, speed and power.",
                 "matrices.png": "Speed × torque residence time and rainflow range/mean matrices.",
@@ -133,19 +138,71 @@ def loads_section(summary: dict, out_dir: Path) -> Section:
     return section
 
 
+def _deviation(measured, generated) -> str:
+    """Generated relative to measured, as a signed percentage ("–" where undefined)."""
+    if measured is None or generated is None or not math.isfinite(measured) or not math.isfinite(generated) \
+            or measured == 0:
+        return "–"
+    return f"{(generated / measured - 1) * 100:+.1f} %"
+
+
+def _comparison_rows(frame: pd.DataFrame) -> tuple[list[dict], list[dict]]:
+    """Rows of ``loads/comparison.csv`` for reading: levels in kN, kNm, kW with the deviation in
+    percent (the damage-equivalent ranges have their own table); the residence measures, one number
+    each, apart."""
+    levels, coverage = [], []
+    units = {"[N]": ("[kN]", 1e-3), "[Nm]": ("[kNm]", 1e-3), "[W]": ("[kW]", 1e-3)}
+    for row in frame.to_dict("records"):
+        name = str(row["criterion"])
+        if name.startswith("damage-equivalent"):
+            continue
+        if name.startswith("speed x torque residence"):
+            coverage.append({"measure": name.split(": ", 1)[-1].replace(" [-]", ""),
+                             "share": f"{row['generated']:.1%}"})
+            continue
+        measured, generated = float(row["measured"]), float(row["generated"])
+        for unit, (shown, scale) in units.items():
+            if unit in name:
+                name, measured, generated = name.replace(unit, shown), measured * scale, generated * scale
+                break
+        levels.append({"criterion": name, "measured": measured, "generated": generated,
+                       "generated vs measured": _deviation(measured, generated)})
+    return levels, coverage
+
+
+SIMULATION_TITLE = "The electric truck on this work"
+
+
+def simulation_skipped_section(reason: str) -> Section:
+    """The simulation chapter when the stage could not run: why, instead of empty numbers."""
+    section = Section(SIMULATION_TITLE)
+    section.notes.append(f"No simulation: {reason}.")
+    return section
+
+
 def simulation_section(summary: dict, out_dir: Path) -> Section:
     s = summary["simulation"]
-    section = Section("The electric truck on this work")
-    section.kpis = [("at the battery", f"{s['battery_kwh_per_km']:.3f} kWh/km"),
-                    ("positive at the wheels", f"{s['wheel_positive_kwh_per_km']:.3f} kWh/km"),
-                    ("recuperated at the wheels", f"{s['recuperated_at_wheel_kwh']:.1f} kWh"),
-                    ("state of charge", f"{s['initial_soc']:.0%} → {s['final_soc']:.0%}"),
-                    ("time below target speed", f"{s['missed_target_s']:.0f} s")]
+    section = Section(SIMULATION_TITLE)
+    measured = s.get("measured_drive")
+    per_km = [(f"at the battery, {s['cycle']}", f"{s['battery_kwh_per_km']:.3f} kWh/km")]
+    if measured:
+        per_km.append((f"at the battery, {measured['cycle']}", f"{measured['battery_kwh_per_km']:.3f} kWh/km"))
+    section.kpis = per_km + [
+        ("positive at the wheels", f"{s['wheel_positive_kwh_per_km']:.3f} kWh/km"),
+        ("recuperated at the wheels", f"{s['recuperated_at_wheel_kwh']:.1f} kWh"),
+        ("state of charge", f"{s['initial_soc']:.0%} → {s['final_soc']:.0%}"),
+        ("time below target speed", f"{s['missed_target_s']:.0f} s")]
     section.paragraphs.append(
         f"The target battery-electric powertrain of the vehicle file drove the {s['cycle']} "
         f"({s['distance_km']:.1f} km at {s['mean_mass_kg'] / 1000:.1f} t) in a forward simulation with a driver "
         "model, machine torque and power limits, recuperation up to its limit and a battery with internal "
         "resistance.")
+    if measured:
+        rows = [{"drive": run["cycle"], "distance [km]": run["distance_km"], "duration [min]": run["duration_s"] / 60,
+                 "mean mass [t]": run["mean_mass_kg"] / 1000, "battery [kWh/km]": run["battery_kwh_per_km"],
+                 "positive at the wheels [kWh/km]": run["wheel_positive_kwh_per_km"],
+                 "time below target [s]": run["missed_target_s"]} for run in (s, measured)]
+        section.tables.append(("Energy per km: the generated cycle against the measured drive it stands for", rows))
     if s.get("soc_below_minimum"):
         section.notes.append("The battery reached its minimum state of charge: the truck could not finish this work.")
     if s.get("missed_target_intervals"):
