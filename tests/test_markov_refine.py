@@ -15,8 +15,8 @@ from haulprofile.analysis.markov import classes as cls
 from haulprofile.analysis.markov.converge import refine, select_refined
 from haulprofile.analysis.markov.generate import run_batch
 from haulprofile.analysis.markov.load_criteria import LOAD_NAMES, evaluate_loads, load_target
-from haulprofile.analysis.markov.score_kernels import (EXPONENTS, SHARES, _time_quantiles, path_loads,
-                                                       rainflow_damage_sums)
+from haulprofile.analysis.markov.score_kernels import (EXPONENTS, SHARES, path_loads, rainflow_damage_sums,
+                                                       time_quantiles)
 from haulprofile.analysis.vehicle import load_vehicle
 from haulprofile.testing.drives import synthetic_drive
 
@@ -139,7 +139,7 @@ def test_time_quantiles_with_ties_and_half_seconds_at_the_ends():
     durations = np.ones(101)
     durations[[0, -1]] = 0.5
     expected = [time_quantile(values, durations, share) for share in SHARES]
-    for kernel in (_time_quantiles, _time_quantiles.py_func):
+    for kernel in (time_quantiles, time_quantiles.py_func):
         out = np.empty(3)
         kernel(values, 2, 0, 100, SHARES, out)
         np.testing.assert_array_equal(out, expected)

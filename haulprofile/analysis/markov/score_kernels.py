@@ -93,7 +93,7 @@ def rainflow_damage_sums(series, exponents, scale, out):
 
 
 @numba.njit(cache=True)
-def _time_quantiles(values, n_half, half_a, half_b, shares, out):
+def time_quantiles(values, n_half, half_a, half_b, shares, out):
     """Time-weighted quantiles as `analysis.loads.summary.time_quantile` for 1 s samples of which
     the two at ``half_a`` and ``half_b`` stand for 0.5 s (a walk's ends). The value at the first
     sorted position whose cumulative time reaches the share does not depend on the order of tied
@@ -167,7 +167,7 @@ def path_loads(path, n, speed, mass, resistance, radius, speed_edges, torque_edg
     for e in range(EXPONENTS.shape[0]):
         out[2 + e] = range_scale * (sums[e] / equivalent) ** (1.0 / EXPONENTS[e])
     quantiles = np.empty(3)
-    _time_quantiles(power[:n], 2, 0, n - 1, SHARES, quantiles)
+    time_quantiles(power[:n], 2, 0, n - 1, SHARES, quantiles)
     for q in range(3):
         out[2 + EXPONENTS.shape[0] + q] = quantiles[q]
     total = 0.0
