@@ -84,3 +84,34 @@ def test_a_generated_cycle_is_a_route_the_virtual_truck_drives(selections, tmp_p
     stops_in_cycle = np.sum(np.diff((cycle["speed_mps"].to_numpy() == 0).astype(int)) == 1)
     stops_driven = np.sum(np.diff((truth["speed_mps"].to_numpy() < 0.05).astype(int)) == 1)
     assert stops_driven == pytest.approx(stops_in_cycle, abs=max(2, 0.2 * stops_in_cycle))
+
+
+VEHICLES = {"urban-delivery": "rigid-18t", "regional-tunnel": "rigid-18t", "long-haul": "tractor-40t"}
+
+
+@pytest.fixture(scope="module")
+def refined(truths):
+    """The default selection (refined, with the load criteria of each scenario's vehicle), seed 0."""
+    from haulprofile.analysis.markov.converge import select_refined
+    from haulprofile.analysis.markov.load_criteria import load_target
+    from haulprofile.analysis.vehicle import load_vehicle
+    out = {}
+    for name in NAMES:
+        vehicle = load_vehicle(VEHICLES[name])
+        counts = count_transitions(truths[name])
+        chain = build_chain(counts)
+        out[name] = select_refined(counts, 1800, 0, chain, load_target(truths[name], vehicle, chain), vehicle)[0]
+    return out
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_default_selection_is_valid_and_carries_the_drives_wheel_loads(refined, name):
+    selection = refined[name]
+    assert selection.criteria.valid, selection.criteria.statement()
+    assert selection.criteria.score <= 0.2
+    loads = selection.load_criteria
+    assert abs(loads["positive_wheel_energy_kwh_per_km"]["relative"]) <= 0.05
+    for k in range(3, 9):
+        assert abs(loads[f"damage_equivalent_torque_range_k{k}_nm"]["relative"]) <= 0.10, k
+    for share in (5, 50, 95):
+        assert loads[f"wheel_power_exceeded_{share}pct_w"]["deviation"] <= 0.10, share

@@ -51,7 +51,7 @@ STAGES: list[Stage] = [
     Stage("kinematics", kinematics_stage),
     Stage("gradient", gradient_stage, reads_dem=True),
     Stage("mass", mass_stage, reads_vehicle=True),
-    Stage("cycle", cycle_stage),
+    Stage("cycle", cycle_stage, reads_vehicle=True),
     Stage("loads", loads_stage, reads_vehicle=True),
     Stage("simulate", simulate_stage, reads_vehicle=True, needs_signals=False),
 ]

@@ -1,4 +1,4 @@
-"""``analyze cycle INPUT… --cycle-duration 1800 --candidates 100000 --seed 0 --out DIR``.
+"""``analyze cycle INPUT… --cycle-duration 1800 [--selection refined|paper] [--cycles N] --seed 0 --out DIR``.
 
 INPUT is a signals table (CSV/Parquet) or logs. The pipeline runs up to the cycle stage; gradient
 or mass columns the input already has are kept, missing ones are estimated by the gradient and
@@ -25,20 +25,30 @@ def add_arguments(parser) -> None:
     parser.add_argument("--speed-class-kmh", type=float, default=1.0, help="speed class width [km/h] (1)")
     parser.add_argument("--gradient-class-pct", type=float, default=0.5, help="gradient class width [%%] (0.5)")
     parser.add_argument("--mass-class-kg", type=float, default=100.0, help="mass class width [kg] (100)")
-    parser.add_argument("--candidates", type=int, default=100_000, help="Monte Carlo candidates (100000, about 2-3 s)")
+    parser.add_argument("--selection", choices=("refined", "paper"), default="refined",
+                        help="refined: the best Monte Carlo walks improved towards the criteria (and the wheel "
+                             "loads, with --vehicle); paper: the paper's Monte Carlo, best of --candidates")
+    parser.add_argument("--candidates", type=int,
+                        help="Monte Carlo candidates (paper: 100000, about 2-3 s; refined: its pool, 20000)")
+    parser.add_argument("--cycles", type=int, default=1, help="number of representative cycles (1); more go to cycles/")
     parser.add_argument("--seed", type=int, default=0, help="random seed (0); same seed, same cycle")
     parser.add_argument("--update-counts", action="store_true",
                         help="draw without replacement from the measured transitions (paper's matrix update)")
     parser.add_argument("--mass-kg", type=float, help="known constant total mass [kg] when the input has none")
-    parser.add_argument("--vehicle", help="vehicle file (TOML) or example name, for the mass stage")
+    parser.add_argument("--vehicle", help="vehicle file (TOML) or example name, for the mass stage and the "
+                                          "wheel-load criteria of the refined selection")
     parser.add_argument("--dem", type=Path, help="directory of SRTM tiles, for the gradient stage")
     parser.add_argument("--quiet", action="store_true", help="print only errors")
 
 
 def run(args) -> int:
-    if args.candidates < 1:
+    if args.candidates is not None and args.candidates < 1:
         raise UserError(f"--candidates must be at least 1, got {args.candidates}")
     checks.cycle_duration_s(args.cycle_duration)
+    if args.cycles < 1:
+        raise UserError(f"--cycles must be at least 1, got {args.cycles}")
+    if args.cycles > 1 and args.selection == "paper":
+        raise UserError("--cycles above 1 needs --selection refined (the paper's selection keeps one cycle)")
     if args.seed < 0:
         raise UserError(f"--seed must be a non-negative integer, got {args.seed}")
     if args.mass_kg is not None and not args.mass_kg > 0:
@@ -53,7 +63,8 @@ def run(args) -> int:
     options = Options(gradient=GradientOptions(keep_existing=True),
                       mass=MassOptions(known_mass_kg=args.mass_kg, keep_existing=True),
                       cycle=CycleOptions(duration_s=args.cycle_duration, widths=widths, n_candidates=args.candidates,
-                                         seed=args.seed, update_counts=args.update_counts))
+                                         seed=args.seed, update_counts=args.update_counts,
+                                         selection=args.selection, n_cycles=args.cycles))
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out,
                      vehicle=load_vehicle(args.vehicle) if args.vehicle else None, dem_dir=args.dem,
                      say=(lambda _msg: None) if args.quiet else print, options=options,

@@ -41,3 +41,40 @@ def plot_cycle(cycle: pd.DataFrame, measured_1hz: pd.DataFrame, path: str | Path
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_scores(selections, path: str | Path) -> Path:
+    """Distribution of the score S (15) over the Monte Carlo candidates, with the chosen cycle(s)
+    marked; for refined cycles also where each refinement started."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    first = selections[0]
+    scores = np.asarray(first.all_scores, float)
+    fig, ax = plt.subplots(figsize=(8, 3.6))
+    finite = scores[np.isfinite(scores)]
+    high = np.quantile(finite, 0.995) if finite.size else 1.0
+    bins = np.linspace(0.0, max(high, max(s.criteria.score for s in selections)) * 1.05 + 1e-9, 80)
+    ax.hist(np.clip(finite, None, bins[-1]), bins=bins, color="C0", alpha=0.6,
+            label=f"{len(scores):,} Monte Carlo candidates")
+    ax.axvline(1.0, color="0.5", lw=0.8, ls=":")
+    for i, s in enumerate(selections):
+        label = "chosen" if i == 0 else None
+        if s.method != "paper":
+            ax.annotate("", xy=(s.criteria.score, 0.5), xytext=(s.start_score, 0.5), xycoords=("data", "axes fraction"),
+                        arrowprops={"arrowstyle": "->", "color": "C1", "lw": 0.8})
+            label = "refined cycle(s), arrow from its start" if i == 0 else None
+        if i == 1:
+            label = "other cycles of the set"
+        ax.axvline(s.criteria.score, color="C1" if i == 0 else "C2", lw=1.2, label=label)
+    ax.set_yscale("log")
+    ax.set_xlabel("score S (15) of the paper's criteria, lower is better")
+    ax.set_ylabel("candidates")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -19,6 +19,7 @@ import numba
 import numpy as np
 import pandas as pd
 
+from .. import kinematics
 from ..errors import UserError
 from .chain import Chain, build_chain
 from .counting import TransitionCounts
@@ -174,13 +175,21 @@ def run_batch(chain: Chain, duration_s: float, n_candidates: int, seed: int, fir
 
 
 def cycle_frame(chain: Chain, path: np.ndarray) -> pd.DataFrame:
-    """A candidate as a 1 Hz cycle: time [s], class-centre speed [m/s], acceleration to the next
-    second [m/s²] (0 at the end), gradient [%], mass [kg], distance at constant speed per second [m]."""
+    """A candidate as a 1 Hz cycle: time [s], class-centre speed [m/s], acceleration [m/s²] as the
+    kinematics stage estimates it from a speed trace (central difference at 1 Hz, one-sided at the
+    ends), gradient [%], mass [kg], distance at constant speed per second [m].
+
+    **[choice]** Not the forward difference: a walk flipping between two speed classes (a cruise at
+    a class boundary, as the data did) would then carry ±one class per second of acceleration, and
+    its wheel torque a rainflow cycle of m·w each second that the measured drive, whose acceleration
+    the kinematics stage estimates from its speed, does not have (+50 % damage-equivalent torque on
+    synthetic urban data, docs/cycles.md). The kinematic criteria still use 1 Hz differences."""
     speed = chain.speed_mps[path]
+    time = np.arange(len(path), dtype=float)
     return pd.DataFrame({
-        "time_s": np.arange(len(path), dtype=float),
+        "time_s": time,
         "speed_mps": speed,
-        "accel_mps2": np.append(np.diff(speed), 0.0),
+        "accel_mps2": kinematics.acceleration_mps2(time, speed) if len(path) > 1 else np.zeros(len(path)),
         "gradient_pct": chain.gradient_pct[path],
         "mass_kg": chain.mass_kg[path],
         "distance_m": np.concatenate([[0.0], np.cumsum(speed[:-1])]),

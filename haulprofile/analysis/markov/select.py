@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -28,9 +28,32 @@ class Selection:
     n_valid_without_mass: int
     all_scores: np.ndarray
     chain: Chain
+    method: str = "paper"
+    objective: float | None = None
+    start_score: float | None = None
+    load_criteria: dict | None = None
+    trace: np.ndarray | None = field(default=None, repr=False)
+    refined_scores: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def loads_within_allowance(self) -> bool | None:
+        if self.load_criteria is None:
+            return None
+        from .load_criteria import within_allowance
+        return within_allowance(self.load_criteria)
 
     def as_dict(self) -> dict:
-        return {**self.criteria.as_dict(), "statement": self.criteria.statement(), "candidate_index": self.index,
+        extra = {}
+        if self.method != "paper":
+            extra = {"objective": self.objective, "start_score": self.start_score,
+                     "refined_scores": [float(x) for x in self.refined_scores]
+                     if self.refined_scores is not None else None,
+                     "moves": int(len(self.trace)) if self.trace is not None else 0}
+        if self.load_criteria is not None:
+            extra["load_criteria"] = self.load_criteria
+            extra["loads_within_allowance"] = self.loads_within_allowance
+        return {**self.criteria.as_dict(), "statement": self.criteria.statement(), "method": self.method,
+                **extra, "candidate_index": self.index,
                 "seed": self.seed, "n_candidates": self.n_candidates, "n_valid": self.n_valid,
                 "n_valid_without_mass": self.n_valid_without_mass,
                 "score_median": float(np.median(self.all_scores)), "states": self.chain.n_states,

@@ -1,22 +1,31 @@
-"""The cycle stage: count the measured transitions, generate candidates, select the cycle (in
+"""The cycle stage: count the measured transitions, generate candidates, select the cycle(s) (in
 memory, `CycleResult`); `write_cycle_files` is its part of the output step (``cycle.csv``,
-``cycle.parquet``, ``cycle.vdri``, ``cycle.png``)."""
+``cycle.parquet``, ``cycle.vdri``, ``cycle.png``, ``cycle-scores.png`` and, for a cycle set,
+``cycles/cycle-1..N``)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from .. import signals as signals_table
+from ..errors import UserError
+from .chain import build_chain
 from .classes import ClassWidths
+from .converge import MOVES, POOL, select_refined
 from .counting import TransitionCounts, count_transitions, resample_1hz
 from .export import write_cycle
-from .figure import plot_cycle
+from .figure import plot_cycle, plot_scores
+from .load_criteria import load_target
 from .select import Selection, select_cycle
 
 NEEDED = ["time_s", "speed_mps", "gradient_pct", "mass_kg"]
+SELECTIONS = ("refined", "paper")
+PAPER_CANDIDATES = 100_000
+CYCLES_DIR = "cycles"
 
 
 @dataclass(frozen=True)
@@ -27,8 +36,16 @@ class CycleOptions:
     """Length of the generated cycle [s]."""
     widths: ClassWidths = field(default_factory=ClassWidths)
     """Class widths of the chain: speed [km/h], gradient [%], mass [kg]."""
-    n_candidates: int = 100_000
-    """Monte Carlo candidates scored."""
+    selection: str = "refined"
+    """"refined" (the best Monte Carlo walks improved towards the criteria and, with a vehicle, the
+    wheel loads; `converge`) or "paper" (the paper's Monte Carlo, best of ``n_candidates``)."""
+    n_candidates: int | None = None
+    """Monte Carlo candidates: scored by "paper" (None: 100 000), the pool of "refined" (None:
+    `converge.POOL`)."""
+    n_cycles: int = 1
+    """Representative cycles selected (a cycle set, written to ``cycles/``; "refined" only)."""
+    n_moves: int = MOVES
+    """Refinement moves per walk ("refined")."""
     seed: int = 0
     update_counts: bool = False
     """Draw without replacement from the measured transitions (the paper's matrix update)."""
@@ -36,7 +53,7 @@ class CycleOptions:
 
 @dataclass
 class CycleResult:
-    """The selected cycle and what it was selected from."""
+    """The selected cycle(s) and what they were selected from."""
 
     selection: Selection
     """The chosen 1 Hz cycle (``selection.cycle``: time_s, speed_mps, accel_mps2, gradient_pct,
@@ -44,21 +61,67 @@ class CycleResult:
     counts: TransitionCounts
     measured_1hz: pd.DataFrame
     """The measured drive at 1 Hz, as counted (for the figure's distributions)."""
+    selections: list[Selection] = field(default_factory=list)
+    """Every selected cycle, best first (``selections[0]`` is ``selection``); more than one is a
+    cycle set."""
 
     @property
     def frame(self) -> pd.DataFrame:
         return self.selection.cycle
 
 
+def _select(ctx, options: CycleOptions, counts) -> list[Selection]:
+    """The selections, best first."""
+    method = options.selection
+    if method not in SELECTIONS:
+        raise UserError(f"cycle selection must be one of {', '.join(SELECTIONS)}, got {method!r}")
+    n_cycles = int(options.n_cycles)
+    if n_cycles < 1:
+        raise UserError(f"number of cycles must be at least 1, got {n_cycles}")
+    if options.n_candidates is not None and int(options.n_candidates) < 1:
+        raise UserError(f"number of candidates must be at least 1, got {options.n_candidates}")
+    if method == "paper":
+        if n_cycles > 1:
+            raise UserError("several cycles need the refined selection (the paper's selection keeps one)")
+        return [select_cycle(counts, options.duration_s, int(options.n_candidates or PAPER_CANDIDATES),
+                             int(options.seed), bool(options.update_counts))]
+    chain = build_chain(counts)
+    target = None
+    if ctx.vehicle is not None:
+        target = load_target(ctx.signals, ctx.vehicle, chain)
+    else:
+        ctx.say("cycle: no vehicle file, so the wheel loads are not part of the score (give --vehicle)")
+    return select_refined(counts, options.duration_s, int(options.seed), chain, target, ctx.vehicle,
+                          n_cycles, int(options.n_candidates or POOL), n_moves=int(options.n_moves),
+                          update_counts=bool(options.update_counts))
+
+
+def _spread(selections) -> dict:
+    """Per criterion the smallest and largest deviation over the cycle set, and the scores."""
+    result = {"score": {"min": min(s.criteria.score for s in selections),
+                        "median": float(np.median([s.criteria.score for s in selections])),
+                        "max": max(s.criteria.score for s in selections)},
+              "all_valid": all(s.criteria.valid for s in selections), "criteria": {}}
+    for name in selections[0].criteria.as_dict()["criteria"]:
+        values = [s.criteria.as_dict()["criteria"][name]["deviation"] for s in selections]
+        result["criteria"][name] = {"min": min(values), "max": max(values)}
+    if selections[0].load_criteria is not None:
+        for name in selections[0].load_criteria:
+            values = [s.load_criteria[name]["deviation"] for s in selections]
+            result["criteria"][name] = {"min": min(values), "max": max(values)}
+    return result
+
+
 def cycle_stage(ctx) -> None:
-    """Select a representative cycle of the measured drive into ``ctx.results.cycle`` and
-    ``ctx.summary["cycle"]``.
+    """Select a representative cycle (or a set of them) of the measured drive into
+    ``ctx.results.cycle`` and ``ctx.summary["cycle"]``.
 
     Parameters
     ----------
     ctx : pipeline.RunContext
-        Reads ``signals`` (time_s [s], speed_mps [m/s], gradient_pct [%], mass_kg [kg]) and
-        ``options.cycle`` (`CycleOptions`).
+        Reads ``signals`` (time_s [s], speed_mps [m/s], gradient_pct [%], mass_kg [kg]),
+        ``options.cycle`` (`CycleOptions`) and, for the load criteria of the refined selection,
+        ``vehicle``.
 
     References
     ----------
@@ -72,26 +135,47 @@ def cycle_stage(ctx) -> None:
     options: CycleOptions = ctx.options.cycle
     measured = resample_1hz(ctx.signals)
     counts = count_transitions(measured, options.widths)
-    selection = select_cycle(counts, options.duration_s, int(options.n_candidates), int(options.seed),
-                             bool(options.update_counts))
-    ctx.results.cycle = CycleResult(selection, counts, measured)
-    ctx.summary["cycle"] = {**selection.as_dict(), "duration_s": float(options.duration_s),
-                            "class_widths": options.widths.as_dict(), "update_counts": bool(options.update_counts),
-                            "samples_1hz": counts.n_samples, "transitions_dropped": counts.n_dropped,
-                            "loops_closed": counts.n_closed}
+    selections = _select(ctx, options, counts)
+    selection = selections[0]
+    ctx.results.cycle = CycleResult(selection, counts, measured, selections)
+    summary = {**selection.as_dict(), "duration_s": float(options.duration_s),
+               "class_widths": options.widths.as_dict(), "update_counts": bool(options.update_counts),
+               "samples_1hz": counts.n_samples, "transitions_dropped": counts.n_dropped,
+               "loops_closed": counts.n_closed}
+    if len(selections) > 1:
+        summary["cycle_set"] = {"n_cycles": len(selections), "spread": _spread(selections),
+                                "cycles": [{"file": f"{CYCLES_DIR}/cycle-{i + 1}.csv", "score": s.criteria.score,
+                                            "valid": s.criteria.valid, "objective": s.objective,
+                                            "loads_within_allowance": s.loads_within_allowance}
+                                           for i, s in enumerate(selections)]}
+    ctx.summary["cycle"] = summary
     left_out = selection.chain.transitions_left_out / max(int(counts.count.sum()), 1)
     if left_out > 0.1:
         ctx.say(f"cycle: {left_out:.0%} of the measured transitions lead only to the end of a log or a stop "
                 f"never left, and are not drawn (docs/cycles.md, pruning)")
-    ctx.say(f"cycle: {selection.criteria.statement()} (candidate {selection.index} of {selection.n_candidates}, "
-            f"{selection.n_valid} valid)")
+    how = (f"candidate {selection.index} of {selection.n_candidates}, {selection.n_valid} valid"
+           if selection.method == "paper" else
+           f"refined from candidate {selection.index} of a pool of {selection.n_candidates} "
+           f"(S {selection.start_score:.3f}), {len(selection.trace)} moves")
+    loads = ""
+    if selection.load_criteria is not None:
+        loads = "; loads " + ("within" if selection.loads_within_allowance else "NOT all within") + " allowance"
+    ctx.say(f"cycle: {selection.criteria.statement()} ({how}){loads}")
+    if len(selections) > 1:
+        spread = summary["cycle_set"]["spread"]["score"]
+        ctx.say(f"cycle: {len(selections)} cycles in {CYCLES_DIR}/, score {spread['min']:.3f} … {spread['max']:.3f}")
 
 
 def write_cycle_files(result: CycleResult, directory: Path, figures: bool = True) -> dict[str, str]:
-    """The cycle as CSV, Parquet and VECTO ``.vdri`` and (with ``figures``) its figure; returns
-    kind → file name."""
+    """The cycle as CSV, Parquet and VECTO ``.vdri``, a cycle set's cycles in ``cycles/`` and (with
+    ``figures``) the cycle's figure and the score distribution; returns kind → file or folder name."""
     paths = write_cycle(result.frame, directory)
     if figures:
         paths["figure"] = plot_cycle(result.frame, result.measured_1hz, directory / "cycle.png",
                                      result.selection.criteria.statement())
+        paths["scores"] = plot_scores(result.selections or [result.selection], directory / "cycle-scores.png")
+    if len(result.selections) > 1:
+        for i, s in enumerate(result.selections):
+            write_cycle(s.cycle, directory / CYCLES_DIR, stem=f"cycle-{i + 1}")
+        paths["set"] = directory / CYCLES_DIR
     return {kind: path.name for kind, path in paths.items()}

@@ -1,0 +1,142 @@
+"""The default selection: a Monte Carlo pool, its best walks refined towards the criteria.
+
+The paper's selection (`select.select_cycle`) keeps the best of a fixed budget of independent
+walks; on one-way drives one walk in 10⁴–10⁵ is valid, so whether a user gets a cycle is luck.
+Here the pool only provides starting points: the ``n_chains`` walks closest to validity (by the
+kinematic part of the objective) are refined (`refine.refine_walk`) towards the fifteen criteria
+and, when a vehicle and the measured drive's loads are given (`load_criteria.LoadTarget`), the
+load criteria. The fifteen stay the validity gate; the objective adds the loads to the score.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .chain import Chain, build_chain
+from .counting import TransitionCounts
+from .criteria import _Q, _S, ALLOWANCE, IS_MASS, deviations, evaluate, scales, scores
+from .generate import cycle_frame, run_batch
+from .load_criteria import LOAD_ALLOWANCE, N_LOADS, LoadTarget, evaluate_loads
+from .refine import refine_walk
+from .score_kernels import KINEMATIC_PENALTY
+from .select import BATCH, Selection
+
+POOL = 20_000
+CHAINS = 12
+MOVES = 3_000
+SURVIVORS = 2
+SHORTLIST = 16
+MAX_WINDOW_S = 300
+TEMPERATURE = 0.1
+"""Start temperature of the annealing, in objective units (a tenth of one allowance, averaged)."""
+
+
+def kinematic_objective(deviation: np.ndarray) -> np.ndarray:
+    """The objective without loads of pool candidates (…, 15): `score_kernels.kinematic_objective`
+    for many candidates at once."""
+    ratio = deviation / ALLOWANCE
+    return ratio.mean(axis=-1) + KINEMATIC_PENALTY * np.clip(ratio - 1.0, 0.0, None).sum(axis=-1)
+
+
+def _pool(chain, counts, duration_s, n_pool, seed, update_counts):
+    measured = counts.statistics
+    all_scores, objective = np.empty(n_pool), np.empty(n_pool)
+    valid, valid_without_mass = np.empty(n_pool, bool), np.empty(n_pool, bool)
+    for first in range(0, n_pool, BATCH):
+        size = min(BATCH, n_pool - first)
+        stats, _ = run_batch(chain, duration_s, size, seed, first, update_counts)
+        deviation = deviations(stats, measured, counts.widths)
+        all_scores[first:first + size] = scores(deviation)
+        objective[first:first + size] = kinematic_objective(deviation)
+        passed = deviation <= ALLOWANCE
+        valid[first:first + size] = passed.all(axis=1)
+        valid_without_mass[first:first + size] = passed[:, ~IS_MASS].all(axis=1)
+    return all_scores, objective, valid, valid_without_mass
+
+
+def _load_arrays(chain: Chain, target: LoadTarget | None):
+    if target is None:
+        edges = np.array([0.0, 1.0])
+        return (np.zeros(chain.n_states), 1.0, edges, edges, np.zeros((1, 1)), 1.0, np.zeros(N_LOADS),
+                np.ones(N_LOADS))
+    return (target.resistance_n, target.wheel_radius_m, target.speed_edges_rpm, target.torque_edges_nm,
+            target.residence_share, target.range_scale_nm, target.measured, target.scale)
+
+
+def refine(chain: Chain, counts: TransitionCounts, path: np.ndarray, target: LoadTarget | None, n_moves: int,
+           seed: int, stream: int, max_window_s: int = MAX_WINDOW_S,
+           temperature: float = TEMPERATURE) -> tuple[np.ndarray, np.ndarray, float]:
+    """A refined copy of ``path``, the best objective after each move, and the objective of the
+    best walk (of ``path`` itself when ``n_moves`` is 0)."""
+    path = np.array(path, dtype=np.int64)
+    trace = np.empty(n_moves)
+    resistance, radius, speed_edges, torque_edges, share, range_scale, load_measured, load_scale = \
+        _load_arrays(chain, target)
+    window = int(max(2, min(max_window_s, len(path) - 1)))
+    best = refine_walk(path, chain.row_ptr, chain.dest, chain.cum_count, chain.start_state, chain.start_cum,
+                       chain.speed_mps, chain.gradient_pct, chain.mass_kg, counts.statistics,
+                       scales(counts.statistics, counts.widths), _Q, _S, ALLOWANCE, target is not None, resistance,
+                       radius, speed_edges, torque_edges, share, range_scale, load_measured, load_scale,
+                       LOAD_ALLOWANCE, int(n_moves), window, float(temperature), int(seed), int(stream), trace)
+    return path, trace, float(best)
+
+
+def _starts(chain, counts, duration_s, seed, update_counts, objective, target, n_chains) -> np.ndarray:
+    """Pool indices to refine: the ``n_chains`` best by the whole objective among the
+    `SHORTLIST` × ``n_chains`` best by its kinematic part (the pool keeps no paths and no loads)."""
+    order = np.argsort(objective, kind="stable")
+    if target is None:
+        return order[:n_chains]
+    shortlist = order[:SHORTLIST * n_chains]
+    whole = np.array([refine(chain, counts, run_batch(chain, duration_s, 1, seed, int(i), update_counts,
+                                                        keep_paths=True)[1][0], target, 0, seed, 0)[2]
+                      for i in shortlist])
+    return shortlist[np.argsort(whole, kind="stable")[:n_chains]]
+
+
+def select_refined(counts: TransitionCounts, duration_s: float = 1800.0, seed: int = 0, chain: Chain | None = None,
+                   target: LoadTarget | None = None, vehicle=None, n_cycles: int = 1, n_pool: int = POOL,
+                   n_chains: int | None = None, n_moves: int = MOVES, update_counts: bool = False,
+                   max_window_s: int = MAX_WINDOW_S, temperature: float = TEMPERATURE,
+                   survivors: int | None = SURVIVORS) -> list[Selection]:
+    """``n_cycles`` cycles of ``duration_s`` [s], best first: the ``n_chains`` pool walks closest to
+    validity, each refined over a quarter of ``n_moves`` moves; then the best ``survivors`` (at
+    least ``n_cycles``) share the rest of the budget (``n_chains`` × ``n_moves`` moves in all),
+    annealed from a third of the temperature (successive halving: a broad start, the effort on
+    the promising walks). ``survivors`` None refines every walk over ``n_moves``. ``target`` and
+    ``vehicle`` add the load criteria to the objective and to each selection's report."""
+    chain = chain or build_chain(counts)
+    n_chains = max(n_chains or CHAINS, n_cycles)
+    n_pool = max(int(n_pool), n_chains)
+    all_scores, objective, valid, valid_without_mass = _pool(chain, counts, duration_s, n_pool, seed, update_counts)
+    starts = _starts(chain, counts, duration_s, seed, update_counts, objective, target, n_chains)
+    walks = []
+    first_moves = n_moves if not survivors else n_moves // 4
+    for stream, index in enumerate(starts):
+        _, path = run_batch(chain, duration_s, 1, seed, int(index), update_counts, keep_paths=True)
+        refined, trace, best = refine(chain, counts, path[0], target, first_moves, seed, stream, max_window_s,
+                                      temperature)
+        walks.append((best, int(index), refined, trace))
+    if survivors:
+        keep = max(int(survivors), n_cycles)
+        walks.sort(key=lambda w: w[0])
+        more = (len(walks) * (n_moves - first_moves)) // keep
+        for i, (_, index, path, trace) in enumerate(walks[:keep]):
+            refined, more_trace, best = refine(chain, counts, path, target, more, seed, len(walks) + i,
+                                               max_window_s, temperature * 0.3)
+            walks[i] = (best, index, refined, np.concatenate([trace, more_trace]))
+        walks = walks[:keep]
+    results = []
+    for best, index, refined, trace in walks:
+        cycle = cycle_frame(chain, refined)
+        criteria = evaluate(cycle, counts)
+        loads = evaluate_loads(cycle, vehicle, target) if target is not None and vehicle is not None else None
+        results.append(Selection(cycle, criteria, index, int(seed), n_pool, int(valid.sum()),
+                                 int(valid_without_mass.sum()), all_scores, chain, method="refined",
+                                 objective=best, start_score=float(all_scores[index]), load_criteria=loads,
+                                 trace=trace))
+    results.sort(key=lambda s: (not s.criteria.valid, s.objective))
+    refined_scores = np.array([s.criteria.score for s in results])
+    for s in results:
+        s.refined_scores = refined_scores
+    return results[:n_cycles]

@@ -1,0 +1,162 @@
+"""Score-guided refinement of a walk: it stays a walk the chain allows, and improves.
+
+A move re-draws a window of the walk from the chain: from the state at second ``a`` a new walk is
+drawn until it meets a state the old walk visits later in the window (second ``c``), and the old
+walk goes on from there; or the walk's tail is drawn anew; or the walk starts in another start
+state and is drawn until it meets the old walk's first window. Every transition of the result is one
+of the chain's (the re-drawn part from its rows, the joins at equal states), so the result is
+still a walk of the measured transitions. A splice that shortens the walk is continued from its
+end by the chain, one that lengthens it is cut at the cycle's duration. A move is kept when the
+objective (`score_kernels.objective`, computed in two parts) falls; the kernel works on paths and statistics only.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from .generate import GOLDEN, mix, path_statistics, uniform
+from .score_kernels import kinematic_objective, load_objective, path_loads
+
+TAIL_SHARE = 0.2
+"""Share of moves that re-draw the walk's tail."""
+HEAD_SHARE = 0.1
+"""Share of moves that start the walk in another start state (the first second of a stop) and
+draw from there until the old walk's first window is met."""
+
+
+@numba.njit(cache=True)
+def _next_state(row_ptr, dest, cum_count, s, rng):
+    a = row_ptr[s]
+    b = row_ptr[s + 1]
+    u = uniform(rng) * cum_count[b - 1]
+    j = a
+    while j < b - 1 and cum_count[j] <= u:
+        j += 1
+    return dest[j]
+
+
+@numba.njit(cache=True)
+def _kinematic_deviation(path, speed, gradient, mass, measured, scale, q_index, s_index, stats, out):
+    path_statistics(path, speed, gradient, mass, stats)
+    for i in range(out.shape[0]):
+        out[i] = abs(stats[q_index[i], s_index[i]] - measured[q_index[i], s_index[i]]) / scale[i]
+
+
+@numba.njit(cache=True)
+def _continue(current, n, k, c, row_ptr, dest, cum_count, rng, proposal):
+    """``proposal[k]`` is ``current[c]``: go on with the old walk after ``c``, then with the chain,
+    up to ``n`` states."""
+    while k < n - 1 and c < n - 1:
+        k += 1
+        c += 1
+        proposal[k] = current[c]
+    s = proposal[min(k, n - 1)]
+    while k < n - 1:
+        k += 1
+        s = _next_state(row_ptr, dest, cum_count, s, rng)
+        proposal[k] = s
+
+
+@numba.njit(cache=True)
+def _rejoin(current, n, first, last, k, s, row_ptr, dest, cum_count, rng, limit, mark, proposal):
+    """From state ``s`` at ``proposal[k]``, draw until a state of ``current[first..last]`` is met
+    (within ``limit`` steps) and go on with the old walk from there; False if none is met."""
+    if uniform(rng) < 0.5:
+        for c in range(first, last + 1):
+            mark[current[c]] = c
+    else:
+        for c in range(last, first - 1, -1):
+            mark[current[c]] = c
+    hit = mark[s]
+    j = 0
+    while hit < 0 and j < limit:
+        j += 1
+        s = _next_state(row_ptr, dest, cum_count, s, rng)
+        if k + j < proposal.shape[0]:
+            proposal[k + j] = s
+        hit = mark[s]
+    for c in range(first, last + 1):
+        mark[current[c]] = -1
+    if hit < 0:
+        return False
+    _continue(current, n, k + j, hit, row_ptr, dest, cum_count, rng, proposal)
+    return True
+
+
+@numba.njit(cache=True)
+def _propose(current, n, row_ptr, dest, cum_count, start_state, start_cum, max_window, mark, rng, proposal):
+    """A re-drawn window, tail or head of ``current[:n]`` into ``proposal[:n]``; False if the
+    re-drawn part found no way back into the walk."""
+    move = uniform(rng)
+    window = 2 + int(uniform(rng) * (max_window - 1))
+    if move < HEAD_SHARE:
+        u = uniform(rng) * start_cum[-1]
+        j = 0
+        while j < start_cum.shape[0] - 1 and start_cum[j] <= u:
+            j += 1
+        proposal[0] = start_state[j]
+        return _rejoin(current, n, 0, min(window, n - 1), 0, start_state[j], row_ptr, dest, cum_count, rng,
+                       window + window // 2, mark, proposal)
+    if move < HEAD_SHARE + TAIL_SHARE:
+        a = max(n - 2 - int(uniform(rng) * min(max_window, n - 1)), 0)
+        for k in range(a + 1):
+            proposal[k] = current[k]
+        _continue(current, n, a, n - 1, row_ptr, dest, cum_count, rng, proposal)
+        return True
+    a = int(uniform(rng) * (n - 1))
+    for k in range(a + 1):
+        proposal[k] = current[k]
+    return _rejoin(current, n, a + 1, min(a + window, n - 1), a, current[a], row_ptr, dest, cum_count, rng,
+                   window + window // 2, mark, proposal)
+
+
+@numba.njit(cache=True)
+def refine_walk(path, row_ptr, dest, cum_count, start_state, start_cum, speed, gradient, mass, measured, kin_scale, q_index, s_index,
+                kin_allowance, use_loads, resistance, radius, speed_edges, torque_edges, share, range_scale,
+                load_measured, load_scale, load_allowance, n_moves, max_window, temperature, seed, stream, trace):
+    """Improve ``path`` in place over ``n_moves`` proposals; ``trace[m]`` the best objective after
+    move m. Returns the best objective. A worse proposal is taken with probability exp(−Δ/T)
+    (simulated annealing, T falling geometrically from ``temperature`` to a thousandth of it; 0 is
+    greedy), so a walk can leave a local optimum; the best walk seen is the result."""
+    n = path.shape[0]
+    rng = np.empty(1, np.uint64)
+    rng[0] = mix(np.uint64(seed) ^ mix(np.uint64(stream) + GOLDEN + GOLDEN))
+    mark = np.full(speed.shape[0], -1, np.int64)
+    proposal = np.empty(n + 2 * max_window + 2, np.int64)
+    stats = np.empty((4, 4))
+    kin = np.empty(q_index.shape[0])
+    loads = np.empty(load_measured.shape[0])
+    torque = np.empty(n)
+    power = np.empty(n)
+    residence = np.empty((speed_edges.shape[0] - 1, torque_edges.shape[0] - 1))
+
+    def value_of(p, threshold):
+        """Objective of walk ``p``; its kinematic part alone when that reaches ``threshold``."""
+        _kinematic_deviation(p, speed, gradient, mass, measured, kin_scale, q_index, s_index, stats, kin)
+        value = kinematic_objective(kin, kin_allowance)
+        if use_loads and value < threshold:
+            path_loads(p, n, speed, mass, resistance, radius, speed_edges, torque_edges, share, range_scale,
+                       loads, torque, power, residence)
+            value += load_objective(loads, load_measured, load_scale, load_allowance)
+        return value
+
+    walk = path.copy()
+    current = value_of(walk, np.inf)
+    best = current
+    cooling = 0.001 ** (1.0 / max(n_moves, 1))
+    t = temperature
+    for m in range(n_moves):
+        if _propose(walk, n, row_ptr, dest, cum_count, start_state, start_cum, max_window, mark, rng, proposal):
+            # taken if value < current + t·ln(1/u): Metropolis, exp(−Δ/t) > u
+            threshold = current - t * np.log(1.0 - uniform(rng)) if t > 0 else current
+            value = value_of(proposal[:n], threshold)
+            if value < threshold:
+                current = value
+                walk[:] = proposal[:n]
+                if value < best:
+                    best = value
+                    path[:] = walk
+        trace[m] = best
+        t *= cooling
+    return best

@@ -1,0 +1,192 @@
+"""Refined selection (issue: cycles that are found): still a walk of the chain, better than its start,
+the paper's selection unchanged, load kernels equal to the loads module."""
+
+import hashlib
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import rainflow
+
+from haulprofile.analysis.loads.summary import time_quantile
+from haulprofile.analysis.markov import build_chain, count_transitions, select_cycle
+from haulprofile.analysis.markov import classes as cls
+from haulprofile.analysis.markov.converge import refine, select_refined
+from haulprofile.analysis.markov.generate import run_batch
+from haulprofile.analysis.markov.load_criteria import LOAD_NAMES, evaluate_loads, load_target
+from haulprofile.analysis.markov.score_kernels import (EXPONENTS, SHARES, path_loads, rainflow_damage_sums,
+                                                       time_quantiles)
+from haulprofile.analysis.vehicle import load_vehicle
+from haulprofile.testing.drives import synthetic_drive
+
+
+@pytest.fixture(scope="module")
+def drive():
+    return synthetic_drive(2 * 3600, seed=31, kind="urban")
+
+
+@pytest.fixture(scope="module")
+def counts(drive):
+    return count_transitions(drive)
+
+
+@pytest.fixture(scope="module")
+def vehicle():
+    return load_vehicle("rigid-18t")
+
+
+@pytest.fixture(scope="module")
+def target(drive, counts, vehicle):
+    return load_target(drive, vehicle, build_chain(counts))
+
+
+def _key(cycle: pd.DataFrame) -> str:
+    values = np.round(cycle[["speed_mps", "gradient_pct", "mass_kg"]].to_numpy() * 1000).astype(np.int64)
+    return hashlib.sha256(values.tobytes()).hexdigest()[:16]
+
+
+def test_paper_selection_gives_the_same_cycle_as_before_the_refined_default(counts):
+    """Golden values printed by the paper's selection before the refined one was added."""
+    selection = select_cycle(counts, 900, 3000, seed=7)
+    assert selection.index == 238 and selection.n_valid == 4 and selection.n_valid_without_mass == 23
+    assert selection.criteria.score == pytest.approx(0.25471944702773514, rel=1e-12)
+    assert float(np.median(selection.all_scores)) == pytest.approx(1.0435447772890725, rel=1e-12)
+    assert _key(selection.cycle) == "586b3422dde47ab0" and len(selection.cycle) == 901
+    assert selection.method == "paper"
+
+
+def _transitions_counted(counts, cycle) -> np.ndarray:
+    widths = counts.widths
+    keys = cls.encode(cls.class_index(cycle["speed_mps"], widths.speed_mps),
+                      cls.class_index(cycle["gradient_pct"], widths.gradient_pct),
+                      cls.class_index(cycle["mass_kg"], widths.mass_kg))
+    observed = set(zip(counts.from_key[counts.count > 0].tolist(), counts.to_key[counts.count > 0].tolist()))
+    return np.array([(a, b) in observed for a, b in zip(keys[:-1].tolist(), keys[1:].tolist())])
+
+
+def test_refined_cycle_is_a_walk_of_counted_transitions_and_better_than_its_start(counts, target, vehicle):
+    chain = build_chain(counts)
+    selection = select_refined(counts, 1800, 3, chain, target, vehicle, n_pool=2000, n_moves=1500)[0]
+    assert len(selection.cycle) == 1801
+    assert _transitions_counted(counts, selection.cycle).all()
+    assert selection.cycle["speed_mps"].iloc[0] == 0.0
+    trace = selection.trace
+    assert np.all(np.diff(trace) <= 0) and trace[-1] < trace[0]
+    assert selection.criteria.valid, selection.criteria.statement()
+    assert selection.criteria.score <= 0.2
+    assert set(selection.load_criteria) == set(LOAD_NAMES)
+    summary = selection.as_dict()
+    assert summary["method"] == "refined" and summary["load_criteria"] and summary["moves"] == len(trace) > 1500
+
+
+def test_refinement_without_loads_keeps_a_walk_from_a_start_state(counts):
+    chain = build_chain(counts)
+    _, paths = run_batch(chain, 1200, 1, seed=5, first_index=17, keep_paths=True)
+    refined, trace, best = refine(chain, counts, paths[0], None, 800, seed=5, stream=0)
+    assert refined[0] in chain.start_state and len(refined) == len(paths[0])
+    rows = [np.flatnonzero(chain.dest[chain.row_ptr[a]:chain.row_ptr[a + 1]] == b).size
+            for a, b in zip(refined[:-1], refined[1:])]
+    assert min(rows) == 1
+    assert np.all(np.diff(trace) <= 0) and best == trace[-1]
+
+
+def test_a_cycle_set_is_valid_distinct_and_reproducible(counts, target, vehicle):
+    chain = build_chain(counts)
+    first = select_refined(counts, 1800, 0, chain, target, vehicle, n_cycles=3, n_pool=2000, n_moves=1000)
+    again = select_refined(counts, 1800, 0, chain, target, vehicle, n_cycles=3, n_pool=2000, n_moves=1000)
+    assert len(first) == 3 and all(s.criteria.valid for s in first)
+    assert len({_key(s.cycle) for s in first}) == 3
+    for x, y in zip(first, again):
+        pd.testing.assert_frame_equal(x.cycle, y.cycle)
+    assert [s.objective for s in first] == sorted(s.objective for s in first)
+
+
+def test_kernel_load_values_equal_the_loads_module(counts, target, vehicle):
+    chain = build_chain(counts)
+    _, paths = run_batch(chain, 1800, 3, seed=2, keep_paths=True)
+    for path in paths:
+        from haulprofile.analysis.markov.generate import cycle_frame
+        reference = evaluate_loads(cycle_frame(chain, path), vehicle, target)
+        for kernel in (path_loads, path_loads.py_func):
+            n = len(path)
+            out = np.empty(len(LOAD_NAMES))
+            kernel(path, n, chain.speed_mps, chain.mass_kg, target.resistance_n, target.wheel_radius_m,
+                   target.speed_edges_rpm, target.torque_edges_nm, target.residence_share, target.range_scale_nm,
+                   out, np.empty(n), np.empty(n), np.empty((len(target.speed_edges_rpm) - 1,
+                                                            len(target.torque_edges_nm) - 1)))
+            expected = np.array([reference[name]["candidate"] for name in LOAD_NAMES])
+            np.testing.assert_allclose(out, expected, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_rainflow_kernel_counts_as_the_rainflow_package(seed):
+    rng = np.random.default_rng(seed)
+    series = np.round(np.cumsum(rng.normal(size=300)), 0)   # rounded: plateaus and equal extremes
+    series[:3] = series[0]
+    expected = np.zeros(len(EXPONENTS))
+    for rng_, _, count, _, _ in rainflow.extract_cycles(series):
+        expected += count * (rng_ / 7.0) ** EXPONENTS
+    for kernel in (rainflow_damage_sums, rainflow_damage_sums.py_func):
+        out = np.empty(len(EXPONENTS))
+        kernel(series, EXPONENTS, 7.0, out)
+        np.testing.assert_allclose(out, expected, rtol=1e-12)
+
+
+def test_time_quantiles_with_ties_and_half_seconds_at_the_ends():
+    rng = np.random.default_rng(3)
+    values = rng.integers(-3, 4, 101).astype(float)
+    durations = np.ones(101)
+    durations[[0, -1]] = 0.5
+    expected = [time_quantile(values, durations, share) for share in SHARES]
+    for kernel in (time_quantiles, time_quantiles.py_func):
+        out = np.empty(3)
+        kernel(values, 2, 0, 100, SHARES, out)
+        np.testing.assert_array_equal(out, expected)
+
+
+def test_cli_paper_selection_writes_the_golden_cycle(drive, tmp_path):
+    from haulprofile.analysis.cli import main
+    drive.to_parquet(tmp_path / "drive.parquet")
+    code = main(["cycle", str(tmp_path / "drive.parquet"), "--selection", "paper", "--candidates", "3000",
+                 "--duration", "900", "--seed", "7", "--out", str(tmp_path / "paper"), "--quiet"])
+    summary = json.loads((tmp_path / "paper" / "cycle.json").read_text())
+    assert code == 0 and summary["method"] == "paper" and summary["candidate_index"] == 238
+    assert _key(pd.read_csv(tmp_path / "paper" / "cycle.csv")) == "586b3422dde47ab0"
+
+
+def test_stage_writes_a_cycle_set_with_loads_and_the_score_figure(drive, vehicle, tmp_path):
+    from haulprofile.analysis.markov.stage import cycle_stage
+    from haulprofile.analysis.outputs import write_outputs
+    from haulprofile.analysis.pipeline import Options, RunContext
+    ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=vehicle, say=lambda _m: None,
+                     options={"cycle": {"n_cycles": 2, "n_candidates": 2000, "n_moves": 800}})
+    ctx.signals = drive
+    cycle_stage(ctx)
+    write_outputs(ctx, full=False)
+    c = ctx.summary["cycle"]
+    assert c["method"] == "refined" and c["valid"] and set(c["load_criteria"]) == set(LOAD_NAMES)
+    assert c["cycle_set"]["n_cycles"] == 2 and c["cycle_set"]["spread"]["all_valid"]
+    assert c["files"]["scores"] == "cycle-scores.png" and c["files"]["set"] == "cycles"
+    for i in (1, 2):
+        cycle = pd.read_csv(tmp_path / "cycles" / f"cycle-{i}.csv")
+        assert _transitions_counted(count_transitions(drive), cycle).all()
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "cycles" / "cycle-1.csv"), pd.read_csv(tmp_path / "cycle.csv"))
+    assert (tmp_path / "cycle-scores.png").stat().st_size > 10_000
+    with pytest.raises(Exception, match="refined selection"):
+        ctx.options = Options.of({"cycle": {"n_cycles": 2, "selection": "paper"}})
+        cycle_stage(ctx)
+
+
+def test_the_reported_objective_is_that_of_the_chosen_cycle(counts, target, vehicle):
+    from haulprofile.analysis.markov.converge import kinematic_objective
+    from haulprofile.analysis.markov.criteria import ALLOWANCE
+    from haulprofile.analysis.markov.load_criteria import LOAD_ALLOWANCE
+    from haulprofile.analysis.markov.score_kernels import kinematic_objective as kernel, objective
+    selection = select_refined(counts, 1200, 4, build_chain(counts), target, vehicle, n_pool=500, n_moves=300)[0]
+    deviation = selection.criteria.deviation
+    values = np.array([selection.load_criteria[name]["candidate"] for name in LOAD_NAMES])
+    expected = objective(deviation, ALLOWANCE, values, target.measured, target.scale, LOAD_ALLOWANCE, True)
+    assert selection.objective == pytest.approx(expected, rel=1e-9)
+    for function in (kernel, kernel.py_func):
+        assert function(deviation, ALLOWANCE) == pytest.approx(float(kinematic_objective(deviation)), rel=1e-12)
