@@ -6,7 +6,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from . import engineering as eng
-from .road import GRID_STEP_M, KMH_PER_MPS, Road, _allowed_speed, _path, _sections, traffic_factor
+from .road import GRID_STEP_M, KMH_PER_MPS, Road, _path, route_grid
 from .scenario import Scenario, ScenarioFileError
 from .terrain import cover_fraction_field, natural_terrain
 
@@ -31,12 +31,7 @@ def _depth_in(structure_mask: np.ndarray, distance: np.ndarray) -> np.ndarray:
 def engineered_road(scenario: Scenario, seed: int = 0) -> Road:
     """The world of a scenario for a seed at the realistic levels (same seed, same world)."""
     rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x7E22]))
-    breaks, stops = _sections(scenario)
-    length = breaks[-1, 0]
-    distance = np.arange(0.0, np.floor(length / GRID_STEP_M) * GRID_STEP_M + GRID_STEP_M, GRID_STEP_M)
-    traffic_rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x7AFF]))
-    factor = traffic_factor(distance, scenario.driver.traffic, traffic_rng)
-    target = _allowed_speed(distance, breaks, 0.8 * scenario.driver.comfort_decel_mps2, factor)
+    breaks, stops, length, distance, target = route_grid(scenario, seed)
     east, north, _, curvature = _path(scenario, distance, rng)
 
     terrain = scenario.terrain

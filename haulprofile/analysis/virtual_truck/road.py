@@ -234,15 +234,23 @@ def _path(scenario: Scenario, distance: np.ndarray, rng: np.random.Generator):
     return east, north, heading, curvature
 
 
-def ideal_road(scenario: Scenario, seed: int = 0) -> Road:
-    """The ideal world of a scenario for a seed (same seed, same world): terrain built around the road."""
-    rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x70AD]))
+def route_grid(scenario: Scenario, seed: int = 0):
+    """The route on its distance grid, the same at every realism level: section breaks, stops
+    (distance [m], duration [s]), length [m], grid distance [m] and the speed the road and its
+    traffic allow [m/s]."""
     breaks, stops = _sections(scenario)
     length = breaks[-1, 0]
     distance = np.arange(0.0, np.floor(length / GRID_STEP_M) * GRID_STEP_M + GRID_STEP_M, GRID_STEP_M)
     traffic_rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x7AFF]))
     factor = traffic_factor(distance, scenario.driver.traffic, traffic_rng)
     target = _allowed_speed(distance, breaks, 0.8 * scenario.driver.comfort_decel_mps2, factor)
+    return breaks, stops, length, distance, target
+
+
+def ideal_road(scenario: Scenario, seed: int = 0) -> Road:
+    """The ideal world of a scenario for a seed (same seed, same world): terrain built around the road."""
+    rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x70AD]))
+    breaks, stops, length, distance, target = route_grid(scenario, seed)
     height, gradient = _height_profile(scenario, distance, rng)
 
     cut_wavelengths = np.array([350.0, 800.0, 1700.0])
