@@ -176,20 +176,27 @@ def fit_truck(parts: list[SegmentMoments], vehicle, known: dict[tuple[str, int],
     except np.linalg.LinAlgError:
         noise_var = float(np.median(totals[:, 4, 4] / np.maximum(totals[:, 0, 0], 1e-12)))
     precision = np.concatenate([np.zeros(n_seg), noise_var / prior_std ** 2])
-    theta, normal = _solve(theta0, totals, n_seg, settings, prior=(theta0, precision))
-    cov = _covariance(theta, normal, parts, n_seg, extra_meat=noise_var * np.diag(precision))
-    std = np.sqrt(np.abs(np.diag(cov)))
-    masses, mass_std = theta[:n_seg], std[:n_seg]
-    bias = np.array([part.bias_fraction for part in parts]) * np.abs(masses)
     index = {(part.log, part.segment): j for j, part in enumerate(parts)}
     missing = [f"{log} segment {number}" for log, number in known if (log, number) not in index]
     if missing:
         raise UserError(f"--known-mass: {', '.join(missing)} has no joint mass fit to calibrate against (segments "
                         f"with one: {', '.join(f'{p.log} {p.segment}' for p in parts[:6])}"
                         f"{', …' if n_seg > 6 else ''})")
+    weighed = {index[key]: kg for key, kg in known.items()}
     gain_uncertainty = float(np.hypot(settings.torque_gain_uncertainty, settings.driveline_efficiency_uncertainty))
-    corrected, total, gain = calibration.calibrate(masses, mass_std, bias,
-                                                   {index[key]: kg for key, kg in known.items()}, gain_uncertainty)
+    gain_value = 1.0
+    # the fit sees k·c_d·A (F_aero is scaled by the torque gain k like every force): once a
+    # weighing gives k, the datasheet's c_d·A is a prior on c_d·A·k, and the fit is repeated
+    for _ in range(3 if weighed else 1):
+        centre = theta0.copy()
+        centre[n_seg + 1] = cda0 * gain_value
+        theta, normal = _solve(theta0, totals, n_seg, settings, prior=(centre, precision))
+        cov = _covariance(theta, normal, parts, n_seg, extra_meat=noise_var * np.diag(precision))
+        std = np.sqrt(np.abs(np.diag(cov)))
+        masses, mass_std = theta[:n_seg], std[:n_seg]
+        bias = np.array([part.bias_fraction for part in parts]) * np.abs(masses)
+        corrected, total, gain = calibration.calibrate(masses, mass_std, bias, weighed, gain_uncertainty)
+        gain_value = gain["gain"]
     if gain["calibrated_from"] is not None:
         gain["calibrated_from"] = [{"log": parts[j - 1].log, "segment": parts[j - 1].segment}
                                    for j in gain["calibrated_from"]]
@@ -199,7 +206,7 @@ def fit_truck(parts: list[SegmentMoments], vehicle, known: dict[tuple[str, int],
     for k, name in enumerate(COEFFICIENTS):
         value, sigma = float(theta[n_seg + k]), float(std[n_seg + k])
         relative = sigma / abs(value) if value else np.inf
-        identified = sigma <= settings.max_prior_fraction * prior_std[k] and relative <= settings.max_relative_std
+        identified = sigma <= settings.max_prior_fraction * prior_std[k] * (gain_value if k else 1.0) and relative <= settings.max_relative_std
         reason = "identified" if identified else (
             f"not identifiable on this truck's logs (std {100 * relative:.1f} %, {100 * sigma / prior_std[k]:.0f} % "
             f"of the datasheet's): stays near the vehicle file")
