@@ -71,3 +71,30 @@ def test_a_known_mass_of_a_log_that_is_not_there_is_one_line(truck_fleet, tmp_pa
     code = main(["fleet", str(truck_dir), "--vehicle", "rigid-18t", "--dem", str(dem_dir), "--out", str(tmp_path),
                  "--workers", "1", "--known-mass", "lorry:drive-00.mcap:1=16000"])
     assert code == 2 and "no truck" in capsys.readouterr().err
+
+
+def key_paths(value, prefix=""):
+    if isinstance(value, dict):
+        for key, item in value.items():
+            yield from key_paths(item, f"{prefix}.{key}" if prefix else key)
+    elif isinstance(value, list) and value and all(isinstance(item, dict) for item in value):
+        for item in value:
+            yield from key_paths(item, prefix + "[]")
+    else:
+        yield prefix
+
+
+def test_every_road_load_key_is_documented(truck_fleet, tmp_path):
+    import re
+    from pathlib import Path
+
+    from haulprofile.analysis.fleet import FleetSpec, run_fleet
+    root, truck_dir, dem_dir = truck_fleet
+    spec = FleetSpec.of([truck_dir], [load_vehicle("rigid-18t")], dem_dir=dem_dir, n_candidates=300, duration_s=600.0,
+                        figures=False, known_masses=[("truck", "drive-01", 1, true_mass_kg(root, "drive-01.mcap", 0.0))])
+    run_fleet(spec, tmp_path, workers=1, say=lambda _m: None)
+    road_load = json.loads((tmp_path / "truck" / "fleet-summary.json").read_text())["road_load"]
+    doc = (Path(__file__).parents[1] / "docs" / "fleet.md").read_text()
+    documented = [key for cell in re.findall(r"^\| (`[^|]+)\|", doc, flags=re.M) for key in re.findall(r"`([^`]+)`", cell)]
+    missing = sorted({p for p in key_paths(road_load) if not any(p == k or p.startswith(k + ".") for k in documented)})
+    assert not missing, f"road_load keys missing from docs/fleet.md: {missing}"
