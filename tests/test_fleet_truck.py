@@ -73,6 +73,17 @@ def test_a_known_mass_of_a_log_that_is_not_there_is_one_line(truck_fleet, tmp_pa
     assert code == 2 and "no truck" in capsys.readouterr().err
 
 
+def test_a_weighed_segment_without_a_joint_fit_is_a_warning(truck_fleet, tmp_path, capsys):
+    _, truck_dir, dem_dir = truck_fleet
+    code = main(["fleet", str(truck_dir), "--vehicle", "rigid-18t", "--dem", str(dem_dir), "--out", str(tmp_path),
+                 "--workers", "1", "--no-figures", "--candidates", "300", "--duration", "600",
+                 "--known-mass", "truck:drive-00:9=16000"])
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "road load" in line]
+    assert code == 3 and len(warnings) == 1 and "drive-00.mcap segment 9" in warnings[0]
+    summary = json.loads((tmp_path / "truck" / "fleet-summary.json").read_text())
+    assert "segment 9" in summary["road_load"]["error"] and not (tmp_path / "truck" / "truck_masses.csv").exists()
+
+
 def key_paths(value, prefix=""):
     if isinstance(value, dict):
         for key, item in value.items():
