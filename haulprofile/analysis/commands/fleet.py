@@ -14,6 +14,7 @@ from pathlib import Path
 
 from .. import checks, jsonable
 from ..fleet import FleetSpec, run_fleet
+from ..fleet.road_load import parse_fleet_known_masses
 from ..ingest.stage import IngestOptions
 from ..pipeline import Options
 from ..vehicle import load_vehicle
@@ -38,6 +39,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
     parser.add_argument("--rate-hz", "--rate", dest="rate_hz", type=float, default=10.0,
                         help="rate of the signals tables (10 Hz)")
+    parser.add_argument("--known-mass", action="append", metavar="TRUCK:LOG:SEGMENT=KG",
+                        help="a weighed total mass [kg] of one segment of one log (LOG: its file name or path under "
+                             "LOGDIR, TRUCK: the LOGDIR's name): calibrates that truck's torque gain for all its logs")
     parser.add_argument("--no-figures", action="store_true",
                         help="skip each log's gradient and mass figures (some 30 %% of the time per log)")
     output = parser.add_mutually_exclusive_group()
@@ -53,7 +57,7 @@ def run(args) -> int:
     spec = FleetSpec.of(args.log_dirs, vehicles, dem_dir=args.dem, duration_s=args.cycle_duration,
                         n_candidates=args.candidates, seed=args.seed,
                         options=Options(ingest=IngestOptions(rate_hz=args.rate_hz)),
-                        figures=not args.no_figures)
+                        figures=not args.no_figures, known_masses=parse_fleet_known_masses(args.known_mass))
     quiet = args.quiet or args.json
     fleet = run_fleet(spec, args.out, workers=args.workers, scheduler=args.scheduler,
                       say=(lambda _msg: None) if quiet else print, debug=getattr(args, "debug", False),
@@ -63,6 +67,8 @@ def run(args) -> int:
         problems += [f"{group.name}: log {log} failed: {error}" for log, error in group.failed]
         if group.error:
             problems.append(f"{group.name}: no cycle: {group.error}")
+        if "error" in group.road_load:
+            problems.append(f"{group.name}: no shared road load: {group.road_load['error']}")
         elif group.selection and not group.selection.get("valid", True):
             problems.append(f"{group.name}: no valid cycle: {group.selection['statement']} (try more --candidates "
                             f"or a longer --cycle-duration)")

@@ -16,6 +16,19 @@ from .. import jsonable
 VALUE_NAMES = {"rainflow_range_mean_counts": "cycles", "level_crossings_torque": "upward_crossings"}
 
 
+def road_load_line(road_load: dict) -> str:
+    """One line: the truck's shared c_r, c_d·A (± 1σ or not identifiable) and torque gain."""
+    parts = []
+    for name, label, digits in (("rolling_resistance_coefficient", "c_r", 5), ("drag_area_m2", "c_d·A", 2)):
+        entry = road_load[name]
+        parts.append(f"{label} {entry['value']:.{digits}f} ± {entry['std']:.{digits}f}" if entry["identified"]
+                     else f"{label} not identifiable (vehicle file's {entry['value']:.{digits}f})")
+    gain = road_load["torque_gain"]
+    parts.append(f"torque gain {gain['gain']:.4f} ± {100 * gain['relative_std']:.2f} % "
+                 + ("(assumed)" if gain["calibrated_from"] is None else "(from the weighing)"))
+    return f"shared over {road_load['logs']} logs: " + ", ".join(parts)
+
+
 def write_counts(counts: TransitionCounts, path: Path) -> Path:
     np.savez_compressed(path, widths=np.array([counts.widths.speed_kmh, counts.widths.gradient_pct,
                                                counts.widths.mass_kg]),
@@ -48,6 +61,8 @@ def group_summary(group, spec) -> dict:
             summary["transitions"] = {"pairs": len(statistics.counts), "count": int(statistics.counts.count.sum()),
                                       "samples_1hz": statistics.counts.n_samples,
                                       "dropped": statistics.counts.n_dropped, "loops_closed": statistics.counts.n_closed}
+    if group.road_load:
+        summary["road_load"] = {**group.road_load, "per_log": statistics.road_load_logs if statistics else []}
     if group.selection:
         summary["cycle"] = {**group.selection, "duration_s": spec.duration_s}
     return summary
@@ -77,6 +92,9 @@ def write_group(group, spec, out_dir: Path) -> dict:
         if statistics.mass_segments:
             pd.DataFrame(statistics.mass_segments).to_csv(group_dir / "mass_segments.csv", index=False)
             files["mass_segments"] = "mass_segments.csv"
+    if group.road_load.get("segments"):
+        pd.DataFrame(group.road_load["segments"]).to_csv(group_dir / "truck_masses.csv", index=False)
+        files["truck_masses"] = "truck_masses.csv"
     summary = {**group_summary(group, spec), "files": files}
     (group_dir / "fleet-summary.json").write_text(jsonable.dumps(summary, indent=2))
     return summary
@@ -87,10 +105,17 @@ def write_fleet(fleet, spec, out_dir: Path, say=print) -> dict:
     groups = [write_group(group, spec, out_dir) for group in fleet.groups]
     summary = {"executor": fleet.executor, "dem_dir": spec.dem_dir, "groups": [
         {key: g.get(key) for key in ("group", "vehicle", "error", "totals", "transitions", "failed")}
-        | {"cycle": g.get("cycle", {}).get("statement"), "logs": len(g["logs"])} for g in groups]}
+        | {"cycle": g.get("cycle", {}).get("statement"), "logs": len(g["logs"]),
+           "road_load": {k: v for k, v in g.get("road_load", {}).items() if k not in ("segments", "per_log")}}
+        for g in groups]}
     (out_dir / "fleet-summary.json").write_text(jsonable.dumps(summary, indent=2))
     for g in groups:
         line = g.get("cycle", {}).get("statement") or g["error"]
         say(f"fleet: {g['group']}: {len(g['logs'])} logs, {len(g['failed'])} failed; cycle: {line}; "
             f"wrote {out_dir / g['group']}")
+        road_load = g.get("road_load", {})
+        if "error" in road_load:
+            say(f"fleet: {g['group']}: road load: {road_load['error']}")
+        elif road_load.get("segments"):
+            say(f"fleet: {g['group']}: {road_load_line(road_load)}")
     return summary

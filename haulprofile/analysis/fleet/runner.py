@@ -18,6 +18,8 @@ from ..ingest.logs import MCAP_SUFFIXES
 from ..markov import ClassWidths
 from ..signals import SIGNALS_SUFFIXES
 from ..vehicle import Vehicle
+from ..mass.joint import JointSettings
+from .road_load import fit_truck
 from .statistics import FleetStatistics, LoadBins
 from .tasks import LogResult, LogTask, group_cycle_job, map_log, reduce_group
 
@@ -50,6 +52,9 @@ class FleetSpec:
     options: dict = field(default_factory=dict)
     figures: bool = True
     """Each log's gradient and mass figures (some 30 % of the time per log)."""
+    known_masses: list[tuple[str, str, int, float]] = field(default_factory=list)
+    """Weighed segments (group, log, segment number from 1, kg): each calibrates its group's torque
+    gain for every segment of every log of that group (``--known-mass TRUCK:LOG:SEGMENT=KG``)."""
 
     def __post_init__(self):
         self.dem_dir = Path(self.dem_dir) if self.dem_dir is not None else None
@@ -101,6 +106,8 @@ class GroupResult:
     cycle: object | None = None
     selection: dict = field(default_factory=dict)
     error: str | None = None
+    road_load: dict = field(default_factory=dict)
+    """The group's shared c_r and c_d·A, torque gain and masses of all its logs (`fleet.road_load.fit_truck`)."""
 
 
 @dataclass
@@ -192,8 +199,10 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
     repeated = repeated_content([log for _, log in flat], lambda line: print(f"fleet: {line}", file=sys.stderr))
     for group in spec.groups:
         group.logs = [log for i, (owner, log) in enumerate(flat) if owner is group and i not in repeated]
+    weighed = known_masses_by_group(spec)
     tasks = [LogTask(log, group.name, group.vehicle, log_out_dir(out_dir, group, log), spec.dem_dir, spec.options,
-                     spec.widths, spec.bins, debug, spec.figures) for group in spec.groups for log in group.logs]
+                     spec.widths, spec.bins, debug, spec.figures, group.log_dir)
+             for group in spec.groups for log in group.logs]
     executor = executor_for(workers, scheduler)
     say(f"fleet: {len(tasks)} logs in {len(spec.groups)} group(s) on {executor.name}")
     try:
@@ -202,7 +211,8 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
         if all(r.statistics is None for r in results):
             first = results[0]
             raise FleetError(f"all {len(results)} logs failed; the first, {first.path}: {first.error}")
-        groups = [_reduced(group, [r for r in results if r.group == group.name]) for group in spec.groups]
+        groups = [_reduced(group, [r for r in results if r.group == group.name], weighed.get(group.name, {}),
+                           spec.options) for group in spec.groups]
         todo = [g for g in groups if g.statistics is not None]
         cycles = list(executor.map(group_cycle_job, [(g.name, g.statistics, spec.duration_s, spec.n_candidates,
                                                       spec.seed) for g in todo]))
@@ -223,11 +233,39 @@ def _progress(results, total: int, enabled: bool):
     return tqdm(results, total=total, unit="log", leave=False)
 
 
-def _reduced(group: Group, results: list[LogResult]) -> GroupResult:
+def known_masses_by_group(spec: FleetSpec) -> dict[str, dict[tuple[str, int], float]]:
+    """The spec's weighed segments per group name, each log named by its path under the group's
+    directory; a `FleetError` naming a truck or log that is not there."""
+    out: dict[str, dict[tuple[str, int], float]] = {}
+    groups = {group.name: group for group in spec.groups}
+    for truck, log, segment, kg in spec.known_masses:
+        group = groups.get(truck)
+        if group is None:
+            raise FleetError(f"--known-mass {truck}:{log}:{segment}={kg:g}: no truck (log directory) named {truck!r}; "
+                             f"the trucks are {', '.join(groups)}")
+        names = [p.relative_to(group.log_dir).as_posix() for p in group.logs]
+        matches = [n for n in names if log in (n, Path(n).name, Path(n).stem)]
+        if len(matches) != 1:
+            raise FleetError(f"--known-mass {truck}:{log}:{segment}={kg:g}: {'no' if not matches else 'more than one'} "
+                             f"log of {truck} named {log!r} (its logs: {', '.join(names[:5])}"
+                             f"{', …' if len(names) > 5 else ''})")
+        out.setdefault(truck, {})[(matches[0], segment)] = kg
+    return out
+
+
+def _reduced(group: Group, results: list[LogResult], known: dict, options) -> GroupResult:
     failed = [(str(r.path), r.error) for r in sorted(results, key=lambda r: str(r.path)) if r.statistics is None]
     statistics = reduce_group(results)
     error = None if statistics is not None else f"every one of its {len(results)} logs failed"
-    return GroupResult(group.name, group.vehicle, statistics, failed, error=error)
+    result = GroupResult(group.name, group.vehicle, statistics, failed, error=error)
+    if statistics is not None:
+        mass = getattr(options, "mass", None)
+        try:
+            result.road_load = fit_truck(statistics.road_load_moments, group.vehicle, known,
+                                         mass.joint if mass is not None else JointSettings())
+        except UserError as exc:
+            result.road_load = {"error": str(exc)}
+    return result
 
 
 def _say_results(results: list[LogResult], say) -> None:

@@ -23,6 +23,7 @@ from ..markov.counting import CountingError
 from ..jsonable import jsonable
 from ..vehicle import Vehicle
 from .histograms import SparseHistogram
+from .road_load import SegmentMoments
 
 STANDING_MPS = 0.1
 TOTALS = ("duration_s", "valid_s", "driving_s", "distance_km", "mass_known_s", "loads_s",
@@ -58,6 +59,10 @@ class FleetStatistics:
     totals: dict[str, float]
     mass_segments: list[dict] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    road_load_moments: list[SegmentMoments] = field(default_factory=list)
+    """Each mass segment's additive moments for the truck's shared road-load fit (`fleet.road_load`)."""
+    road_load_logs: list[dict] = field(default_factory=list)
+    """Each log's own c_r and c_d·A (its joint fit alone), beside the truck's shared ones."""
 
     def __add__(self, other: "FleetStatistics") -> "FleetStatistics":
         if not isinstance(other, FleetStatistics):
@@ -67,7 +72,9 @@ class FleetStatistics:
         histograms = {name: self.histograms[name] + other.histograms[name] for name in self.histograms}
         return FleetStatistics(self.logs + other.logs, counts, histograms, self.damage_sums + other.damage_sums,
                                {key: self.totals[key] + other.totals[key] for key in TOTALS},
-                               self.mass_segments + other.mass_segments, self.notes + other.notes)
+                               self.mass_segments + other.mass_segments, self.notes + other.notes,
+                               self.road_load_moments + other.road_load_moments,
+                               self.road_load_logs + other.road_load_logs)
 
     def damage_equivalent_torque_nm(self) -> dict[int, float]:
         """S_eq(k) = (Σ nᵢ Sᵢᵏ / N_eq)^(1/k) [Nm], N_eq = 1 cycle per second of loads (`analysis.loads`)."""
@@ -84,7 +91,11 @@ class FleetStatistics:
         return (self.histograms.keys() == other.histograms.keys()
                 and all(h.equals(other.histograms[n]) for n, h in self.histograms.items())
                 and np.array_equal(self.damage_sums, other.damage_sums) and self.totals == other.totals
-                and _as_json(self.mass_segments) == _as_json(other.mass_segments))
+                and _as_json(self.mass_segments) == _as_json(other.mass_segments)
+                and _as_json(self.road_load_logs) == _as_json(other.road_load_logs)
+                and len(self.road_load_moments) == len(other.road_load_moments)
+                and all(np.array_equal(a.blocks, b.blocks) for a, b in zip(self.road_load_moments,
+                                                                           other.road_load_moments)))
 
 
 def _as_json(value) -> str:
@@ -181,4 +192,8 @@ def log_statistics(name: str, signals: pd.DataFrame, summary: dict, vehicle: Veh
         notes.append(f"{name}: no wheel loads (no sample with speed, acceleration, gradient and mass together)")
     segments = [{"log": name, **segment} for segment in summary.get("mass", {}).get("segments", [])]
     totals = {**_time_totals(signals), **load_totals}
-    return FleetStatistics([name], counts, histograms, damage, {key: totals[key] for key in TOTALS}, segments, notes)
+    road_load = summary.get("mass", {}).get("road_load", {})
+    own = [{"log": name, **{key: road_load[key] for key in ("rolling_resistance_coefficient", "drag_area_m2",
+                                                            "torque_gain") if key in road_load}}] if road_load else []
+    return FleetStatistics([name], counts, histograms, damage, {key: totals[key] for key in TOTALS}, segments, notes,
+                           road_load_logs=own)

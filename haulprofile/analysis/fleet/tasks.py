@@ -9,8 +9,10 @@ from pathlib import Path
 
 from ..errors import UserError
 from ..markov import ClassWidths, select_cycle
+from ..mass.joint import JointSettings
 from ..pipeline import RunContext, run as run_pipeline
 from ..vehicle import Vehicle
+from .road_load import segment_moments
 from .statistics import FleetStatistics, LoadBins, log_statistics, sum_statistics
 
 
@@ -29,6 +31,8 @@ class LogTask:
     bins: LoadBins = field(default_factory=LoadBins)
     debug: bool = False
     figures: bool = True
+    log_dir: Path | None = None
+    """The group's directory: the log is named by its path under it in the road-load fit."""
 
 
 @dataclass
@@ -64,6 +68,9 @@ def map_log(task: LogTask) -> LogResult:
     try:
         run_pipeline(ctx, until="mass")
         statistics = log_statistics(str(task.path), ctx.signals, ctx.summary, task.vehicle, task.widths, task.bins)
+        if ctx.results.mass is not None:
+            statistics.road_load_moments = segment_moments(_log_name(task), ctx.results.mass,
+                                                           ctx.signals["time_s"].to_numpy(float), _joint_settings(ctx))
         result = LogResult(task.path, task.group, statistics, None, messages + statistics.notes)
     except UserError as exc:
         if task.debug:
@@ -77,6 +84,19 @@ def map_log(task: LogTask) -> LogResult:
     ending = [f"FAILED: {result.error}"] if result.error else []
     (task.out_dir / "messages.txt").write_text("\n".join([str(task.path), *result.messages, *ending]) + "\n")
     return result
+
+
+def _log_name(task: LogTask) -> str:
+    """The log's path under its group's directory (how ``--known-mass`` names it)."""
+    try:
+        return task.path.relative_to(task.log_dir).as_posix() if task.log_dir is not None else task.path.name
+    except ValueError:
+        return task.path.name
+
+
+def _joint_settings(ctx):
+    mass = getattr(ctx.options, "mass", None)
+    return mass.joint if mass is not None else JointSettings()
 
 
 def reduce_group(results: list[LogResult]) -> FleetStatistics | None:
