@@ -8,7 +8,7 @@ from mcap.reader import make_reader
 
 from haulprofile.analysis.errors import UserError
 from haulprofile.analysis.ingest import ingest_logs, iter_log_messages, read_frames, read_logs, synthetic
-from haulprofile.analysis.ingest.mcap_read import ReadReport, read_file
+from haulprofile.contract.reader import ReadReport, read_messages
 from haulprofile.analysis.ingest.recover import recover
 from haulprofile import contract
 from haulprofile.contract import j1939
@@ -160,7 +160,7 @@ def test_cut_log_is_read_to_its_last_chunk_and_recovered(log, tmp_path):
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(data[: len(data) * 2 // 3])
     report = ReadReport(str(cut))
-    recovered = list(read_file(cut, report))
+    recovered = list(read_messages(cut, report))
     with open(cut, "rb") as stream:
         try:
             seeking = list(make_reader(stream).iter_messages())

@@ -1,19 +1,19 @@
 """``analyze recover``: a repaired, indexed copy of a cut or damaged MCAP log.
 
-Every message the linear reader recovers is written again, with its schema, channel (metadata
+Every message the reader (`haulprofile.contract.reader`) recovers is written again, with its schema, channel (metadata
 included), times and sequence number unchanged, into a new file with chunk indexes and a summary,
 so the seeking reader and Foxglove open it. The damaged original is never modified.
 """
 
 from __future__ import annotations
 
-import struct
 from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
+from haulprofile.contract.reader import ReadReport, header_profile, read_messages
+
 from .logs import LogError
-from .mcap_read import MAGIC, OP_HEADER, DamagedRecord, ReadReport, _string, read_file
 
 
 def recover(source: str | Path, target: str | Path, chunk_size: int = 1024 * 1024) -> ReadReport:
@@ -29,7 +29,7 @@ def recover(source: str | Path, target: str | Path, chunk_size: int = 1024 * 102
     with open(target, "wb") as stream:
         writer = Writer(stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         writer.start(profile=_profile(source), library="haulprofile-recover")
-        for message in read_file(source, report):
+        for message in read_messages(source, report):
             channel = message.channel
             if channel.id not in channel_ids:
                 key = (channel.schema_name, channel.schema_encoding, channel.schema_data)
@@ -53,10 +53,4 @@ def recover(source: str | Path, target: str | Path, chunk_size: int = 1024 * 102
 def _profile(path: Path) -> str:
     """The header's profile of the original ("" when the header is damaged)."""
     with open(path, "rb") as handle:
-        head = handle.read(4096)
-    if head[:len(MAGIC)] != MAGIC or len(head) < len(MAGIC) + 9 or head[len(MAGIC)] != OP_HEADER:
-        return ""
-    try:
-        return _string(head, len(MAGIC) + 9)[0]
-    except (DamagedRecord, UnicodeDecodeError, struct.error):
-        return ""
+        return header_profile(handle.read(4096))

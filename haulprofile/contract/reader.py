@@ -1,0 +1,748 @@
+"""The one reader of haulprofile logs: chunk by chunk, in parallel, damage-tolerant.
+
+Reads whole files, files cut by a power loss, files with flipped bytes. Records outside chunks
+have no CRC of their own, so they are believed only where something checks them:
+
+* every chunk is decompressed and its CRC-32 checked before any of its messages is used; a chunk
+  that fails (bad CRC, does not decompress, records do not tile it) is counted and skipped, and
+  the walk resynchronises on the next chunk record that validates; no unprotected record
+  (message index, summary) may step over a valid chunk;
+* a chunk whose opcode byte was flipped is still the chunk its CRC proves; in a chunked file a
+  message record outside a chunk is damage, not data; the summary's schema and channel copies
+  count only if the footer's summary CRC holds; a footer is only the footer with its 20 bytes
+  and the closing magic; a chunk size field beyond 4 GiB is damage;
+* messages whose channel record was lost stay unattributed and are counted.
+
+Speed: where the chunks are is known ahead (the summary's chunk index when its CRC holds, else
+the chain of record headers), so chunks are decompressed (zstandard and lz4 release the GIL),
+CRC-checked and walked (`chunk_walk`, numba ``nogil``) on a thread pool ahead of the walk that
+decides, exactly as a sequential reader would, which chunks count. Packed topics (`/can/frames`,
+`/imu`) are scattered straight into one preallocated record array per channel and window of
+chunks; other messages stay where they are until asked for. numba is imported only when there
+(the logger extra has no numba; then `chunk_walk`'s Python versions run).
+"""
+
+from __future__ import annotations
+
+import mmap
+import os
+import struct
+import zlib
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator, NamedTuple
+
+import numpy as np
+
+from . import IMU, CAN_FRAMES, Topic, unpack
+from . import chunk_walk
+
+MAGIC = b"\x89MCAP0\r\n"
+OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
+OP_CHUNK_INDEX, OP_DATA_END = 0x08, 0x0F
+_VALID_OPS = set(range(0x01, 0x10))
+_U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
+_RECORD_HEAD = struct.Struct("<BQ")
+_CHUNK_HEAD = struct.Struct("<QQQII")
+_ZSTD_MARK = b"\x04\x00\x00\x00zstd"
+_LZ4_MARK = b"\x03\x00\x00\x00lz4"
+_MARK_AT = 9 + _CHUNK_HEAD.size - 4
+"""Offset of a chunk's compression string (its length first) from the chunk record's start."""
+MAX_CHUNK_BYTES = 1 << 32
+"""Largest uncompressed chunk believed (writers use 1 MiB by default, the logger 256 KiB); a
+larger size field is a damaged one, not a reason to allocate that much."""
+PACKED_TOPICS: dict[str, Topic] = {CAN_FRAMES.name: CAN_FRAMES, IMU.name: IMU}
+WINDOW_BYTES = 32 << 20
+"""Decompressed bytes of chunks handed out together (one `Window`)."""
+
+
+class DamagedRecord(Exception):
+    """A record that does not parse or whose CRC does not match."""
+
+
+@dataclass(frozen=True)
+class Channel:
+    id: int
+    topic: str
+    message_encoding: str
+    schema_name: str
+    schema_encoding: str
+    schema_data: bytes
+    metadata: dict
+
+
+@dataclass
+class ReadReport:
+    """What a read found in one file [bytes, counts]."""
+
+    path: str
+    file_bytes: int = 0
+    read_bytes: int = 0
+    """Bytes up to the end of the last record that parsed (the recovered part of the file)."""
+    chunks: int = 0
+    bad_chunks: int = 0
+    skipped_bytes: int = 0
+    messages: int = 0
+    unattributed_messages: int = 0
+    complete: bool = False
+    """True when the footer and closing magic were read."""
+    header_ok: bool = True
+    profile: str = ""
+    problems: list[str] = field(default_factory=list)
+
+    def warning(self) -> str | None:
+        """One line for the user when anything was lost; None for an intact file."""
+        if (self.complete and not self.bad_chunks and not self.skipped_bytes and not self.unattributed_messages
+                and not self.problems):
+            return None
+        parts = list(self.problems)
+        if not self.complete:
+            parts.append(f"cut short (no footer): recovered {self.read_bytes} of {self.file_bytes} bytes")
+        if self.bad_chunks:
+            parts.append(f"{self.bad_chunks} of {self.chunks} chunks damaged (bad CRC or data) and skipped")
+        if self.skipped_bytes:
+            parts.append(f"{self.skipped_bytes} damaged bytes skipped")
+        if self.unattributed_messages:
+            parts.append(f"{self.unattributed_messages} messages of channels whose definition was lost")
+        return f"{self.path}: " + "; ".join(parts) + f"; {self.messages} messages read"
+
+
+class RawMessage(NamedTuple):
+    channel: Channel
+    sequence: int
+    log_time_ns: int
+    publish_time_ns: int
+    data: bytes
+
+
+def _string(buf, pos: int) -> tuple[str, int]:
+    (n,) = _U32.unpack_from(buf, pos)
+    end = pos + 4 + n
+    if end > len(buf):
+        raise DamagedRecord("string beyond record")
+    return bytes(buf[pos + 4:end]).decode("utf-8"), end
+
+
+def _parse_schema(body) -> tuple[int, str, str, bytes]:
+    (schema_id,) = _U16.unpack_from(body, 0)
+    name, pos = _string(body, 2)
+    encoding, pos = _string(body, pos)
+    (n,) = _U32.unpack_from(body, pos)
+    if pos + 4 + n > len(body):
+        raise DamagedRecord("schema data beyond record")
+    return schema_id, name, encoding, bytes(body[pos + 4:pos + 4 + n])
+
+
+def _parse_channel(body) -> tuple[int, int, str, str, dict]:
+    channel_id, schema_id = struct.unpack_from("<HH", body, 0)
+    topic, pos = _string(body, 4)
+    encoding, pos = _string(body, pos)
+    (map_len,) = _U32.unpack_from(body, pos)
+    pos += 4
+    end = pos + map_len
+    if end > len(body):
+        raise DamagedRecord("channel metadata beyond record")
+    metadata = {}
+    while pos < end:
+        key, pos = _string(body, pos)
+        value, pos = _string(body, pos)
+        metadata[key] = value
+    return channel_id, schema_id, topic, encoding, metadata
+
+
+def header_profile(head) -> str:
+    """The profile of a file's header record ("" when the magic or header is damaged)."""
+    if head[:len(MAGIC)] != MAGIC or len(head) < len(MAGIC) + 9 or head[len(MAGIC)] != OP_HEADER:
+        return ""
+    try:
+        return _string(head, len(MAGIC) + 9)[0]
+    except (DamagedRecord, UnicodeDecodeError, struct.error):
+        return ""
+
+
+# -- one chunk ----------------------------------------------------------------------------------
+
+class _Records:
+    """The decoded records of a run of records: a chunk's content or one top-level record.
+
+    ``table``: `chunk_walk.walk_records` columns; ``definitions``: parsed schema and channel
+    records by row; ``parsed`` False when a record does not parse (the chunk counts as damaged)."""
+
+    __slots__ = ("data", "array", "opcodes", "starts", "ends", "channel_ids", "sequences", "log_times",
+                 "publish_times", "definitions", "parsed")
+
+    def __init__(self, data, use_numba: bool):
+        self.data = data
+        self.array = np.frombuffer(data, np.uint8)
+        walk = chunk_walk.kernels(use_numba)["walk_records"]
+        status, *columns = walk(self.array if use_numba and walk is not chunk_walk.walk_records_python else data)
+        (self.opcodes, self.starts, self.ends, self.channel_ids, self.sequences, self.log_times,
+         self.publish_times) = columns
+        self.parsed = status >= 0
+        self.definitions: dict[int, tuple] = {}
+        if self.parsed and len(self.opcodes) and (self.opcodes != OP_MESSAGE).any():
+            try:
+                for row in np.flatnonzero(self.opcodes != OP_MESSAGE).tolist():
+                    body = data[self.starts[row]:self.ends[row]]
+                    parse = _parse_schema if self.opcodes[row] == OP_SCHEMA else _parse_channel
+                    self.definitions[row] = parse(body)
+            except (DamagedRecord, struct.error, UnicodeDecodeError):
+                self.parsed = False
+
+    def payload(self, row: int) -> bytes:
+        start = int(self.starts[row]) + chunk_walk.MESSAGE_HEAD
+        return bytes(self.data[start:max(start, int(self.ends[row]))])
+
+
+def _decompress(body) -> bytes:
+    """Decompressed, CRC-checked records of a chunk body (DamagedRecord if not)."""
+    if len(body) < _CHUNK_HEAD.size:
+        raise DamagedRecord("chunk header short")
+    _start, _end, size, crc, comp_len = _CHUNK_HEAD.unpack_from(body, 0)
+    pos = _CHUNK_HEAD.size
+    if comp_len > 8 or pos + comp_len + 8 > len(body):
+        raise DamagedRecord("chunk compression field damaged")
+    compression = bytes(body[pos:pos + comp_len])
+    pos += comp_len
+    (data_len,) = _U64.unpack_from(body, pos)
+    pos += 8
+    if pos + data_len != len(body):
+        raise DamagedRecord("chunk data length does not match record")
+    raw = body[pos:]
+    if size > MAX_CHUNK_BYTES:
+        raise DamagedRecord(f"chunk size field damaged ({size} bytes)")
+    import zstandard
+    try:
+        if compression == b"zstd":
+            data = zstandard.ZstdDecompressor().decompress(raw, max_output_size=size)
+        elif compression == b"lz4":
+            import lz4.frame
+            data = lz4.frame.decompress(raw)
+        elif compression == b"":
+            data = bytes(raw)
+        else:
+            raise DamagedRecord(f"unknown chunk compression {compression!r}")
+    except (zstandard.ZstdError, RuntimeError, ValueError, OverflowError, MemoryError) as exc:
+        raise DamagedRecord(f"chunk does not decompress: {exc}") from None
+    if len(data) != size or (crc != 0 and zlib.crc32(data) != crc):
+        raise DamagedRecord("chunk CRC mismatch")
+    return data
+
+
+class _Chunk(NamedTuple):
+    valid: bool
+    """Decompressed, CRC and tiling checked (what makes a chunk a resynchronisation point)."""
+    records: _Records | None
+
+
+_INVALID = _Chunk(False, None)
+
+
+def _load_chunk(view, pos: int, use_numba: bool) -> _Chunk:
+    """The chunk record at ``pos`` of ``view`` (a memoryview), checked and walked; thread-safe."""
+    size = len(view)
+    if not (0 <= pos and pos + 9 <= size):
+        return _INVALID
+    (length,) = _U64.unpack_from(view, pos + 1)
+    if pos + 9 + length > size:
+        return _INVALID
+    try:
+        data = _decompress(view[pos + 9:pos + 9 + length])
+    except (DamagedRecord, struct.error, MemoryError):
+        return _INVALID
+    records = _Records(data, use_numba)
+    if not records.parsed and len(records.opcodes) == 0 and not _tiles(data):
+        return _INVALID
+    return _Chunk(True, records)
+
+
+def _tiles(data: bytes) -> bool:
+    """True if ``data``'s records tile it exactly (opcodes known, lengths in range)."""
+    pos, size, head, valid = 0, len(data), _RECORD_HEAD.unpack_from, _VALID_OPS
+    while pos < size:
+        if pos + 9 > size:
+            return False
+        opcode, length = head(data, pos)
+        pos += 9 + length
+        if opcode not in valid or pos > size:
+            return False
+    return True
+
+
+class _Scanner:
+    """Chunks of a file: loaded ahead on a thread pool where they are expected, found by search
+    (and loaded at once) where they are not."""
+
+    def __init__(self, buf, view, executor: ThreadPoolExecutor | None, use_numba: bool, ahead: int):
+        self.buf = buf
+        self.view = view
+        self.size = len(buf)
+        self.executor = executor
+        self.use_numba = use_numba
+        self.ahead = ahead
+        self.expected = _expected_chunks(buf)
+        self._next_expected = 0
+        self._loaded: dict[int, object] = {}
+        self._nothing_from: int | None = None
+        self._walked_to = 0
+
+    def _prefetch(self, pos: int) -> None:
+        self._walked_to = pos
+        if self.executor is None:
+            return
+        expected = self.expected
+        while self._next_expected < len(expected) and (
+                len(self._loaded) < self.ahead or expected[self._next_expected] <= pos):
+            at = expected[self._next_expected]
+            self._next_expected += 1
+            if at >= pos and at not in self._loaded:
+                self._loaded[at] = self.executor.submit(_load_chunk, self.view, at, self.use_numba)
+
+    def chunk(self, pos: int) -> _Chunk:
+        """The chunk record at ``pos`` (loaded once; `release` forgets it)."""
+        loaded = self._loaded.get(pos)
+        if loaded is None:
+            loaded = self._loaded[pos] = _load_chunk(self.view, pos, self.use_numba)
+        elif not isinstance(loaded, _Chunk):
+            loaded = self._loaded[pos] = loaded.result()
+        return loaded
+
+    def release(self, below: int) -> None:
+        """Forget loaded chunks before ``below`` (the walk has passed them), load further ahead."""
+        for at in [at for at in self._loaded if at < below]:
+            del self._loaded[at]
+        self._prefetch(below)
+
+    def close(self) -> None:
+        for loaded in self._loaded.values():
+            if not isinstance(loaded, _Chunk):
+                loaded.cancel()
+        for loaded in self._loaded.values():
+            if not isinstance(loaded, _Chunk) and not loaded.cancelled():
+                loaded.result()
+        self._loaded.clear()
+
+    def next_chunk(self, start: int) -> int:
+        """Offset of the first compressed chunk at or after ``start`` that validates, or the size.
+
+        The expected chunk positions only bound the search: the first expected chunk at or after
+        ``start`` that validates is the answer unless a search of the bytes before it finds an
+        earlier one (a chunk whose opcode was flipped is not where the headers said a chunk is)."""
+        if self._nothing_from is not None and start >= self._nothing_from:
+            return self.size
+        best = self.size
+        expected = self.expected
+        for k in range(int(np.searchsorted(expected, start)), len(expected)):
+            at = int(expected[k])
+            if self._compressed_at(at) and self.chunk(at).valid:
+                best = at
+                break
+        for mark in (_ZSTD_MARK, _LZ4_MARK):
+            stop = min(best + _MARK_AT, self.size)
+            at = self.buf.find(mark, start + _MARK_AT, stop)
+            while 0 <= at and at - _MARK_AT < best:
+                if self.chunk(at - _MARK_AT).valid:
+                    best = at - _MARK_AT
+                    break
+                at = self.buf.find(mark, at + 1, stop)
+        if best == self.size:
+            self._nothing_from = start
+        return best
+
+    def _compressed_at(self, pos: int) -> bool:
+        mark = self.buf[pos + _MARK_AT:pos + _MARK_AT + len(_ZSTD_MARK)]
+        return mark == _ZSTD_MARK or mark[:len(_LZ4_MARK)] == _LZ4_MARK
+
+
+def _expected_chunks(buf) -> np.ndarray:
+    """Where the chunks should be: the summary's chunk index if the summary CRC holds, else the
+    chunk records met by following record headers from the start (until they stop making sense)."""
+    if _summary_crc_ok(buf):
+        footer = len(buf) - len(MAGIC) - 9 - 20
+        (summary_start,) = _U64.unpack_from(buf, footer + 9)
+        found, pos = [], summary_start
+        while pos + 9 <= footer:
+            opcode, length = _RECORD_HEAD.unpack_from(buf, pos)
+            if opcode == OP_CHUNK_INDEX and length >= 24:
+                found.append(_U64.unpack_from(buf, pos + 9 + 16)[0])
+            pos += 9 + length
+        if found:
+            return np.array(sorted(found), dtype=np.int64)
+    found, pos, size = [], len(MAGIC), len(buf)
+    head = _RECORD_HEAD.unpack_from
+    while pos + 9 <= size:
+        opcode, length = head(buf, pos)
+        if opcode not in _VALID_OPS or opcode == OP_FOOTER or pos + 9 + length > size:
+            break
+        if opcode == OP_CHUNK:
+            found.append(pos)
+        pos += 9 + length
+    return np.array(found, dtype=np.int64)
+
+
+def _summary_crc_ok(buf) -> bool:
+    """True if the file ends in an intact footer whose summary CRC matches the summary section.
+
+    Records outside chunks carry no CRC of their own; the summary's copies of the schema and
+    channel records are trusted only through this one (MCAP spec: Footer.summary_crc)."""
+    footer = len(buf) - len(MAGIC) - 9 - 20
+    if footer < len(MAGIC) or buf[len(buf) - len(MAGIC):] != MAGIC:
+        return False
+    opcode, length = _RECORD_HEAD.unpack_from(buf, footer)
+    if opcode != OP_FOOTER or length != 20:
+        return False
+    summary_start, _, crc = struct.unpack_from("<QQI", buf, footer + 9)
+    return crc != 0 and len(MAGIC) < summary_start <= footer and \
+        zlib.crc32(buf[summary_start:footer + 9 + 16]) == crc
+
+
+# -- channels and batches -----------------------------------------------------------------------
+
+class _Part(NamedTuple):
+    """Messages of one `_Records` (rows, in order) that belong to one batch."""
+
+    records: _Records
+    rows: np.ndarray
+
+
+class _Channels:
+    """Schema and channel records seen so far, and messages waiting for their channel."""
+
+    def __init__(self):
+        self.schemas: dict[int, tuple[str, str, bytes]] = {}
+        self.channels: dict[int, Channel] = {}
+        self.pending: dict[int, list[_Part]] = {}
+
+    def add_schema(self, parsed) -> None:
+        schema_id, name, encoding, data = parsed
+        self.schemas.setdefault(schema_id, (name, encoding, data))
+
+    def add_channel(self, parsed) -> int:
+        """Register a channel; the first definition wins (chunked ones are CRC-checked, the
+        summary's copies are not)."""
+        channel_id, schema_id, topic, encoding, metadata = parsed
+        if channel_id not in self.channels:
+            name, schema_encoding, data = self.schemas.get(schema_id, ("", "", b""))
+            self.channels[channel_id] = Channel(channel_id, topic, encoding, name, schema_encoding, data, metadata)
+        return channel_id
+
+    def batch(self, records: _Records, report: ReadReport) -> list[_Part]:
+        """The messages of ``records`` whose channel is known, in order, with earlier messages
+        of a channel defined here placed where its definition is; the others wait."""
+        parts: list[_Part] = []
+        message_rows = records.opcodes == OP_MESSAGE
+        bounds = [0, *sorted(r + 1 for r in records.definitions), len(records.opcodes)] if records.definitions \
+            else [0, len(records.opcodes)]
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            if a > 0 and (a - 1) in records.definitions:
+                self._define(records, a - 1, parts)
+            rows = np.flatnonzero(message_rows[a:b]) + a
+            if len(rows) == 0:
+                continue
+            ids = records.channel_ids[rows]
+            known = np.isin(ids, np.fromiter(self.channels, np.uint16, len(self.channels)))
+            if not known.all():
+                for channel_id in np.unique(ids[~known]).tolist():
+                    self.pending.setdefault(channel_id, []).append(_Part(records, rows[ids == channel_id]))
+                rows = rows[known]
+            if len(rows):
+                parts.append(_Part(records, rows))
+        report.messages += sum(len(p.rows) for p in parts)
+        return parts
+
+    def _define(self, records: _Records, row: int, parts: list[_Part]) -> None:
+        parsed = records.definitions[row]
+        if records.opcodes[row] == OP_SCHEMA:
+            self.add_schema(parsed)
+        else:
+            parts.extend(self.pending.pop(self.add_channel(parsed), []))
+
+    def unattributed(self) -> int:
+        return sum(len(p.rows) for parts in self.pending.values() for p in parts)
+
+
+def _walk(buf, scanner: _Scanner, report: ReadReport, channels: _Channels, use_numba: bool) -> Iterator[list[_Part]]:
+    """Record by record, one batch (list of parts) per chunk or top-level record with messages; a
+    record that would step over the next valid chunk is not trusted, nor a summary schema or
+    channel record unless the footer's summary CRC holds."""
+    size = len(buf)
+    summary_unchecked = False
+    pos = len(MAGIC)
+    if buf[:len(MAGIC)] != MAGIC:
+        report.header_ok = False
+        report.problems.append("no MCAP magic at the start")
+        pos = 0
+    scanner.release(pos)
+    guard = scanner.next_chunk(pos)
+    chunked = guard < size  # then messages live in chunks: one outside is a damaged record
+    head = _RECORD_HEAD.unpack_from
+    while pos + 9 <= size:
+        if pos > guard:
+            scanner.release(pos)
+            guard = scanner.next_chunk(pos)
+        opcode, length = head(buf, pos)
+        end = pos + 9 + length
+        if opcode == OP_CHUNK or pos == guard:
+            if end > size and guard == size:
+                break  # the chunk the power cut interrupted
+            report.chunks += 1
+            chunk = scanner.chunk(pos)
+            if not chunk.valid or not chunk.records.parsed:
+                report.bad_chunks += 1
+                guard = scanner.next_chunk(pos + 1)
+                report.read_bytes = max(report.read_bytes, min(end, guard, size))
+                report.skipped_bytes += max(0, guard - end) if guard < size else 0
+                pos = guard
+                continue
+            parts = channels.batch(chunk.records, report)
+            if parts:
+                yield parts
+        elif opcode not in _VALID_OPS or end > size or end > guard or (
+                opcode == OP_FOOTER and (length != 20 or buf[end:end + len(MAGIC)] != MAGIC)):
+            if guard >= size:
+                break
+            report.skipped_bytes += guard - pos
+            pos = guard
+            continue
+        elif opcode in (OP_SCHEMA, OP_CHANNEL) and summary_unchecked:
+            pass  # copies of in-chunk records; messages left without their channel are counted
+        elif opcode == OP_MESSAGE and chunked:
+            report.skipped_bytes += end - pos
+        elif opcode in (OP_SCHEMA, OP_CHANNEL, OP_MESSAGE):
+            records = _Records(bytes(buf[pos:end]), use_numba)
+            if records.parsed:
+                parts = channels.batch(records, report)
+                if parts:
+                    yield parts
+            else:
+                report.skipped_bytes += end - pos
+        elif opcode == OP_HEADER:
+            try:
+                report.profile, _ = _string(buf[pos + 9:end], 0)
+            except (DamagedRecord, struct.error, UnicodeDecodeError):
+                pass
+        elif opcode == OP_DATA_END:
+            summary_unchecked = not _summary_crc_ok(buf)
+        elif opcode == OP_FOOTER:
+            report.complete = True
+            report.read_bytes = min(size, end + len(MAGIC))
+            break
+        report.read_bytes = end
+        pos = end
+    report.unattributed_messages += channels.unattributed()
+    channels.pending.clear()
+
+
+# -- windows ------------------------------------------------------------------------------------
+
+class Window:
+    """Consecutive batches (a chunk's messages each) of one file, decoded.
+
+    Per message, in file order: ``channel_ids``, ``sequences``, ``log_times_ns``,
+    ``publish_times_ns`` (monotonic) and ``batch_starts`` (index of each batch's first message).
+    Packed topics' records are in `records` (per channel, whole records only); other payloads by
+    `payloads`."""
+
+    def __init__(self, batches: list[list[_Part]], channels: dict[int, Channel], use_numba: bool):
+        parts = [part for batch in batches for part in batch]
+        self.channels = channels
+        self._parts = parts
+        sizes = np.array([len(p.rows) for p in parts], dtype=np.int64)
+        self._part_starts = np.concatenate(([0], np.cumsum(sizes)))
+        per_batch = np.array([sum(len(p.rows) for p in batch) for batch in batches], dtype=np.int64)
+        self.batch_starts = np.concatenate(([0], np.cumsum(per_batch)[:-1])) if len(batches) else per_batch
+
+        def column(name):
+            return np.concatenate([getattr(p.records, name)[p.rows] for p in parts]) if parts else np.zeros(0)
+
+        self.channel_ids = column("channel_ids").astype(np.uint16, copy=False)
+        self.sequences = column("sequences").astype(np.uint32, copy=False)
+        self.log_times_ns = column("log_times").astype(np.uint64, copy=False)
+        self.publish_times_ns = column("publish_times").astype(np.uint64, copy=False)
+        self._starts = column("starts").astype(np.int64, copy=False) + chunk_walk.MESSAGE_HEAD
+        self._lengths = np.maximum(column("ends").astype(np.int64, copy=False) - self._starts, 0)
+        self._records: dict[int, np.ndarray] = {}
+        self._counts: dict[int, np.ndarray] = {}
+        self._scatter_all(use_numba)
+
+    def __len__(self) -> int:
+        return len(self.channel_ids)
+
+    def _scatter_all(self, use_numba: bool) -> None:
+        scatter = chunk_walk.kernels(use_numba)["scatter"]
+        for channel_id in np.unique(self.channel_ids).tolist():
+            topic = PACKED_TOPICS.get(self.channels[channel_id].topic)
+            if topic is None:
+                continue
+            itemsize = topic.dtype.itemsize
+            mine = self.channel_ids == channel_id
+            counts = self._lengths[mine] // itemsize
+            offsets = np.concatenate(([0], np.cumsum(counts * itemsize)))
+            target = np.empty(int(offsets[-1]), np.uint8)
+            rows = np.flatnonzero(mine)
+            starts, lengths, at = self._starts[rows], counts * itemsize, offsets[:-1]
+            for k, a, b in self._by_part(rows):
+                scatter(self._parts[k].records.array, starts[a:b], lengths[a:b], target, at[a:b])
+            self._records[channel_id] = target.view(topic.dtype)
+            self._counts[channel_id] = counts
+
+    def _by_part(self, indices: np.ndarray) -> Iterator[tuple[int, int, int]]:
+        """(part, first, end) of the runs of ascending message ``indices`` that lie in one part."""
+        which = np.searchsorted(self._part_starts, indices, side="right") - 1
+        edges = np.flatnonzero(np.diff(which)) + 1
+        for a, b in zip([0, *edges.tolist()], [*edges.tolist(), len(indices)]):
+            if b > a:
+                yield int(which[a]), a, b
+
+    def packed_channels(self, topic: str) -> list[int]:
+        """Ids of the channels of a packed ``topic`` with messages in this window."""
+        return [cid for cid in self._records if self.channels[cid].topic == topic]
+
+    def records(self, channel_id: int) -> np.ndarray:
+        """Records of a packed channel in file order (a fresh writable array, contract dtype)."""
+        return self._records[channel_id]
+
+    def record_counts(self, channel_id: int) -> np.ndarray:
+        """Whole records of each of the channel's messages, in order."""
+        return self._counts[channel_id]
+
+    def topic_records(self, topic: str) -> np.ndarray:
+        """Records of all channels of a packed ``topic`` in file order."""
+        ids = self.packed_channels(topic)
+        if len(ids) == 1:
+            return self._records[ids[0]]
+        if not ids:
+            return np.zeros(0, PACKED_TOPICS[topic].dtype)
+        owner = np.concatenate([np.repeat(np.flatnonzero(self.channel_ids == cid), self._counts[cid]) for cid in ids])
+        return np.concatenate([self._records[cid] for cid in ids])[np.argsort(owner, kind="stable")]
+
+    def payload(self, index: int) -> bytes:
+        k = int(np.searchsorted(self._part_starts, index, side="right") - 1)
+        start = int(self._starts[index])
+        return bytes(self._parts[k].records.data[start:start + int(self._lengths[index])])
+
+    def payloads(self, indices) -> list[bytes]:
+        """Payloads of the messages at ``indices`` (ascending)."""
+        indices = np.asarray(indices, dtype=np.int64)
+        starts, lengths = self._starts[indices].tolist(), self._lengths[indices].tolist()
+        out = []
+        for k, a, b in self._by_part(indices):
+            data = self._parts[k].records.data
+            out += [data[x:x + n] for x, n in zip(starts[a:b], lengths[a:b])]
+        return out
+
+    def messages(self) -> Iterator[RawMessage]:
+        """Every message of the window in file order (payloads as bytes)."""
+        channels = self.channels
+        payloads = self.payloads(np.arange(len(self)))
+        for cid, seq, log, pub, data in zip(self.channel_ids.tolist(), self.sequences.tolist(),
+                                            self.log_times_ns.tolist(), self.publish_times_ns.tolist(), payloads):
+            yield RawMessage(channels[cid], seq, log, pub, data)
+
+
+@contextmanager
+def _mapped(source):
+    """(buffer, memoryview, file size) of a path (memory-mapped) or of bytes-like data."""
+    if isinstance(source, (str, Path)):
+        with open(source, "rb") as handle:
+            size = handle.seek(0, 2)
+            if size == 0:
+                yield b"", memoryview(b""), 0
+                return
+            with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+                view = memoryview(buf)
+                try:
+                    yield buf, view, size
+                finally:
+                    view.release()
+    else:
+        data = bytes(source)
+        yield data, memoryview(data), len(data)
+
+
+def default_threads() -> int:
+    return max(1, min(8, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1))
+
+
+def read_windows(source, report: ReadReport | None = None, threads: int | None = None,
+                 use_numba: bool | None = None, window_bytes: int = WINDOW_BYTES) -> Iterator[Window]:
+    """`Window`s of every recoverable message of one MCAP file (a path, or bytes) in file order;
+    fills ``report``. ``threads`` (default: the usable cores) load chunks ahead; 0 reads
+    sequentially. ``use_numba`` (default: if it imports) picks the compiled walk."""
+    report = report if report is not None else ReadReport(str(source) if isinstance(source, (str, Path))
+                                                          else "<buffer>")
+    if isinstance(source, (str, Path)):
+        report.path = str(source)
+    use_numba = _numba_available() if use_numba is None else use_numba
+    threads = default_threads() if threads is None else threads
+    with _mapped(source) as (buf, view, size):
+        report.file_bytes = size
+        if size == 0:
+            report.header_ok = False
+            report.problems.append("empty file")
+            return
+        executor = ThreadPoolExecutor(threads, thread_name_prefix="mcap-chunks") if threads > 0 else None
+        scanner = _Scanner(buf, view, executor, use_numba, ahead=8 * max(threads, 1))
+        channels = _Channels()
+        try:
+            pending: list[list[_Part]] = []
+            held = 0
+            for parts in _walk(buf, scanner, report, channels, use_numba):
+                pending.append(parts)
+                held += sum(len(p.records.data) for p in parts)
+                if held >= window_bytes:
+                    yield Window(pending, channels.channels, use_numba)
+                    pending, held = [], 0
+            if pending:
+                yield Window(pending, channels.channels, use_numba)
+        finally:
+            scanner.close()
+            if executor is not None:
+                executor.shutdown(wait=True)
+
+
+def read_messages(source, report: ReadReport | None = None, **options) -> Iterator[RawMessage]:
+    """Every recoverable message of one MCAP file (path or bytes) in file order; fills ``report``."""
+    for window in read_windows(source, report, **options):
+        yield from window.messages()
+
+
+def first_message(path) -> RawMessage | None:
+    """The first recoverable message of a file (reads no further than its chunk)."""
+    for window in read_windows(path, threads=0, window_bytes=1):
+        for message in window.messages():
+            return message
+    return None
+
+
+def packed_records(source, topic: Topic, report: ReadReport | None = None, **options) -> Iterator[np.ndarray]:
+    """Records of a packed ``topic`` (contract dtype), one array per window, in file order."""
+    for window in read_windows(source, report, **options):
+        records = window.topic_records(topic.name)
+        if len(records):
+            yield records
+
+
+def last_payload(source, topic: str, **options) -> bytes | None:
+    """The payload of the last recoverable message of ``topic`` in a file, or None."""
+    last = None
+    for window in read_windows(source, **options):
+        rows = np.flatnonzero(np.isin(window.channel_ids, [cid for cid, c in window.channels.items()
+                                                          if c.topic == topic]))
+        if len(rows):
+            last = window.payload(int(rows[-1]))
+    return last
+
+
+def _numba_available() -> bool:
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+__all__ = ["Channel", "RawMessage", "ReadReport", "Window", "read_windows", "read_messages", "first_message",
+           "packed_records", "last_payload", "header_profile", "unpack", "MAGIC"]
