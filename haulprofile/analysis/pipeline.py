@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import json
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -116,7 +117,10 @@ def run(ctx: RunContext, until: str | None = None, cache: bool = False, progress
             bar.set_description(name)
         else:
             ctx.say(f"[{name}]")
+        started = time.perf_counter()
         stage(ctx)
+        elapsed = time.perf_counter() - started
+        ctx.say(f"[{name}] {elapsed:.1f} s")
         if ctx.signals is None:
             raise UserError("no signals: the inputs are logs but no ingest stage is installed")
         ctx.summary["stages"].append(name)
