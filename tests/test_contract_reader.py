@@ -113,11 +113,11 @@ def test_numba_walk_equals_the_python_walk(log):
         [bytes([5]) + struct.pack("<Q", 3) + b"abc", b""]
     statuses = set()
     for data in samples:
-        ours, reference = walk(np.frombuffer(data, np.uint8)), chunk_walk.walk_records_python(data)
-        assert ours[0] == reference[0]
-        statuses.add(int(np.sign(ours[0])) if ours[0] >= 0 else ours[0])
-        for a, b in zip(ours[1:], reference[1:]):
-            assert a.dtype == b.dtype and np.array_equal(a, b)
+        (status, table), (status_py, table_py) = walk(np.frombuffer(data, np.uint8)), \
+            chunk_walk.walk_records_python(data)
+        assert status == status_py and table.dtype == table_py.dtype and np.array_equal(table, table_py)
+        assert table.shape == (len(chunk_walk.COLUMNS), max(status, 0))
+        statuses.add(int(np.sign(status)) if status >= 0 else status)
     assert statuses >= {1, chunk_walk.NOT_TILED, chunk_walk.MESSAGE_CUT}
 
 

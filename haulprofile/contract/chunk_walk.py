@@ -19,6 +19,8 @@ NOT_TILED = -1
 """The records do not tile the chunk (unknown opcode, a length beyond its end)."""
 MESSAGE_CUT = -2
 """A message record whose header runs beyond the chunk."""
+COLUMNS = ("opcode", "start", "end", "channel_id", "sequence", "log_time", "publish_time")
+"""Rows of the record table `walk_records` returns (uint64; start and end of each body in ``data``)."""
 
 
 def _u64(data, pos):
@@ -38,56 +40,46 @@ def _u16(data, pos):
 
 
 def walk_records(data):
-    """(status, opcode, body start, body end, channel id, sequence, log time, publish time) of the
-    message, schema and channel records of ``data`` (uint8) in order; other opcodes are passed
-    over. status: the number of those records, or `NOT_TILED` / `MESSAGE_CUT`."""
+    """(status, table) of the message, schema and channel records of ``data`` (uint8) in order:
+    ``table[k]`` is row `COLUMNS[k]` (header fields for messages, zero for the others); other
+    opcodes are passed over. status: the number of those records, or `NOT_TILED` /
+    `MESSAGE_CUT` (then the table is empty)."""
     size = data.shape[0]
     pos = 0
     count = 0
     while pos < size:  # first pass: the records must tile the chunk exactly
         if pos + 9 > size:
-            return _empty(NOT_TILED)
+            return NOT_TILED, np.zeros((7, 0), np.uint64)
         opcode = data[pos]
         length = _u64(data, pos + 1)
         if opcode < 1 or opcode > 0x0F or length > np.uint64(size - pos - 9):
-            return _empty(NOT_TILED)
+            return NOT_TILED, np.zeros((7, 0), np.uint64)
         if opcode == OP_MESSAGE:
             if pos + 9 + MESSAGE_HEAD > size:
-                return _empty(MESSAGE_CUT)
+                return MESSAGE_CUT, np.zeros((7, 0), np.uint64)
             count += 1
         elif opcode == OP_SCHEMA or opcode == OP_CHANNEL:
             count += 1
         pos += 9 + np.int64(length)
-    opcodes = np.empty(count, np.uint8)
-    starts = np.empty(count, np.int64)
-    ends = np.empty(count, np.int64)
-    channel_ids = np.zeros(count, np.uint16)
-    sequences = np.zeros(count, np.uint32)
-    log_times = np.zeros(count, np.uint64)
-    publish_times = np.zeros(count, np.uint64)
+    table = np.zeros((7, count), np.uint64)
     pos = 0
     k = 0
     while pos < size:
         opcode = data[pos]
         end = pos + 9 + np.int64(_u64(data, pos + 1))
         if opcode == OP_MESSAGE or opcode == OP_SCHEMA or opcode == OP_CHANNEL:
-            opcodes[k] = opcode
-            starts[k] = pos + 9
-            ends[k] = end
+            table[0, k] = opcode
+            table[1, k] = pos + 9
+            table[2, k] = end
             if opcode == OP_MESSAGE:
                 body = pos + 9
-                channel_ids[k] = _u16(data, body)
-                sequences[k] = _u32(data, body + 2)
-                log_times[k] = _u64(data, body + 6)
-                publish_times[k] = _u64(data, body + 14)
+                table[3, k] = _u16(data, body)
+                table[4, k] = _u32(data, body + 2)
+                table[5, k] = _u64(data, body + 6)
+                table[6, k] = _u64(data, body + 14)
             k += 1
         pos = end
-    return count, opcodes, starts, ends, channel_ids, sequences, log_times, publish_times
-
-
-def _empty(status):
-    return (status, np.empty(0, np.uint8), np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, np.uint16),
-            np.empty(0, np.uint32), np.empty(0, np.uint64), np.empty(0, np.uint64))
+    return count, table
 
 
 def scatter(source, starts, lengths, target, target_offsets):
@@ -107,28 +99,23 @@ _MESSAGE_FIELDS = struct.Struct("<HIQQ")
 def walk_records_python(data):
     """`walk_records` in plain Python (``data``: bytes-like)."""
     size = len(data)
-    head = _RECORD_HEAD.unpack_from
-    records = []
+    head, fields = _RECORD_HEAD.unpack_from, _MESSAGE_FIELDS.unpack_from
+    rows = []
     pos = 0
     while pos < size:
         if pos + 9 > size:
-            return _empty(NOT_TILED)
+            return NOT_TILED, np.zeros((7, 0), np.uint64)
         opcode, length = head(data, pos)
         if opcode < 1 or opcode > 0x0F or length > size - pos - 9:
-            return _empty(NOT_TILED)
-        if opcode == OP_MESSAGE and pos + 9 + MESSAGE_HEAD > size:
-            return _empty(MESSAGE_CUT)
-        if opcode in (OP_MESSAGE, OP_SCHEMA, OP_CHANNEL):
-            records.append((opcode, pos + 9, pos + 9 + length))
+            return NOT_TILED, np.zeros((7, 0), np.uint64)
+        if opcode == OP_MESSAGE:
+            if pos + 9 + MESSAGE_HEAD > size:
+                return MESSAGE_CUT, np.zeros((7, 0), np.uint64)
+            rows.append((opcode, pos + 9, pos + 9 + length, *fields(data, pos + 9)))
+        elif opcode in (OP_SCHEMA, OP_CHANNEL):
+            rows.append((opcode, pos + 9, pos + 9 + length, 0, 0, 0, 0))
         pos += 9 + length
-    count = len(records)
-    opcodes = np.array([r[0] for r in records], np.uint8)
-    starts = np.array([r[1] for r in records], np.int64)
-    ends = np.array([r[2] for r in records], np.int64)
-    fields = [_MESSAGE_FIELDS.unpack_from(data, r[1]) if r[0] == OP_MESSAGE else (0, 0, 0, 0) for r in records]
-    columns = list(zip(*fields)) if fields else [(), (), (), ()]
-    return (count, opcodes, starts, ends, np.array(columns[0], np.uint16), np.array(columns[1], np.uint32),
-            np.array(columns[2], np.uint64), np.array(columns[3], np.uint64))
+    return len(rows), np.array(rows, dtype=np.uint64).reshape(len(rows), 7).T.copy()
 
 
 def scatter_python(source, starts, lengths, target, target_offsets):
@@ -154,9 +141,8 @@ def kernels(use_numba: bool = True) -> dict:
             _compiled = _PYTHON
         else:
             jit = numba.njit(cache=True, nogil=True)
-            helpers = {name: jit(globals()[name]) for name in ("_u64", "_u32", "_u16", "_empty")}
-            _compiled = {"walk_records": _jit_with(walk_records, helpers, jit),
-                         "scatter": jit(scatter)}
+            helpers = {name: jit(globals()[name]) for name in ("_u64", "_u32", "_u16")}
+            _compiled = {"walk_records": _jit_with(walk_records, helpers, jit), "scatter": jit(scatter)}
     return _compiled
 
 

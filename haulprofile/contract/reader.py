@@ -57,6 +57,8 @@ _MARK_AT = 9 + _CHUNK_HEAD.size - 4
 MAX_CHUNK_BYTES = 1 << 32
 """Largest uncompressed chunk believed (writers use 1 MiB by default, the logger 256 KiB); a
 larger size field is a damaged one, not a reason to allocate that much."""
+RELEASE_BYTES = 64 << 20
+"""File bytes behind the walk after which their mapped pages are handed back."""
 PACKED_TOPICS: dict[str, Topic] = {CAN_FRAMES.name: CAN_FRAMES, IMU.name: IMU}
 WINDOW_BYTES = 32 << 20
 """Decompressed bytes of chunks handed out together (one `Window`)."""
@@ -181,14 +183,16 @@ class _Records:
         self.data = data
         self.array = np.frombuffer(data, np.uint8)
         walk = chunk_walk.kernels(use_numba)["walk_records"]
-        status, *columns = walk(self.array if use_numba and walk is not chunk_walk.walk_records_python else data)
-        (self.opcodes, self.starts, self.ends, self.channel_ids, self.sequences, self.log_times,
-         self.publish_times) = columns
+        status, table = walk(data if walk is chunk_walk.walk_records_python else self.array)
+        (self.opcodes, starts, ends, self.channel_ids, self.sequences, self.log_times,
+         self.publish_times) = table
+        self.starts, self.ends = starts.view(np.int64), ends.view(np.int64)
         self.parsed = status >= 0
         self.definitions: dict[int, tuple] = {}
-        if self.parsed and len(self.opcodes) and (self.opcodes != OP_MESSAGE).any():
+        if self.parsed and status:
+            rows = np.flatnonzero(self.opcodes != OP_MESSAGE)
             try:
-                for row in np.flatnonzero(self.opcodes != OP_MESSAGE).tolist():
+                for row in rows.tolist():
                     body = data[self.starts[row]:self.ends[row]]
                     parse = _parse_schema if self.opcodes[row] == OP_SCHEMA else _parse_channel
                     self.definitions[row] = parse(body)
@@ -291,6 +295,7 @@ class _Scanner:
         self._loaded: dict[int, object] = {}
         self._nothing_from: int | None = None
         self._walked_to = 0
+        self._dropped = 0
 
     def _prefetch(self, pos: int) -> None:
         self._walked_to = pos
@@ -314,10 +319,15 @@ class _Scanner:
         return loaded
 
     def release(self, below: int) -> None:
-        """Forget loaded chunks before ``below`` (the walk has passed them), load further ahead."""
+        """Forget loaded chunks before ``below`` (the walk has passed them), load further ahead,
+        and hand the file's pages before it back (a mapped file's pages count in the RSS)."""
         for at in [at for at in self._loaded if at < below]:
             del self._loaded[at]
         self._prefetch(below)
+        if below - self._dropped >= RELEASE_BYTES and hasattr(self.buf, "madvise"):
+            upto = below // mmap.PAGESIZE * mmap.PAGESIZE
+            self.buf.madvise(mmap.MADV_DONTNEED, self._dropped, upto - self._dropped)
+            self._dropped = upto
 
     def close(self) -> None:
         for loaded in self._loaded.values():
@@ -418,6 +428,7 @@ class _Channels:
         self.schemas: dict[int, tuple[str, str, bytes]] = {}
         self.channels: dict[int, Channel] = {}
         self.pending: dict[int, list[_Part]] = {}
+        self.known = np.zeros(1 << 16, dtype=bool)
 
     def add_schema(self, parsed) -> None:
         schema_id, name, encoding, data = parsed
@@ -430,12 +441,18 @@ class _Channels:
         if channel_id not in self.channels:
             name, schema_encoding, data = self.schemas.get(schema_id, ("", "", b""))
             self.channels[channel_id] = Channel(channel_id, topic, encoding, name, schema_encoding, data, metadata)
+            self.known[channel_id] = True
         return channel_id
 
     def batch(self, records: _Records, report: ReadReport) -> list[_Part]:
         """The messages of ``records`` whose channel is known, in order, with earlier messages
         of a channel defined here placed where its definition is; the others wait."""
         parts: list[_Part] = []
+        if not records.definitions:  # most chunks: messages of known channels only
+            known = self.known[records.channel_ids]
+            if known.all():
+                report.messages += len(known)
+                return [_Part(records, np.arange(len(known)))] if len(known) else []
         message_rows = records.opcodes == OP_MESSAGE
         bounds = [0, *sorted(r + 1 for r in records.definitions), len(records.opcodes)] if records.definitions \
             else [0, len(records.opcodes)]
@@ -446,7 +463,7 @@ class _Channels:
             if len(rows) == 0:
                 continue
             ids = records.channel_ids[rows]
-            known = np.isin(ids, np.fromiter(self.channels, np.uint16, len(self.channels)))
+            known = self.known[ids]
             if not known.all():
                 for channel_id in np.unique(ids[~known]).tolist():
                     self.pending.setdefault(channel_id, []).append(_Part(records, rows[ids == channel_id]))
@@ -559,7 +576,8 @@ class Window:
         self.batch_starts = np.concatenate(([0], np.cumsum(per_batch)[:-1])) if len(batches) else per_batch
 
         def column(name):
-            return np.concatenate([getattr(p.records, name)[p.rows] for p in parts]) if parts else np.zeros(0)
+            return np.concatenate([getattr(p.records, name)[p.rows] if len(p.rows) != len(p.records.opcodes)
+                                   else getattr(p.records, name) for p in parts]) if parts else np.zeros(0)
 
         self.channel_ids = column("channel_ids").astype(np.uint16, copy=False)
         self.sequences = column("sequences").astype(np.uint32, copy=False)
