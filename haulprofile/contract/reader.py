@@ -35,7 +35,7 @@ from typing import Iterator, NamedTuple
 
 import numpy as np
 
-from . import IMU, CAN_FRAMES, Topic, unpack
+from . import CAN_FRAMES, IMU, Topic
 from . import chunk_walk
 
 try:  # ISA-L's CRC-32 (same polynomial as zlib's) runs at tens of GB/s, zlib's at about 2
@@ -294,17 +294,15 @@ class _Scanner:
         self._next_expected = 0
         self._loaded: dict[int, object] = {}
         self._nothing_from: int | None = None
-        self._walked_to = 0
         self._dropped = 0
 
     def _prefetch(self, pos: int) -> None:
-        self._walked_to = pos
         if self.executor is None:
             return
         expected = self.expected
         while self._next_expected < len(expected) and (
                 len(self._loaded) < self.ahead or expected[self._next_expected] <= pos):
-            at = expected[self._next_expected]
+            at = int(expected[self._next_expected])
             self._next_expected += 1
             if at >= pos and at not in self._loaded:
                 self._loaded[at] = self.executor.submit(_load_chunk, self.view, at, self.use_numba)
@@ -767,4 +765,4 @@ def _numba_available() -> bool:
 
 
 __all__ = ["Channel", "RawMessage", "ReadReport", "Window", "read_windows", "read_messages", "first_message",
-           "packed_records", "last_payload", "header_profile", "unpack", "MAGIC"]
+           "packed_records", "last_payload", "header_profile", "MAGIC"]

@@ -194,7 +194,8 @@ def bench_ingest(quick: bool):
         result("ingest_decode_align_s_per_log_hour", ours["seconds"] / hours, "s per hour of log",
                "bare mcap iteration (make_reader.iter_messages)", bare["seconds"] / hours,
                hours=hours, can_frames=n_frames, imu_samples=ours["imu_samples"], rows=ours["rows"],
-               frames_per_s=n_frames / ours["seconds"], messages=bare["messages"]),
+               frames_per_s=n_frames / ours["seconds"], messages=bare["messages"], cpu_s=ours["cpu_s"],
+               peer_cpu_s=bare["cpu_s"]),
         result("ingest_whole_pipeline_ns_per_can_frame", per_frame_ours_ns, "ns/frame (read+decode+align, all topics)",
                "cantools per-frame decode (J1939 DBC, sample)", cantools_per_frame_ns,
                cantools_sample_frames=CANTOOLS_SAMPLE, cantools_decoded=decoded_by_cantools),
@@ -210,11 +211,13 @@ def bench_ingest(quick: bool):
                "walked, CAN+IMU scattered; ratio = limit / ours)", "decompress-only (zstd of every chunk, same threads)",
                limit["seconds"], hours=hours, threads=alone["threads"], chunks=limit["chunks"],
                decompressed_bytes=limit["bytes"], messages=alone["messages"], records=alone["records"],
-               reader_peak_rss_mb=alone["peak_rss_mb"]),
+               reader_peak_rss_mb=alone["peak_rss_mb"], cpu_s=alone["cpu_s"], peer_cpu_s=limit["cpu_s"]),
         result("ingest_read_s_vs_bare_mcap", alone["seconds"], "s (contract.reader; ratio = bare mcap / ours)",
-               "bare mcap iteration (make_reader.iter_messages)", bare["seconds"], hours=hours),
+               "bare mcap iteration (make_reader.iter_messages)", bare["seconds"], hours=hours, cpu_s=alone["cpu_s"],
+               peer_cpu_s=bare["cpu_s"]),
         result("ingest_decode_align_s_vs_decompress_only", ours["seconds"], "s (whole ingest; ratio = limit / ours)",
-               "decompress-only (zstd of every chunk, same threads)", limit["seconds"], hours=hours),
+               "decompress-only (zstd of every chunk, same threads)", limit["seconds"], hours=hours,
+               cpu_s=ours["cpu_s"], peer_cpu_s=limit["cpu_s"]),
     ]
 
 
