@@ -256,3 +256,27 @@ def test_a_short_silence_is_bridged_a_long_one_stays_a_gap():
     recorded = acc.recorded(first, n)
     assert recorded[20:25].all()
     assert not recorded[40:60].any()
+
+
+def test_blocks_end_where_message_by_message_pending_would_flush():
+    """`table._blocks` cuts a window's records exactly where appending message after message and
+    flushing at `block` records did (so block sums, hence the table, stay bit-identical)."""
+    from haulprofile.analysis.ingest.table import _blocks
+
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        counts = rng.integers(0, 40, int(rng.integers(1, 60)))
+        records = np.arange(int(counts.sum()))
+        held, block = int(rng.integers(0, 100)), int(rng.integers(1, 100))
+        expected, pending, position = [], held, 0  # the old rule, message by message
+        for n in counts.tolist():
+            pending += n
+            position += n
+            if pending >= block:
+                expected.append(position)
+                pending = 0
+        pieces = list(_blocks(counts, records, held, block))
+        ends = np.cumsum([len(piece) for piece in pieces]).tolist()
+        assert np.array_equal(np.concatenate(pieces) if pieces else records[:0], records)
+        assert ends[:len(expected)] == expected and len(ends) - len(expected) in (0, 1)
+        assert len(ends) == len(expected) or ends[-1] not in expected
