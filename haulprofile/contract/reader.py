@@ -61,7 +61,8 @@ RELEASE_BYTES = 64 << 20
 """File bytes behind the walk after which their mapped pages are handed back."""
 PACKED_TOPICS: dict[str, Topic] = {CAN_FRAMES.name: CAN_FRAMES, IMU.name: IMU}
 WINDOW_BYTES = 32 << 20
-"""Decompressed bytes of chunks handed out together (one `Window`)."""
+"""Decompressed bytes of chunks handed out together (one `Window`); as many compressed bytes of
+chunks are loaded ahead of the walk (so the pool decompresses while the caller works on a window)."""
 
 
 class DamagedRecord(Exception):
@@ -283,13 +284,14 @@ class _Scanner:
     """Chunks of a file: loaded ahead on a thread pool where they are expected, found by search
     (and loaded at once) where they are not."""
 
-    def __init__(self, buf, view, executor: ThreadPoolExecutor | None, use_numba: bool, ahead: int):
+    def __init__(self, buf, view, executor: ThreadPoolExecutor | None, use_numba: bool, ahead_bytes: int):
         self.buf = buf
         self.view = view
         self.size = len(buf)
         self.executor = executor
         self.use_numba = use_numba
-        self.ahead = ahead
+        self.ahead_bytes = ahead_bytes
+        self._held_bytes = 0
         self.expected = _expected_chunks(buf)
         self._next_expected = 0
         self._loaded: dict[int, object] = {}
@@ -301,17 +303,23 @@ class _Scanner:
             return
         expected = self.expected
         while self._next_expected < len(expected) and (
-                len(self._loaded) < self.ahead or expected[self._next_expected] <= pos):
+                self._held_bytes < self.ahead_bytes or expected[self._next_expected] <= pos):
             at = int(expected[self._next_expected])
             self._next_expected += 1
             if at >= pos and at not in self._loaded:
                 self._loaded[at] = self.executor.submit(_load_chunk, self.view, at, self.use_numba)
+                self._held_bytes += self._length(at)
+
+    def _length(self, pos: int) -> int:
+        """Bytes of the record at ``pos`` as its header says (bounded by the file)."""
+        return min(_U64.unpack_from(self.buf, pos + 1)[0], self.size) if pos + 9 <= self.size else 0
 
     def chunk(self, pos: int) -> _Chunk:
         """The chunk record at ``pos`` (loaded once; `release` forgets it)."""
         loaded = self._loaded.get(pos)
         if loaded is None:
             loaded = self._loaded[pos] = _load_chunk(self.view, pos, self.use_numba)
+            self._held_bytes += self._length(pos)
         elif not isinstance(loaded, _Chunk):
             loaded = self._loaded[pos] = loaded.result()
         return loaded
@@ -321,6 +329,7 @@ class _Scanner:
         and hand the file's pages before it back (a mapped file's pages count in the RSS)."""
         for at in [at for at in self._loaded if at < below]:
             del self._loaded[at]
+            self._held_bytes -= self._length(at)
         self._prefetch(below)
         if below - self._dropped >= RELEASE_BYTES and hasattr(self.buf, "madvise"):
             upto = below // mmap.PAGESIZE * mmap.PAGESIZE
@@ -704,7 +713,7 @@ def read_windows(source, report: ReadReport | None = None, threads: int | None =
             report.problems.append("empty file")
             return
         executor = ThreadPoolExecutor(threads, thread_name_prefix="mcap-chunks") if threads > 0 else None
-        scanner = _Scanner(buf, view, executor, use_numba, ahead=8 * max(threads, 1))
+        scanner = _Scanner(buf, view, executor, use_numba, ahead_bytes=window_bytes)
         channels = _Channels()
         try:
             pending: list[list[_Part]] = []
