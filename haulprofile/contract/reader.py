@@ -29,144 +29,24 @@ import os
 import struct
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator, NamedTuple
 
 import numpy as np
 
-from . import CAN_FRAMES, IMU, Topic
+from . import Topic
 from . import chunk_walk
+from .mcap_records import (_LZ4_MARK, _MARK_AT, _RECORD_HEAD, _U64, _VALID_OPS, _ZSTD_MARK, MAGIC, OP_CHANNEL,
+                           OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER, OP_HEADER, OP_MESSAGE, OP_SCHEMA, Channel,
+                           DamagedRecord, RawMessage, ReadReport, _decompress, _parse_channel, _parse_schema, _string,
+                           _summary_crc_ok, _tiles, header_profile)
+from .window import PACKED_TOPICS, Window, _Part
 
-try:  # ISA-L's CRC-32 (same polynomial as zlib's) runs at tens of GB/s, zlib's at about 2
-    from isal.isal_zlib import crc32
-except ImportError:
-    from zlib import crc32
-
-MAGIC = b"\x89MCAP0\r\n"
-OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
-OP_CHUNK_INDEX, OP_DATA_END = 0x08, 0x0F
-_VALID_OPS = set(range(0x01, 0x10))
-_U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
-_RECORD_HEAD = struct.Struct("<BQ")
-_CHUNK_HEAD = struct.Struct("<QQQII")
-_ZSTD_MARK = b"\x04\x00\x00\x00zstd"
-_LZ4_MARK = b"\x03\x00\x00\x00lz4"
-_MARK_AT = 9 + _CHUNK_HEAD.size - 4
-"""Offset of a chunk's compression string (its length first) from the chunk record's start."""
-MAX_CHUNK_BYTES = 1 << 32
-"""Largest uncompressed chunk believed (writers use 1 MiB by default, the logger 256 KiB); a
-larger size field is a damaged one, not a reason to allocate that much."""
 RELEASE_BYTES = 64 << 20
 """File bytes behind the walk after which their mapped pages are handed back."""
-PACKED_TOPICS: dict[str, Topic] = {CAN_FRAMES.name: CAN_FRAMES, IMU.name: IMU}
 WINDOW_BYTES = 32 << 20
 """Decompressed bytes of chunks handed out together (one `Window`); as many compressed bytes of
 chunks are loaded ahead of the walk (so the pool decompresses while the caller works on a window)."""
-
-
-class DamagedRecord(Exception):
-    """A record that does not parse or whose CRC does not match."""
-
-
-@dataclass(frozen=True)
-class Channel:
-    id: int
-    topic: str
-    message_encoding: str
-    schema_name: str
-    schema_encoding: str
-    schema_data: bytes
-    metadata: dict
-
-
-@dataclass
-class ReadReport:
-    """What a read found in one file [bytes, counts]."""
-
-    path: str
-    file_bytes: int = 0
-    read_bytes: int = 0
-    """Bytes up to the end of the last record that parsed (the recovered part of the file)."""
-    chunks: int = 0
-    bad_chunks: int = 0
-    skipped_bytes: int = 0
-    messages: int = 0
-    unattributed_messages: int = 0
-    complete: bool = False
-    """True when the footer and closing magic were read."""
-    header_ok: bool = True
-    profile: str = ""
-    problems: list[str] = field(default_factory=list)
-
-    def warning(self) -> str | None:
-        """One line for the user when anything was lost; None for an intact file."""
-        if (self.complete and not self.bad_chunks and not self.skipped_bytes and not self.unattributed_messages
-                and not self.problems):
-            return None
-        parts = list(self.problems)
-        if not self.complete:
-            parts.append(f"cut short (no footer): recovered {self.read_bytes} of {self.file_bytes} bytes")
-        if self.bad_chunks:
-            parts.append(f"{self.bad_chunks} of {self.chunks} chunks damaged (bad CRC or data) and skipped")
-        if self.skipped_bytes:
-            parts.append(f"{self.skipped_bytes} damaged bytes skipped")
-        if self.unattributed_messages:
-            parts.append(f"{self.unattributed_messages} messages of channels whose definition was lost")
-        return f"{self.path}: " + "; ".join(parts) + f"; {self.messages} messages read"
-
-
-class RawMessage(NamedTuple):
-    channel: Channel
-    sequence: int
-    log_time_ns: int
-    publish_time_ns: int
-    data: bytes
-
-
-def _string(buf, pos: int) -> tuple[str, int]:
-    (n,) = _U32.unpack_from(buf, pos)
-    end = pos + 4 + n
-    if end > len(buf):
-        raise DamagedRecord("string beyond record")
-    return bytes(buf[pos + 4:end]).decode("utf-8"), end
-
-
-def _parse_schema(body) -> tuple[int, str, str, bytes]:
-    (schema_id,) = _U16.unpack_from(body, 0)
-    name, pos = _string(body, 2)
-    encoding, pos = _string(body, pos)
-    (n,) = _U32.unpack_from(body, pos)
-    if pos + 4 + n > len(body):
-        raise DamagedRecord("schema data beyond record")
-    return schema_id, name, encoding, bytes(body[pos + 4:pos + 4 + n])
-
-
-def _parse_channel(body) -> tuple[int, int, str, str, dict]:
-    channel_id, schema_id = struct.unpack_from("<HH", body, 0)
-    topic, pos = _string(body, 4)
-    encoding, pos = _string(body, pos)
-    (map_len,) = _U32.unpack_from(body, pos)
-    pos += 4
-    end = pos + map_len
-    if end > len(body):
-        raise DamagedRecord("channel metadata beyond record")
-    metadata = {}
-    while pos < end:
-        key, pos = _string(body, pos)
-        value, pos = _string(body, pos)
-        metadata[key] = value
-    return channel_id, schema_id, topic, encoding, metadata
-
-
-def header_profile(head) -> str:
-    """The profile of a file's header record ("" when the magic or header is damaged)."""
-    if head[:len(MAGIC)] != MAGIC or len(head) < len(MAGIC) + 9 or head[len(MAGIC)] != OP_HEADER:
-        return ""
-    try:
-        return _string(head, len(MAGIC) + 9)[0]
-    except (DamagedRecord, UnicodeDecodeError, struct.error):
-        return ""
 
 
 # -- one chunk ----------------------------------------------------------------------------------
@@ -205,41 +85,6 @@ class _Records:
         return bytes(self.data[start:max(start, int(self.ends[row]))])
 
 
-def _decompress(body) -> bytes:
-    """Decompressed, CRC-checked records of a chunk body (DamagedRecord if not)."""
-    if len(body) < _CHUNK_HEAD.size:
-        raise DamagedRecord("chunk header short")
-    _start, _end, size, crc, comp_len = _CHUNK_HEAD.unpack_from(body, 0)
-    pos = _CHUNK_HEAD.size
-    if comp_len > 8 or pos + comp_len + 8 > len(body):
-        raise DamagedRecord("chunk compression field damaged")
-    compression = bytes(body[pos:pos + comp_len])
-    pos += comp_len
-    (data_len,) = _U64.unpack_from(body, pos)
-    pos += 8
-    if pos + data_len != len(body):
-        raise DamagedRecord("chunk data length does not match record")
-    raw = body[pos:]
-    if size > MAX_CHUNK_BYTES:
-        raise DamagedRecord(f"chunk size field damaged ({size} bytes)")
-    import zstandard
-    try:
-        if compression == b"zstd":
-            data = zstandard.ZstdDecompressor().decompress(raw, max_output_size=size)
-        elif compression == b"lz4":
-            import lz4.frame
-            data = lz4.frame.decompress(raw)
-        elif compression == b"":
-            data = bytes(raw)
-        else:
-            raise DamagedRecord(f"unknown chunk compression {compression!r}")
-    except (zstandard.ZstdError, RuntimeError, ValueError, OverflowError, MemoryError) as exc:
-        raise DamagedRecord(f"chunk does not decompress: {exc}") from None
-    if len(data) != size or (crc != 0 and crc32(data) != crc):
-        raise DamagedRecord("chunk CRC mismatch")
-    return data
-
-
 class _Chunk(NamedTuple):
     valid: bool
     """Decompressed, CRC and tiling checked (what makes a chunk a resynchronisation point)."""
@@ -265,19 +110,6 @@ def _load_chunk(view, pos: int, use_numba: bool) -> _Chunk:
     if not records.parsed and len(records.opcodes) == 0 and not _tiles(data):
         return _INVALID
     return _Chunk(True, records)
-
-
-def _tiles(data: bytes) -> bool:
-    """True if ``data``'s records tile it exactly (opcodes known, lengths in range)."""
-    pos, size, head, valid = 0, len(data), _RECORD_HEAD.unpack_from, _VALID_OPS
-    while pos < size:
-        if pos + 9 > size:
-            return False
-        opcode, length = head(data, pos)
-        pos += 9 + length
-        if opcode not in valid or pos > size:
-            return False
-    return True
 
 
 class _Scanner:
@@ -403,30 +235,7 @@ def _expected_chunks(buf) -> np.ndarray:
     return np.array(found, dtype=np.int64)
 
 
-def _summary_crc_ok(buf) -> bool:
-    """True if the file ends in an intact footer whose summary CRC matches the summary section.
-
-    Records outside chunks carry no CRC of their own; the summary's copies of the schema and
-    channel records are trusted only through this one (MCAP spec: Footer.summary_crc)."""
-    footer = len(buf) - len(MAGIC) - 9 - 20
-    if footer < len(MAGIC) or buf[len(buf) - len(MAGIC):] != MAGIC:
-        return False
-    opcode, length = _RECORD_HEAD.unpack_from(buf, footer)
-    if opcode != OP_FOOTER or length != 20:
-        return False
-    summary_start, _, crc = struct.unpack_from("<QQI", buf, footer + 9)
-    return crc != 0 and len(MAGIC) < summary_start <= footer and \
-        crc32(buf[summary_start:footer + 9 + 16]) == crc
-
-
 # -- channels and batches -----------------------------------------------------------------------
-
-class _Part(NamedTuple):
-    """Messages of one `_Records` (rows, in order) that belong to one batch."""
-
-    records: _Records
-    rows: np.ndarray
-
 
 class _Channels:
     """Schema and channel records seen so far, and messages waiting for their channel."""
@@ -565,112 +374,6 @@ def _walk(buf, scanner: _Scanner, report: ReadReport, channels: _Channels, use_n
 
 # -- windows ------------------------------------------------------------------------------------
 
-class Window:
-    """Consecutive batches (a chunk's messages each) of one file, decoded.
-
-    Per message, in file order: ``channel_ids``, ``sequences``, ``log_times_ns``,
-    ``publish_times_ns`` (monotonic) and ``batch_starts`` (index of each batch's first message).
-    Packed topics' records are in `records` (per channel, whole records only); other payloads by
-    `payloads`."""
-
-    def __init__(self, batches: list[list[_Part]], channels: dict[int, Channel], use_numba: bool):
-        parts = [part for batch in batches for part in batch]
-        self.channels = channels
-        self._parts = parts
-        sizes = np.array([len(p.rows) for p in parts], dtype=np.int64)
-        self._part_starts = np.concatenate(([0], np.cumsum(sizes)))
-        per_batch = np.array([sum(len(p.rows) for p in batch) for batch in batches], dtype=np.int64)
-        self.batch_starts = np.concatenate(([0], np.cumsum(per_batch)[:-1])) if len(batches) else per_batch
-
-        def column(name):
-            return np.concatenate([getattr(p.records, name)[p.rows] if len(p.rows) != len(p.records.opcodes)
-                                   else getattr(p.records, name) for p in parts]) if parts else np.zeros(0)
-
-        self.channel_ids = column("channel_ids").astype(np.uint16, copy=False)
-        self.sequences = column("sequences").astype(np.uint32, copy=False)
-        self.log_times_ns = column("log_times").astype(np.uint64, copy=False)
-        self.publish_times_ns = column("publish_times").astype(np.uint64, copy=False)
-        self._starts = column("starts").astype(np.int64, copy=False) + chunk_walk.MESSAGE_HEAD
-        self._lengths = np.maximum(column("ends").astype(np.int64, copy=False) - self._starts, 0)
-        self._records: dict[int, np.ndarray] = {}
-        self._counts: dict[int, np.ndarray] = {}
-        self._scatter_all(use_numba)
-
-    def __len__(self) -> int:
-        return len(self.channel_ids)
-
-    def _scatter_all(self, use_numba: bool) -> None:
-        scatter = chunk_walk.kernels(use_numba)["scatter"]
-        for channel_id in np.unique(self.channel_ids).tolist():
-            topic = PACKED_TOPICS.get(self.channels[channel_id].topic)
-            if topic is None:
-                continue
-            itemsize = topic.dtype.itemsize
-            mine = self.channel_ids == channel_id
-            counts = self._lengths[mine] // itemsize
-            offsets = np.concatenate(([0], np.cumsum(counts * itemsize)))
-            target = np.empty(int(offsets[-1]), np.uint8)
-            rows = np.flatnonzero(mine)
-            starts, lengths, at = self._starts[rows], counts * itemsize, offsets[:-1]
-            for k, a, b in self._by_part(rows):
-                scatter(self._parts[k].records.array, starts[a:b], lengths[a:b], target, at[a:b])
-            self._records[channel_id] = target.view(topic.dtype)
-            self._counts[channel_id] = counts
-
-    def _by_part(self, indices: np.ndarray) -> Iterator[tuple[int, int, int]]:
-        """(part, first, end) of the runs of ascending message ``indices`` that lie in one part."""
-        which = np.searchsorted(self._part_starts, indices, side="right") - 1
-        edges = np.flatnonzero(np.diff(which)) + 1
-        for a, b in zip([0, *edges.tolist()], [*edges.tolist(), len(indices)]):
-            if b > a:
-                yield int(which[a]), a, b
-
-    def packed_channels(self, topic: str) -> list[int]:
-        """Ids of the channels of a packed ``topic`` with messages in this window."""
-        return [cid for cid in self._records if self.channels[cid].topic == topic]
-
-    def records(self, channel_id: int) -> np.ndarray:
-        """Records of a packed channel in file order (a fresh writable array, contract dtype)."""
-        return self._records[channel_id]
-
-    def record_counts(self, channel_id: int) -> np.ndarray:
-        """Whole records of each of the channel's messages, in order."""
-        return self._counts[channel_id]
-
-    def topic_records(self, topic: str) -> np.ndarray:
-        """Records of all channels of a packed ``topic`` in file order."""
-        ids = self.packed_channels(topic)
-        if len(ids) == 1:
-            return self._records[ids[0]]
-        if not ids:
-            return np.zeros(0, PACKED_TOPICS[topic].dtype)
-        owner = np.concatenate([np.repeat(np.flatnonzero(self.channel_ids == cid), self._counts[cid]) for cid in ids])
-        return np.concatenate([self._records[cid] for cid in ids])[np.argsort(owner, kind="stable")]
-
-    def payload(self, index: int) -> bytes:
-        k = int(np.searchsorted(self._part_starts, index, side="right") - 1)
-        start = int(self._starts[index])
-        return bytes(self._parts[k].records.data[start:start + int(self._lengths[index])])
-
-    def payloads(self, indices) -> list[bytes]:
-        """Payloads of the messages at ``indices`` (ascending)."""
-        indices = np.asarray(indices, dtype=np.int64)
-        starts, lengths = self._starts[indices].tolist(), self._lengths[indices].tolist()
-        out = []
-        for k, a, b in self._by_part(indices):
-            data = self._parts[k].records.data
-            out += [data[x:x + n] for x, n in zip(starts[a:b], lengths[a:b])]
-        return out
-
-    def messages(self) -> Iterator[RawMessage]:
-        """Every message of the window in file order (payloads as bytes)."""
-        channels = self.channels
-        payloads = self.payloads(np.arange(len(self)))
-        for cid, seq, log, pub, data in zip(self.channel_ids.tolist(), self.sequences.tolist(),
-                                            self.log_times_ns.tolist(), self.publish_times_ns.tolist(), payloads):
-            yield RawMessage(channels[cid], seq, log, pub, data)
-
-
 @contextmanager
 def _mapped(source):
     """(buffer, memoryview, file size) of a path (memory-mapped) or of bytes-like data."""
@@ -774,4 +477,4 @@ def _numba_available() -> bool:
 
 
 __all__ = ["Channel", "RawMessage", "ReadReport", "Window", "read_windows", "read_messages", "first_message",
-           "packed_records", "last_payload", "header_profile", "MAGIC"]
+           "packed_records", "last_payload", "header_profile", "MAGIC", "PACKED_TOPICS"]
