@@ -6,7 +6,7 @@ from typing import TYPE_CHECKING, Iterator, NamedTuple
 
 import numpy as np
 
-from . import CAN_FRAMES, IMU, Topic
+from . import CAN_FRAMES, IMU, Topic, unpack
 from . import chunk_walk
 from .mcap_records import Channel, RawMessage
 
@@ -73,7 +73,7 @@ class Window:
             starts, lengths, at = self._starts[rows], counts * itemsize, offsets[:-1]
             for k, a, b in self._by_part(rows):
                 scatter(self._parts[k].records.array, starts[a:b], lengths[a:b], target, at[a:b])
-            self._records[channel_id] = target.view(topic.dtype)
+            self._records[channel_id] = unpack(topic, target)
             self._counts[channel_id] = counts
 
     def _by_part(self, indices: np.ndarray) -> Iterator[tuple[int, int, int]]:
