@@ -10,7 +10,7 @@ import pytest
 from mcap.reader import make_reader
 
 from haulprofile import contract
-from haulprofile.analysis.ingest import synthetic
+from haulprofile.testing import logs as synthetic
 from haulprofile.contract import chunk_walk, reader
 
 

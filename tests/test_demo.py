@@ -46,7 +46,7 @@ def demo(tmp_path_factory):
     root = tmp_path_factory.mktemp("demo")
     (root / "short.toml").write_text(SCENARIO)
     code = main(["demo", "--out", str(root / "out"), "--scenario", str(root / "short.toml"), "--seed", "5",
-                 "--quiet"])
+                 "--realism", "ideal", "--quiet"])
     return code, root / "out"
 
 

@@ -14,7 +14,7 @@ from haulprofile.analysis.fleet.virtual import virtual_fleet
 from haulprofile.analysis.loads import loads_of, resample_mean
 from haulprofile.analysis.loads.collectives import damage_equivalent_range, rainflow_cycles
 from haulprofile.analysis.markov import count_transitions, select_cycle
-from haulprofile.analysis.markov.synthetic import synthetic_drive
+from haulprofile.testing.drives import synthetic_drive
 from haulprofile.analysis.vehicle import load_vehicle
 
 VEHICLE = load_vehicle("rigid-18t")
@@ -159,10 +159,10 @@ def test_dask_local_cluster_gives_the_serial_result(small_fleet, serial_run, tmp
 
 
 def test_torque_level_crossings_on_the_fixed_grid_equal_a_plain_count():
-    from haulprofile.analysis.fleet.statistics import _crossings
+    from haulprofile.analysis.fleet.statistics import crossing_histogram
 
     torque = np.cumsum(np.random.default_rng(8).normal(0.0, 400.0, 2000))
-    crossings = _crossings(torque, 500.0)
+    crossings = crossing_histogram(torque, 500.0)
     for level_index, count in zip(crossings.keys[:, 0], crossings.values):
         level = level_index * 500.0
         assert count == sum(1 for x0, x1 in zip(torque[:-1], torque[1:]) if x0 < level <= x1)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from haulprofile.analysis.cli import main
-from haulprofile.analysis.markov.synthetic import synthetic_drive
+from haulprofile.testing.drives import synthetic_drive
 
 
 def write_table(path, seed: int, duration_s: float = 900.0):
@@ -168,3 +168,21 @@ def test_groups_of_the_same_directory_name_get_distinct_names(tmp_path):
                         dem_dir=str(tmp_path))
     assert [g.name for g in spec.groups] == ["logs", "logs-2"]
     assert spec.dem_dir == tmp_path
+
+
+def test_copies_of_a_log_count_once(tmp_path, capsys):
+    """Three copies of one drive in a group's directory: one log in the totals, two warnings."""
+    import shutil
+
+    write_table(tmp_path / "group" / "drive.parquet", 3, duration_s=600.0)
+    for name in ("copy-1.parquet", "copy-2.parquet"):
+        shutil.copy(tmp_path / "group" / "drive.parquet", tmp_path / "group" / name)
+    code, out, err = run_cli(capsys, "fleet", tmp_path / "group", "--vehicle", "rigid-18t", "--out", tmp_path / "out",
+                             "--workers", "1", "--candidates", "50", "--cycle-duration", "300", "--json")
+    assert code in (0, 3), err
+    (group,) = json.loads(out)["groups"]
+    import pandas as pd
+
+    time = pd.read_parquet(tmp_path / "group" / "drive.parquet")["time_s"]
+    assert group["logs"] == 1 and group["totals"]["duration_s"] == pytest.approx(time.iloc[-1] - time.iloc[0])
+    assert err.count("same content") == 2

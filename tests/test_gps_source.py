@@ -1,4 +1,4 @@
-"""GPS source on real receiver output (``shared/data/real-gps``) written into a pseudo-terminal that
+"""GPS source on real receiver output (``tests/data/real-gps``) written into a pseudo-terminal that
 the real serial source opens by path; references computed with pynmea2 and pyubx2."""
 
 from __future__ import annotations
@@ -15,7 +15,8 @@ import pytest
 from haulprofile import contract
 from haulprofile.logger.clock import Clock
 from haulprofile.logger.emulators.gps import epoch_sentences, with_checksum
-from haulprofile.logger.sources.gps import GpsSource, nmea_checksum_ok, ubx_cfg_rate
+from haulprofile.contract.nmea import nmea_checksum_ok
+from haulprofile.logger.sources.gps import GpsSource, ubx_cfg_rate
 
 
 def through_pty(data: bytes, configure_rate_hz: float | None = None):
@@ -86,8 +87,8 @@ def _reference(data: bytes):
     return parsed, bad
 
 
-def test_ublox7_power_up_stream(shared_data):
-    data = (shared_data / "real-gps" / "pynmeagps-pygpsdata-nmea2.log").read_bytes()
+def test_ublox7_power_up_stream(data_dir):
+    data = (data_dir / "real-gps" / "pynmeagps-pygpsdata-nmea2.log").read_bytes()
     source, items, _ = through_pty(data)
     parsed, bad = _reference(data)
     gga = [m for m in parsed if getattr(m, "sentence_type", "") == "GGA" and int(m.gps_qual or 0) > 0]
@@ -105,8 +106,8 @@ def test_ublox7_power_up_stream(shared_data):
 
 @pytest.mark.parametrize("name", ["pynmeagps-pygpsdata-nmeabadck.log", "pyubx2-pygpsdata-BADCK2.log",
                                   "pyubx2-pygpsdata-NMEABADEND.log"])
-def test_bad_checksums_and_truncated_lines_are_counted_not_fatal(shared_data, name):
-    data = (shared_data / "real-gps" / name).read_bytes()
+def test_bad_checksums_and_truncated_lines_are_counted_not_fatal(data_dir, name):
+    data = (data_dir / "real-gps" / name).read_bytes()
     source, items, _ = through_pty(data)
     _, bad = _reference(data)
     assert source.stats.state == "running"
@@ -117,8 +118,8 @@ def test_bad_checksums_and_truncated_lines_are_counted_not_fatal(shared_data, na
 @pytest.mark.parametrize("name", ["pynmeagps-trimble_nmea.log", "pyubx2-pygpsdata-MIXED.log",
                                   "pynmeagps-pygpsdata-mixed.log", "pynmeagps-pygpsdata-nmeastartup.log",
                                   "pynmeagps-pygpsdata-nmea4.log", "pyubx2-pygpsdata-NMEA.log"])
-def test_proprietary_sentences_and_binary_ubx_are_skipped(shared_data, name):
-    data = (shared_data / "real-gps" / name).read_bytes()
+def test_proprietary_sentences_and_binary_ubx_are_skipped(data_dir, name):
+    data = (data_dir / "real-gps" / name).read_bytes()
     source, items, _ = through_pty(data)
     parsed, _ = _reference(data)
     gga = [m for m in parsed if getattr(m, "sentence_type", "") == "GGA" and int(m.gps_qual or 0) > 0 and m.altitude is not None]
@@ -126,15 +127,18 @@ def test_proprietary_sentences_and_binary_ubx_are_skipped(shared_data, name):
     assert len(_fixes(items)) == len({m.timestamp for m in gga})
 
 
-def test_gst_gives_horizontal_and_vertical_accuracy(shared_data):
-    data = (shared_data / "real-gps" / "pyubx2-pygpsdata-MIXED2.log").read_bytes()
+def test_gst_gives_horizontal_and_vertical_accuracy(data_dir):
+    data = (data_dir / "real-gps" / "pyubx2-pygpsdata-MIXED2.log").read_bytes()
     source, items, _ = through_pty(data)
     parsed, _ = _reference(data)
     gst = next(m for m in parsed if getattr(m, "sentence_type", "") == "GST")
     fix = next(f for f in _fixes(items) if f["h_acc_m"] is not None)
     assert fix["h_acc_m"] == math.hypot(float(gst.std_dev_latitude), float(gst.std_dev_longitude))
     assert fix["v_acc_m"] == float(gst.std_dev_altitude)
-    assert fix["position_covariance"][0] == fix["h_acc_m"] ** 2
+    # foxglove.LocationFix: covariance in east, north, up; GST's longitude sigma is east, latitude north
+    assert float(gst.std_dev_latitude) != float(gst.std_dev_longitude)
+    assert fix["position_covariance"][0] == float(gst.std_dev_longitude) ** 2
+    assert fix["position_covariance"][4] == float(gst.std_dev_latitude) ** 2
     assert fix["position_covariance"][8] == fix["v_acc_m"] ** 2
     assert fix["position_covariance_type"] == 2
 
@@ -148,14 +152,14 @@ def test_startup_rate_configuration_is_a_valid_ubx_cfg_rate():
     assert written == ubx_cfg_rate(10.0)
 
 
-def test_checksum_agrees_with_pynmea2(shared_data):
+def test_checksum_agrees_with_pynmea2(data_dir):
     import datetime as dt
     sentences = epoch_sentences(dt.datetime(2024, 5, 14, 8, 0, 1, 100000),
                                 {"latitude_deg": -33.8688, "longitude_deg": 151.2093, "altitude_m": 58.0,
                                  "speed_mps": 12.5, "course_deg": 271.0, "h_acc_m": 1.8, "v_acc_m": 3.1})
     lines = [line.decode("ascii", "replace").strip()
              for name in ("pynmeagps-pygpsdata-nmeabadck.log", "pyubx2-pygpsdata-BADCK2.log")
-             for line in (shared_data / "real-gps" / name).read_bytes().split(b"\n") if line.startswith(b"$")]
+             for line in (data_dir / "real-gps" / name).read_bytes().split(b"\n") if line.startswith(b"$")]
     for sentence in sentences + lines:
         try:
             pynmea2.parse(sentence, check=True)

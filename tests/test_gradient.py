@@ -8,10 +8,12 @@ import pytest
 from haulprofile.analysis import road_load
 from haulprofile.analysis.dem.srtm import SrtmDem, write_hgt
 from haulprofile.analysis.errors import UserError
-from haulprofile.analysis.gradient import estimate_gradient, gradient_with_dem_fallback
+from haulprofile.analysis.gradient import estimate_gradient
 from haulprofile.analysis.gradient import grid as distance_grid
 from haulprofile.analysis.gradient import sources
+from haulprofile.analysis.gradient.stage import GradientOptions, gradient_stage
 from haulprofile.analysis.kinematics import acceleration_mps2
+from haulprofile.analysis.pipeline import Options, RunContext
 from haulprofile.analysis.vehicle import load_vehicle
 
 LAT0, LON0 = 47.5, 11.02
@@ -164,14 +166,21 @@ def test_fused_height_integrates_to_fused_gradient(drive, dem):
     assert np.nanmedian(np.abs(height - road_height_m(s))) < 5.0
 
 
+def fallback_stage(drive, dem_dir, said):
+    ctx = RunContext(inputs=[], out_dir=".", signals=drive.copy(), dem_dir=dem_dir, say=said.append,
+                     options=Options(gradient=GradientOptions(barometer_off_map=True)))
+    gradient_stage(ctx)
+    return ctx.results.gradient
+
+
 def test_baro_only_without_dem_and_missing_tile_falls_back(drive, tmp_path):
     said = []
-    result = gradient_with_dem_fallback(drive, None, say=said.append)
+    result = fallback_stage(drive, None, said)
     assert "gradient_map_pct" not in result.grid and grid_rmse(result, drive, lambda i: ~i | i) < 0.5
     other = tmp_path / "elsewhere"
     other.mkdir()
     write_hgt(other / "N10E010.hgt", np.zeros((1201, 1201)))
-    result = gradient_with_dem_fallback(drive, other, say=said.append)
+    result = fallback_stage(drive, other, said)
     assert any("N47E011" in s and "barometer alone" in s for s in said)
 
 

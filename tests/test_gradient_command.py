@@ -92,3 +92,16 @@ def test_run_pipeline_on_a_drive_without_valid_samples_says_so_and_gives_no_numb
     assert any(s.startswith("mass: skipped") and "gradient_pct" in s for s in said)
     signals = pd.read_parquet(tmp_path / "out" / "signals.parquet")
     assert "mass_kg" not in signals or signals["mass_kg"].isna().all()
+
+
+def test_known_mass_and_gradient_method_options(table_and_dem, tmp_path, capsys):
+    table, dem = table_and_dem
+    assert cli.main(["mass", str(table), "--vehicle", "rigid-18t", "--dem", str(dem), "--out", str(tmp_path),
+                     "--no-figure", "--known-mass", "1=15000", "--gradient-method", "paper"]) == 0
+    out = capsys.readouterr().out
+    assert "torque gain calibrated from segment(s) [1]" in out
+    mass = json.loads((tmp_path / "mass.json").read_text())
+    assert mass["segments"][0]["mass_kg"] == 15_000 and mass["road_load"]["torque_gain"]["calibrated_from"] == [1]
+    assert cli.main(["mass", str(table), "--vehicle", "rigid-18t", "--out", str(tmp_path), "--known-mass", "7=1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--known-mass" in err[0]

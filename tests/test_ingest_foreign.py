@@ -9,8 +9,9 @@ import pandas as pd
 import pytest
 
 from haulprofile.analysis import cli
-from haulprofile.analysis.ingest import ingest_logs, synthetic
-from haulprofile.analysis.ingest.synthetic import BIN_NS, can_frames, make_truth
+from haulprofile.analysis.ingest import ingest_logs
+from haulprofile.testing import logs as synthetic
+from haulprofile.testing.logs import BIN_NS, can_frames, make_truth
 
 EPOCH_NS = 1_700_000_000_000_000_000
 
@@ -50,7 +51,7 @@ def test_signals_table_input_passes_through(tmp_path):
     table.to_csv(path, index=False)
     frame, summary = ingest_logs([path])
     assert frame["own_column"].tolist() == list("abcde") and summary["source"] == "signals table"
-    from haulprofile.analysis.ingest import stage
+    from haulprofile.analysis.ingest.stage import ingest_stage as stage
     from haulprofile.analysis.pipeline import RunContext
 
     ctx = RunContext(inputs=[path], out_dir=tmp_path, say=lambda _m: None)
@@ -79,7 +80,7 @@ def test_commands(tmp_path, capsys):
 
 
 def test_pipeline_stage(tmp_path):
-    from haulprofile.analysis.ingest import stage
+    from haulprofile.analysis.ingest.stage import ingest_stage as stage
     from haulprofile.analysis.pipeline import RunContext
 
     log = tmp_path / "log.mcap"
@@ -96,7 +97,7 @@ def test_pipeline_stage(tmp_path):
 def test_stage_without_speed_says_so(tmp_path):
     """A log without any speed source: a one-line error naming what is missing, not a KeyError later."""
     from haulprofile.analysis.errors import UserError
-    from haulprofile.analysis.ingest import stage
+    from haulprofile.analysis.ingest.stage import ingest_stage as stage
     from haulprofile.analysis.pipeline import RunContext
     from haulprofile import contract
     from haulprofile.logger.writer import LogWriter
@@ -123,3 +124,23 @@ def test_unreadable_foreign_log_is_a_one_line_error(tmp_path, name):
     with pytest.raises(UserError) as raised:
         ingest_logs([path])
     assert "\n" not in str(raised.value) and name in str(raised.value)
+
+
+def test_a_cut_mf4_gives_one_line_and_no_traceback_from_asammdf(tmp_path):
+    """asammdf's half-built reader complains from ``__del__`` after the clean error; it must not reach the user."""
+    import subprocess
+    import sys
+
+    asammdf = pytest.importorskip("asammdf")
+    t = np.arange(20000) * 0.01
+    mdf = asammdf.MDF(version="4.10")
+    mdf.append([asammdf.Signal(np.arange(20000, dtype=np.uint32), t, name="CAN_DataFrame.ID"),
+                asammdf.Signal(np.full(20000, 8, np.uint8), t, name="CAN_DataFrame.DLC")])
+    mdf.save(tmp_path / "full.mf4", overwrite=True)
+    mdf.close()
+    whole = (tmp_path / "full.mf4").read_bytes()
+    (tmp_path / "cut.mf4").write_bytes(whole[:len(whole) // 2])
+    result = subprocess.run([sys.executable, "-m", "haulprofile.analysis.cli", "info", str(tmp_path / "cut.mf4")],
+                            capture_output=True, text=True)
+    assert result.returncode == 2
+    assert len(result.stderr.strip().splitlines()) == 1 and "cut.mf4" in result.stderr, result.stderr

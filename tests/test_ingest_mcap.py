@@ -7,7 +7,8 @@ import pytest
 from mcap.reader import make_reader
 
 from haulprofile.analysis.errors import UserError
-from haulprofile.analysis.ingest import ingest_logs, iter_log_messages, read_frames, read_logs, synthetic
+from haulprofile.analysis.ingest import ingest_logs, iter_log_messages, read_frames, read_logs
+from haulprofile.testing import logs as synthetic
 from haulprofile.contract.reader import ReadReport, read_messages
 from haulprofile.analysis.ingest.recover import recover
 from haulprofile import contract

@@ -1,18 +1,21 @@
-"""Real J1939 recordings (CANedge MF4, see shared/data/real-can/README.md) through the ingest."""
+"""Real J1939 recordings (CANedge MF4, see tests/data/real-can/README.md) through the ingest."""
+
+from pathlib import Path
 
 import cantools
 import numpy as np
 import pytest
 
-from haulprofile.analysis.ingest import foreign, j1939_decode, read_logs
+from haulprofile.analysis.cli import main
+from haulprofile.analysis.ingest import foreign, ingest_logs, j1939_decode, read_logs
 from haulprofile.contract import j1939
 
 RECORDINGS = {"css-j1939-idle-127s.MF4": 57_849, "css-j1939-tp-186s.MF4": 1_815}
 
 
 @pytest.fixture(scope="module", params=sorted(RECORDINGS))
-def recording(request, shared_data):
-    path = shared_data / "real-can" / request.param
+def recording(request, data_dir):
+    path = data_dir / "real-can" / request.param
     frames, _ = foreign.read_can_log(path)
     return request.param, path, frames
 
@@ -80,10 +83,10 @@ def test_ec1_reference_torque_comes_from_bam(recording):
     assert np.nanmax(table["engine_torque_nm"]) <= np.nanmax(torque_pct) / 100 * reference + 1e-9
 
 
-def test_real_dbc_matches_cantools_on_real_frames(recording, shared_data):
+def test_real_dbc_matches_cantools_on_real_frames(recording, data_dir):
     """The recordings' own J1939 DBC through cantools (PGN match via frame_id_mask) vs our decoding."""
     _, _, frames = recording
-    database = cantools.database.load_file(str(shared_data / "real-can" / "CSS-Electronics-SAE-J1939-DEMO.dbc"),
+    database = cantools.database.load_file(str(data_dir / "real-can" / "CSS-Electronics-SAE-J1939-DEMO.dbc"),
                                            frame_id_mask=0x03FFFF00)
     decoded = j1939_decode.decode_block(frames)
     pairs = {"EEC1": (j1939.PGN_EEC1, "EngineSpeed", "engine_speed_rpm"),
@@ -107,23 +110,62 @@ def test_real_dbc_matches_cantools_on_real_frames(recording, shared_data):
     assert compared > 100
 
 
-def test_user_dbc_columns_from_real_log(shared_data):
+def test_user_dbc_columns_from_real_log(data_dir):
     """A user's DBC adds columns by signal name, multi-packet messages included (tp_j1939.dbc)."""
-    path = shared_data / "real-can" / "css-j1939-tp-186s.MF4"
-    table = read_logs([path], dbc=shared_data / "real-can" / "tp_j1939.dbc")
+    path = data_dir / "real-can" / "css-j1939-tp-186s.MF4"
+    table = read_logs([path], dbc=data_dir / "real-can" / "tp_j1939.dbc")
     frames, _ = foreign.read_can_log(path)
     messages, _ = j1939_decode.reassemble(j1939_decode.tp_frames(frames))
-    message = cantools.database.load_file(str(shared_data / "real-can" / "tp_j1939.dbc")).get_message_by_name("EC1")
+    message = cantools.database.load_file(str(data_dir / "real-can" / "tp_j1939.dbc")).get_message_by_name("EC1")
     expected = {message.decode(m.data.ljust(40, b"\xff"))["EngineSpeedAtPoint5"] for m in messages
                 if m.pgn == j1939.PGN_EC1}
     assert set(np.unique(table["EngineSpeedAtPoint5"].dropna())) <= expected | {np.mean(list(expected))}
     assert table["EngineSpeedAtPoint5"].notna().sum() > 10
 
 
-def test_idle_recording_signals(shared_data):
-    table = read_logs([shared_data / "real-can" / "css-j1939-idle-127s.MF4"])
+def test_idle_recording_signals(data_dir):
+    table = read_logs([data_dir / "real-can" / "css-j1939-idle-127s.MF4"])
     assert table.attrs["ingest"]["valid_fraction"] == 1.0
     assert (table["speed_mps"] == 0).all()
     assert table["engine_speed_rpm"].between(640, 660).all()
     assert table["time_s"].iloc[0] == 0 and np.allclose(np.diff(table["time_s"]), 0.1)
     assert table["wall_time_ns"].iloc[0] // 10**9 > 1_600_000_000  # 2021, from the MF4 start time
+
+
+@pytest.mark.parametrize("name", ["css-j1939-tp-186s.MF4", "css-j1939-idle-127s.MF4"])
+@pytest.mark.parametrize("share", [0.3, 0.5, 0.77])
+def test_a_cut_canedge_file_is_said_to_be_cut(data_dir, tmp_path, name, share):
+    data = (data_dir / "real-can" / name).read_bytes()
+    cut = tmp_path / name
+    cut.write_bytes(data[:int(len(data) * share)])
+    said = []
+    table, summary = ingest_logs([cut], say=said.append)
+    assert table["time_s"].iloc[-1] < 0.9 * read_logs([data_dir / "real-can" / name])["time_s"].iloc[-1]
+    assert len(summary["warnings"]) == 1 and "cut short" in summary["warnings"][0]
+    assert said == [f"warning: {summary['warnings'][0]}"]
+
+
+@pytest.mark.parametrize("name", ["css-j1939-tp-186s.MF4", "css-j1939-idle-127s.MF4"])
+def test_whole_canedge_files_are_not_called_cut(data_dir, name):
+    _, summary = ingest_logs([data_dir / "real-can" / name])
+    assert summary["warnings"] == []
+
+
+def test_a_cut_finalised_mf4_is_said_to_be_cut(data_dir, tmp_path):
+    asammdf = pytest.importorskip("asammdf")
+    with asammdf.MDF(str(data_dir / "real-can" / "css-j1939-tp-186s.MF4")) as mdf:
+        finalised = Path(mdf.save(str(tmp_path / "finalised.mf4"), overwrite=True))
+    assert finalised.read_bytes()[:8] == b"MDF     " and foreign.cut_short(finalised) is None
+    cut = tmp_path / "cut.mf4"
+    cut.write_bytes(finalised.read_bytes()[:len(finalised.read_bytes()) // 2])
+    assert "cut short" in foreign.cut_short(cut)
+
+
+def test_analyze_info_warns_once_on_a_cut_mf4(data_dir, tmp_path, capsys):
+    data = (data_dir / "real-can" / "css-j1939-tp-186s.MF4").read_bytes()
+    cut = tmp_path / "cut.MF4"
+    cut.write_bytes(data[:len(data) // 2])
+    assert main(["info", str(cut)]) == 0
+    out, err = capsys.readouterr()
+    lines = [line for line in (out + err).splitlines() if "cut short" in line]
+    assert len(lines) == 1 and lines[0].startswith("warning: cut.MF4: MF4 file cut short")

@@ -13,7 +13,8 @@ from mcap.stream_reader import breakup_chunk
 from mcap.data_stream import ReadDataStream
 
 from haulprofile.analysis.errors import UserError
-from haulprofile.analysis.ingest import ingest_logs, synthetic
+from haulprofile.analysis.ingest import ingest_logs
+from haulprofile.testing import logs as synthetic
 from haulprofile.contract.reader import ReadReport, read_messages
 
 ITERATIONS = 1000

@@ -5,8 +5,9 @@ import pandas as pd
 import pytest
 
 from haulprofile.analysis.cli import main
-from haulprofile.analysis.loads import collectives_of, compare, stage
-from haulprofile.analysis.pipeline import RunContext
+from haulprofile.analysis.loads import collectives_of, compare
+from haulprofile.analysis.loads.stage import LoadsOptions, loads_stage
+from haulprofile.analysis.pipeline import Options, RunContext, run
 from haulprofile.analysis.vehicle import load_vehicle
 
 
@@ -38,10 +39,11 @@ def test_heavier_cycle_shows_higher_damage_equivalent_torque(rigid):
 
 
 def test_stage_writes_measured_and_generated(tmp_path, rigid):
-    drive(600, 2).to_csv(tmp_path / "cycle.csv", index=False)
+    drive(600, 2).to_csv(tmp_path / "generated.csv", index=False)
     messages = []
-    ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=rigid, signals=drive(1800, 1), say=messages.append)
-    stage(ctx)
+    ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=rigid, signals=drive(1800, 1), say=messages.append,
+                     options=Options(loads=LoadsOptions(generated_file=tmp_path / "generated.csv")))
+    run(ctx, start="loads", until="loads")
     summary = ctx.summary["loads"]
     assert {"measured", "generated", "comparison"} <= set(summary)
     assert summary["measured"]["duration_s"] == pytest.approx(1799.5)
@@ -56,7 +58,7 @@ def test_stage_says_what_is_missing(tmp_path, rigid):
     messages = []
     ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=rigid, say=messages.append,
                      signals=drive(100, 1).drop(columns=["mass_kg"]))
-    stage(ctx)
+    loads_stage(ctx)
     assert "loads" not in ctx.summary and "mass_kg" in messages[0]
 
 

@@ -88,7 +88,7 @@ def _logger_frames(seen, ecu):
 @pytest.mark.parametrize("receive_interval_s", [0.02, 0.0])
 def test_obd_11bit_polling_at_the_configured_rate(receive_interval_s):
     """On the reader's 20 ms cadence and with a wake-up per frame (``receive_interval_s = 0``)."""
-    section = CanSection(interface="virtual", receive_interval_s=receive_interval_s)
+    section = CanSection(interface="virtual", listen_only=False, receive_interval_s=receive_interval_s)
     section.j1939.request_pgns = []
     frames, source, ecu, seen = run_can(section, 1.0)
     stats = source.obd_at_end
@@ -108,7 +108,7 @@ def test_obd_11bit_polling_at_the_configured_rate(receive_interval_s):
 
 
 def test_obd_29bit_addressing():
-    section = CanSection(interface="virtual")
+    section = CanSection(interface="virtual", listen_only=False)
     section.obd.addressing = "29bit"
     section.j1939.request_pgns = []
     frames, source, ecu, seen = run_can(section, 0.5)
@@ -119,7 +119,7 @@ def test_obd_29bit_addressing():
 
 
 def test_isotp_multi_frame_response_gets_flow_control_and_is_reassembled():
-    section = CanSection(interface="virtual")
+    section = CanSection(interface="virtual", listen_only=False)
     section.obd.pids = [0x0D, 0x0C, 0x62, 0x63, 0x61, 0x33]
     section.obd.pids_per_request = 6
     section.j1939.request_pgns = []
@@ -142,7 +142,7 @@ def test_isotp_multi_frame_response_gets_flow_control_and_is_reassembled():
 
 
 def test_no_ecu_answers_backs_off_to_a_slow_probe():
-    section = CanSection(interface="virtual")
+    section = CanSection(interface="virtual", listen_only=False)
     section.obd.timeout_s = 0.02
     section.obd.failed_rounds_before_probe = 1
     section.obd.probe_interval_s = 0.5
@@ -165,7 +165,7 @@ def test_listen_only_transmits_nothing():
 
 
 def test_only_allow_listed_ids_go_on_the_wire():
-    section = CanSection(interface="virtual")
+    section = CanSection(interface="virtual", listen_only=False)
     section.j1939.request_interval_s = 0.2
     frames, source, ecu, seen = run_can(section, 0.6)
     sent = _logger_frames(seen, ecu)
@@ -185,7 +185,7 @@ def _reassemble(frames, sender: int) -> bytes:
 
 
 def test_j1939_global_request_is_answered_by_bam():
-    section = CanSection(interface="virtual")
+    section = CanSection(interface="virtual", listen_only=False)
     section.obd.enabled = False
     section.j1939.request_pgns = [j1939.PGN_EC1, j1939.PGN_CVW]
     frames, source, ecu, seen = run_can(section, 0.6, broadcast=False)
@@ -198,7 +198,7 @@ def test_j1939_global_request_is_answered_by_bam():
 
 
 def test_j1939_rts_addressed_to_the_logger_is_answered_with_cts_and_ack():
-    section = CanSection(interface="virtual")
+    section = CanSection(interface="virtual", listen_only=False)
     section.obd.enabled = False
     section.j1939.request_pgns = [j1939.PGN_EC1]
     section.j1939.request_destination = 0x00
@@ -212,9 +212,9 @@ def test_j1939_rts_addressed_to_the_logger_is_answered_with_cts_and_ack():
     assert j1939.decode_pgn(j1939.PGN_EC1, data)["engine_reference_torque_nm"] == 2300.0
 
 
-def test_real_canedge_recording_replayed_is_logged_frame_for_frame(shared_data):
+def test_real_canedge_recording_replayed_is_logged_frame_for_frame(data_dir):
     asammdf = pytest.importorskip("asammdf")
-    mdf = asammdf.MDF(str(shared_data / "real-can" / "css-j1939-tp-186s.MF4"))
+    mdf = asammdf.MDF(str(data_dir / "real-can" / "css-j1939-tp-186s.MF4"))
     recorded = []
     for index, group in enumerate(mdf.groups):
         if "CAN_DataFrame.ID" not in {c.name for c in group.channels}:

@@ -7,7 +7,7 @@ import dataclasses
 import pytest
 
 from haulprofile.logger import config as cfg
-from haulprofile.logger.sources.can import allowed_tx_ids
+from haulprofile.logger.sources.can import allowed_tx_ids, transmit_warning
 
 
 def test_example_is_valid_and_matches_the_defaults():
@@ -51,4 +51,34 @@ def test_unreadable_and_invalid_files(tmp_path):
 def test_listen_only_empties_the_allow_list():
     config = cfg.from_dict({"can": {"listen_only": True}})
     assert allowed_tx_ids(config.can) == frozenset()
-    assert allowed_tx_ids(cfg.Config().can)
+
+
+def test_the_wiring_guide_shows_configuration_the_logger_accepts():
+    """docs/raspberry-pi.md: its TOML snippets load, the Sense HAT's LSM9DS1 addresses among them, and
+    every MCP2515 overlay line names the crystal and the interrupt pin."""
+    import re
+    import tomllib
+    from pathlib import Path
+
+    guide = (Path(__file__).resolve().parents[1] / "docs" / "raspberry-pi.md").read_text()
+    snippets = [block for block in re.findall(r"```\n(.*?)```", guide, re.S) if block.lstrip().startswith("[i2c")]
+    assert snippets, "the Sense HAT's addresses are shown as a configuration snippet"
+    for snippet in snippets:
+        config = cfg.from_dict(tomllib.loads(snippet))
+        assert (config.i2c.lsm9ds1.address_ag, config.i2c.lsm9ds1.address_m) == (0x6A, 0x1C)
+    overlays = re.findall(r"dtoverlay=mcp2515-can0[^\s']*", guide)
+    assert len(overlays) >= 2
+    assert all(re.search(r"oscillator=\d{7,8}\b", o) and re.search(r"interrupt=\d+\b", o) for o in overlays)
+    assert allowed_tx_ids(cfg.from_dict({"can": {"listen_only": False}}).can)
+
+
+def test_listen_only_is_the_default_everywhere():
+    """Defaults, the shipped example and a config without the key transmit nothing; transmitting
+    is said in one line at start."""
+    assert cfg.Config().can.listen_only is True
+    assert cfg.load(cfg.example_path()).can.listen_only is True
+    assert cfg.from_dict({"can": {"obd": {"enabled": True}}}).can.listen_only is True
+    assert transmit_warning(cfg.Config().can) is None
+    line = transmit_warning(cfg.from_dict({"can": {"listen_only": False}}).can)
+    assert line.startswith("TRANSMITTING on can0") and "OBD-II requests at 30 Hz" in line
+    assert "PGN 65251, 65258" in line and "\n" not in line

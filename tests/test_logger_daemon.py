@@ -133,7 +133,7 @@ def test_systemd_ready_and_watchdog_only_while_alive(tmp_path):
     async def kill_the_i2c_thread(daemon):
         await asyncio.sleep(1.6)
         i2c = next(s for s in daemon.sources if s.name == "i2c")
-        i2c._stop.set()
+        i2c.stop_thread()
         await asyncio.sleep(1.5)
         assert not daemon.alive()
         daemon.notifier.sent.append("--- i2c dead ---")

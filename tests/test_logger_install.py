@@ -32,14 +32,14 @@ def test_shellcheck():
 
 @pytest.mark.parametrize("bitrate, networkd", [("250000", "250K"), ("500000", "500K")])
 def test_dry_run_prints_every_install_step(bitrate, networkd):
-    result = run("--dry-run", "--bitrate", bitrate)
+    result = run("--dry-run", "--can-serial", "0043A1B2", "--bitrate", bitrate)
     assert result.returncode == 0, result.stderr
     steps = commands(result.stdout)
     text = "\n".join(steps)
     assert "apt-get install -y --no-install-recommends python3-venv python3-dev can-utils i2c-tools rsync" in text
     assert "raspi-config nonint do_i2c 0" in text and "mcp2515" not in text
     assert "useradd --system --user-group --home-dir /var/lib/haulprofile" in text
-    assert "usermod -a -G i2c,dialout haulprofile" in text
+    assert "usermod -a -G i2c haulprofile" in text and "dialout" not in text
     assert "python3 -m venv /opt/haulprofile/venv" in text
     assert "/opt/haulprofile/venv/bin/pip install --upgrade /opt/haulprofile/src[logger]" in text
     assert "/etc/udev/rules.d/80-haulprofile.rules" in text
@@ -68,6 +68,49 @@ def test_dry_run_with_the_mcp2515_overlay_and_no_start():
     (["--frobnicate"], "unknown option --frobnicate"),
 ])
 def test_bad_arguments_are_one_line(args, message):
-    result = run("--dry-run", *args)
+    result = run("--dry-run", "--can-serial", "0043A1B2", *args)
     assert result.returncode == 2 and message in result.stderr and result.stderr.count("\n") == 1
     assert result.stdout == ""
+
+
+def test_listen_only_unless_transmit_is_asked_for():
+    network = (SCRIPT.parents[1] / "udev" / "80-haulprofile-can.network").read_text()
+    assert "\nListenOnly=yes\n" in network
+    quiet = run("--dry-run", "--can-serial", "0043A1B2").stdout
+    assert "ListenOnly=no" not in quiet and "listen_only = false" not in quiet
+    loud = run("--dry-run", "--can-serial", "0043A1B2", "--transmit")
+    assert loud.returncode == 0, loud.stderr
+    assert "s/^ListenOnly=.*/ListenOnly=no/" in loud.stdout
+    assert "s|^listen_only = true |listen_only = false|" in loud.stdout and "WARNING: --transmit" in loud.stdout
+
+
+@pytest.mark.parametrize("args, rule", [
+    (["--can-serial", "0043A1B2"], 'KERNEL=="can*", ATTRS{serial}=="0043A1B2", NAME="hpcan0"'),
+    (["--can-path", "1-1.3"], 'KERNEL=="can*", KERNELS=="1-1.3", NAME="hpcan0"'),
+    (["--mcp2515"], 'KERNEL=="can*", DRIVERS=="mcp251x", KERNELS=="spi0.0", NAME="hpcan0"'),
+])
+def test_the_logger_s_own_can_adapter_is_named_by_serial_or_port(args, rule):
+    result = run("--dry-run", *args)
+    assert result.returncode == 0, result.stderr
+    written = [l for l in result.stdout.splitlines() if l.startswith("+ write /etc/udev/rules.d/79-haulprofile-can.rules")]
+    assert len(written) == 1 and written[0].endswith(rule)
+    assert 'channel = \\"hpcan0\\"' in result.stdout or 'channel = "hpcan0"' in result.stdout
+    assert "install -m 0640 -g haulprofile" in result.stdout  # the configuration may hold zones
+
+
+@pytest.mark.parametrize("args, message", [
+    ([], "name the logger's CAN adapter: --can-serial SERIAL, --can-path USB-PORT or --mcp2515"),
+    (["--can-serial", 'x" RUN+="/bin/sh'], "--can-serial: letters, digits and . _ : - only"),
+    (["--can-path", "usb1"], "--can-path: a USB port such as 1-1.3"),
+])
+def test_can_adapter_arguments_are_checked(args, message):
+    result = run("--dry-run", *args)
+    assert result.returncode == 2 and message in result.stderr and result.stderr.count("\n") == 1
+
+
+def test_recipient_turns_encryption_on_and_is_checked():
+    key = "age1pquupsq8hn9xj5x3h7fdszz4y9l5sd6wl0gqzh3vxrwgf7e4vydsxsxvnt"
+    result = run("--dry-run", "--can-serial", "0043A1B2", "--recipient", key)
+    assert result.returncode == 0 and f'recipients = ["{key}"]' in result.stdout
+    bad = run("--dry-run", "--can-serial", "0043A1B2", "--recipient", "AGE-SECRET-KEY-1QQQ")
+    assert bad.returncode == 2 and "--recipient must be an age public key" in bad.stderr

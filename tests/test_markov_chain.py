@@ -4,7 +4,7 @@ import numpy as np
 
 from haulprofile.analysis.markov import ClassWidths, TransitionCounts, build_chain, count_transitions, generate
 from haulprofile.analysis.markov import classes as cls
-from haulprofile.analysis.markov.counting import _closures, physically_possible
+from haulprofile.analysis.markov.counting import closures, physically_possible
 
 WIDTHS = ClassWidths()
 
@@ -16,18 +16,18 @@ def _keys(v, g, m):
 def test_closing_links_the_final_stop_to_a_stop_at_the_same_gradient_never_within_one_stop():
     # stop at g=2 (t0-1), drive, stop at g=5 (t4-5), drive, final stop at g=5 (t8-9)
     segment = _keys([0, 0, 3, 4, 0, 0, 6, 2, 0, 0], [2, 2, 3, 4, 5, 5, 5, 5, 5, 5], [150] * 10)
-    closing_from, closing_to = _closures([segment])
+    closing_from, closing_to = closures([segment])
     assert (closing_from.tolist(), closing_to.tolist()) == ([segment[9]], [segment[4]])
     assert physically_possible(closing_from, closing_to).all()
     # no other stop at the final gradient, none at the initial one: nothing to close
     lonely = _keys([0, 0, 3, 4, 0, 0], [2, 2, 3, 4, 7, 7], [150] * 6)
-    assert len(_closures([lonely])[0]) == 0
+    assert len(closures([lonely])[0]) == 0
 
 
 def test_closing_links_logs_given_together_and_changes_mass_only_at_standstill():
     first = _keys([0, 0, 5, 5, 0, 0], [1, 1, 2, 3, 4, 4], [150] * 6)
     second = _keys([0, 0, 5, 5, 0, 0], [4, 4, 3, 2, 1, 1], [120] * 6)
-    closing_from, closing_to = _closures([first, second])
+    closing_from, closing_to = closures([first, second])
     pairs = set(zip(closing_from.tolist(), closing_to.tolist()))
     assert (first[5], second[0]) in pairs and (second[5], first[0]) in pairs
     v0, g0, m0 = cls.decode(closing_from)

@@ -11,7 +11,7 @@ from haulprofile.analysis.errors import UserError
 from haulprofile.analysis.markov import ClassWidths, count_transitions, resample_1hz
 from haulprofile.analysis.markov import classes as cls
 from haulprofile.analysis.markov.counting import enforce_physics, physically_possible, statistics_of
-from haulprofile.analysis.markov.synthetic import synthetic_drive
+from haulprofile.testing.drives import synthetic_drive
 
 
 @pytest.fixture(scope="module")
@@ -147,11 +147,11 @@ def test_bad_input_is_a_one_line_user_error():
 
 
 def test_mass_missing_around_stops_is_filled_but_a_trip_without_mass_stays_a_gap():
-    from haulprofile.analysis.markov.counting import _mass_at_stops
+    from haulprofile.analysis.markov.counting import mass_at_stops
     nan = np.nan
     speed = np.array([0.0, 0.0, 0.3, 5.0, 5.0, 0.3, 0.0, 0.0, 0.4, 6.0, 0.2, 0.0, 0.0, 0.5, 7.0])
     mass = np.array([nan, nan, nan, 9e3, 9e3, nan, nan, nan, nan, nan, nan, nan, nan, 8e3, nan])
-    filled = _mass_at_stops(speed, mass)
+    filled = mass_at_stops(speed, mass)
     np.testing.assert_array_equal(filled[:8], [9e3] * 8)
     assert np.isnan(filled[8:11]).all()              # a trip without any mass estimate
     np.testing.assert_array_equal(filled[11:], [8e3] * 4)   # the stop after it: the departure mass

@@ -8,11 +8,11 @@ import pandas as pd
 import pytest
 
 from haulprofile.analysis import cli
-from haulprofile.analysis.markov import (count_transitions, cycle_to_vdri, select_cycle, stage,
+from haulprofile.analysis.markov import (count_transitions, cycle_to_vdri, select_cycle, cycle_stage,
                              vdri_to_time_cycle, write_cycle)
-from haulprofile.analysis.markov.synthetic import synthetic_drive
-from haulprofile.analysis.pipeline import RunContext
-from haulprofile.analysis.vecto import read_vdri
+from haulprofile.testing.drives import synthetic_drive
+from haulprofile.analysis.pipeline import RunContext, run
+from haulprofile.analysis.vecto import read_vdri, vdri_problems
 
 VALID_VECTO_ROUTES = ["Construction", "HeavyUrban", "Suburban", "UrbanDelivery"]
 
@@ -27,18 +27,40 @@ def selection(drive):
     return select_cycle(count_transitions(drive), 1800, 1000, seed=2)
 
 
-def test_cycle_to_vdri_and_back_is_exact(selection):
+def test_cycle_to_vdri_and_back_keeps_time_distance_and_stops(selection):
     cycle = selection.cycle
     vdri = cycle_to_vdri(cycle)
-    assert np.all(np.diff(vdri["distance_m"]) >= 0)
+    assert np.diff(vdri["distance_m"]).min() >= 1.0
     stops = vdri["target_speed_mps"] == 0
     assert np.all(vdri.loc[stops.to_numpy()[:-1].nonzero()[0], "stop_time_s"] > 0)
-    assert vdri["stop_time_s"].sum() == pytest.approx((cycle["speed_mps"].to_numpy()[:-1] == 0).sum())
+    # creeping under 1 m between two stops becomes stop time
+    assert vdri["stop_time_s"].sum() == pytest.approx((cycle["speed_mps"].to_numpy()[:-1] == 0).sum(), abs=3)
     back = vdri_to_time_cycle(vdri)
     assert len(back) == len(cycle)
-    np.testing.assert_allclose(back["speed_mps"], cycle["speed_mps"], atol=1e-12)
+    assert back["distance_m"].iloc[-1] == pytest.approx(cycle["distance_m"].iloc[-1], abs=1e-6)
+    np.testing.assert_allclose(back["distance_m"], cycle["distance_m"], atol=0.001 * cycle["distance_m"].iloc[-1])
+    # speeds differ only where rows under 1 m were joined into their mean speed
+    assert np.mean(np.isclose(back["speed_mps"], cycle["speed_mps"], atol=1e-9)) > 0.95
     np.testing.assert_allclose(back["gradient_pct"], cycle["gradient_pct"], atol=1e-12)
-    np.testing.assert_allclose(back["distance_m"], cycle["distance_m"], atol=1e-6)
+
+
+@pytest.mark.parametrize("kind, seed", [("urban", 41), ("urban", 7), ("regional", 41), ("regional", 3)])
+def test_every_exported_cycle_meets_vectos_rules(tmp_path, kind, seed):
+    measured = synthetic_drive(3600, seed=seed, kind=kind, rate_hz=10.0)
+    chosen = select_cycle(count_transitions(measured), 1200, 200, seed=seed)
+    vdri = write_cycle(chosen.cycle, tmp_path)["vdri"]
+    assert vdri_problems(vdri) == []
+    back = vdri_to_time_cycle(read_vdri(vdri))
+    assert abs(len(back) - len(chosen.cycle)) <= 2
+    assert back["distance_m"].iloc[-1] == pytest.approx(chosen.cycle["distance_m"].iloc[-1], abs=0.01)
+
+
+def test_vecto_rules_catch_sub_metre_and_zero_steps(tmp_path):
+    path = tmp_path / "c.vdri"
+    path.write_text("<s>,<v>,<grad>,<stop>\n0,0,0,2\n0,1,0,0\n0.28,2,0,0\n10,0,0,0\n")
+    assert vdri_problems(path) == ["2 distance step(s) under 1 m, first at row 3"]
+    path.write_text("<s>,<v>,<grad>,<stop>\n0,0,0,0\n5,20,0,3\n10,0,0,0\n")
+    assert vdri_problems(path) == ["stop time on a row with a target speed", "a standstill row without stop time"]
 
 
 def test_written_files_round_trip(selection, tmp_path):
@@ -48,13 +70,14 @@ def test_written_files_round_trip(selection, tmp_path):
     pd.testing.assert_frame_equal(pd.read_parquet(paths["parquet"]), selection.cycle)
     assert paths["vdri"].read_text().splitlines()[0] == "<s>,<v>,<grad>,<stop>"
     back = vdri_to_time_cycle(read_vdri(paths["vdri"]))
-    np.testing.assert_allclose(back["speed_mps"], selection.cycle["speed_mps"], atol=1e-3)
-    np.testing.assert_allclose(back["distance_m"], selection.cycle["distance_m"], atol=1.0)
+    assert np.mean(np.isclose(back["speed_mps"], selection.cycle["speed_mps"], atol=1e-3)) > 0.95
+    np.testing.assert_allclose(back["distance_m"], selection.cycle["distance_m"],
+                               atol=0.001 * selection.cycle["distance_m"].iloc[-1])
 
 
 @pytest.mark.parametrize("name", ["LongHaul", "Urban", "Construction"])
-def test_real_vecto_cycle_as_time_trace(shared_data, name):
-    vdri = read_vdri(shared_data / "vecto-cycles" / f"{name}.vdri")
+def test_real_vecto_cycle_as_time_trace(data_dir, name):
+    vdri = read_vdri(data_dir / "vecto-cycles" / f"{name}.vdri")
     trace = vdri_to_time_cycle(vdri)
     s, v, stop = (vdri[c].to_numpy() for c in ("distance_m", "target_speed_mps", "stop_time_s"))
     moving_speed = np.where(v > 0, v, [v[i + 1:][v[i + 1:] > 0][0] if np.any(v[i + 1:] > 0) else 1.0
@@ -82,8 +105,8 @@ def _driven(trace, accel_mps2=0.6, decel_mps2=0.8):
 
 
 @pytest.mark.parametrize("name", VALID_VECTO_ROUTES)
-def test_real_vecto_routes_as_measured_input_give_valid_cycles(shared_data, name):
-    measured = _driven(vdri_to_time_cycle(read_vdri(shared_data / "vecto-cycles" / f"{name}.vdri")))
+def test_real_vecto_routes_as_measured_input_give_valid_cycles(data_dir, name):
+    measured = _driven(vdri_to_time_cycle(read_vdri(data_dir / "vecto-cycles" / f"{name}.vdri")))
     assert measured["mass_kg"].nunique() > 1
     selection = select_cycle(count_transitions(measured), 1800, 10_000, seed=1)
     assert selection.criteria.valid, selection.criteria.statement()
@@ -94,9 +117,10 @@ def test_stage_writes_the_cycle_and_its_summary(drive, tmp_path):
     messages = []
     ctx = RunContext(inputs=[], out_dir=tmp_path, signals=drive.copy(), say=messages.append,
                      options={"cycle": {"n_candidates": 500, "seed": 3, "widths": {"mass_kg": 200.0}}})
-    stage(ctx)
+    run(ctx, start="cycle", until="cycle")
     for name in ("cycle.csv", "cycle.vdri", "cycle.parquet", "cycle.png"):
         assert (tmp_path / name).stat().st_size > 0
+    assert vdri_problems(tmp_path / "cycle.vdri") == []
     summary = ctx.summary["cycle"]
     assert summary["seed"] == 3 and summary["class_widths"]["mass_kg"] == 200.0
     assert set(summary) >= {"score", "valid", "criteria", "failed", "n_valid"}
@@ -108,7 +132,7 @@ def test_stage_writes_the_cycle_and_its_summary(drive, tmp_path):
 def test_stage_without_mass_says_so_and_writes_nothing(drive, tmp_path):
     messages = []
     ctx = RunContext(inputs=[], out_dir=tmp_path, signals=drive.drop(columns=["mass_kg"]), say=messages.append)
-    stage(ctx)
+    cycle_stage(ctx)
     assert "cycle" not in ctx.summary and "mass_kg" in messages[0]
     assert not (tmp_path / "cycle.csv").exists()
 
@@ -121,7 +145,7 @@ def test_analyze_cycle_command(drive, tmp_path, capsys):
             "--mass-class-kg", "100", "--quiet"]
     code = cli.main(argv)
     summary = json.loads((out / "cycle.json").read_text())
-    assert code == (0 if summary["valid"] else 1)
+    assert code == (0 if summary["valid"] else 3)
     first = pd.read_csv(out / "cycle.csv")
     assert len(first) == 901
     cli.main(argv)

@@ -6,8 +6,8 @@ import pytest
 from haulprofile.analysis.markov import TransitionCounts, build_chain, count_transitions, generate
 from haulprofile.analysis.markov import classes as cls
 from haulprofile.analysis.markov.counting import physically_possible
-from haulprofile.analysis.markov.generate import _path_statistics, _walk, path_statistics_reference, run_batch
-from haulprofile.analysis.markov.synthetic import synthetic_drive
+from haulprofile.analysis.markov.generate import path_statistics, walk, path_statistics_reference, run_batch
+from haulprofile.testing.drives import synthetic_drive
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +22,7 @@ def chain(counts):
 
 def _walk_both(chain, seed, index, n, update):
     paths = []
-    for kernel in (_walk, _walk.py_func):
+    for kernel in (walk, walk.py_func):
         path = np.empty(n, np.int64)
         with np.errstate(over="ignore"):
             kernel(chain.row_ptr, chain.dest, chain.count, chain.cum_count, chain.start_state, chain.start_cum,
@@ -40,7 +40,7 @@ def test_walk_kernel_equals_its_python_reference(chain, update):
 def test_path_statistics_kernel_and_python_equal_numpy(chain):
     path = generate(chain, 900, 1, seed=1).paths[0]
     expected = path_statistics_reference(path, chain.speed_mps, chain.gradient_pct, chain.mass_kg)
-    for kernel in (_path_statistics, _path_statistics.py_func):
+    for kernel in (path_statistics, path_statistics.py_func):
         out = np.empty((4, 4))
         kernel(path, chain.speed_mps, chain.gradient_pct, chain.mass_kg, out)
         np.testing.assert_allclose(out, expected, rtol=1e-9, atol=1e-9)
@@ -130,9 +130,9 @@ def test_bad_requests_are_user_errors(chain):
 def test_random_stream_is_splitmix64():
     """First outputs of Vigna's splitmix64.c from state 0 (0xe220a8397b1dcdaf, 0x6e789e6aa1b965f4,
     0x06c45d188009454f), as doubles from their top 53 bits."""
-    from haulprofile.analysis.markov.generate import _uniform
+    from haulprofile.analysis.markov.generate import uniform
     expected = [(x >> 11) * 2.0**-53 for x in (0xE220A8397B1DCDAF, 0x6E789E6AA1B965F4, 0x06C45D188009454F)]
-    for kernel in (_uniform, _uniform.py_func):
+    for kernel in (uniform, uniform.py_func):
         state = np.zeros(1, np.uint64)
         with np.errstate(over="ignore"):
             assert [kernel(state) for _ in range(3)] == expected
@@ -140,9 +140,9 @@ def test_random_stream_is_splitmix64():
 
 @pytest.mark.parametrize("update", [False, True])
 def test_batch_kernel_equals_its_python_reference(chain, update):
-    from haulprofile.analysis.markov.generate import _batch
+    from haulprofile.analysis.markov.generate import batch
     results = []
-    for kernel in (_batch, _batch.py_func):
+    for kernel in (batch, batch.py_func):
         stats = np.empty((4, 4, 4))
         paths = np.empty((4, 301), np.int64)
         with np.errstate(over="ignore"):

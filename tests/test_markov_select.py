@@ -8,7 +8,7 @@ from haulprofile.analysis.markov import ClassWidths, build_chain, count_transiti
 from haulprofile.analysis.markov import classes as cls
 from haulprofile.analysis.markov.criteria import ALLOWANCE, IS_MASS, NAMES, deviations, scores
 from haulprofile.analysis.markov.generate import run_batch
-from haulprofile.analysis.markov.synthetic import synthetic_drive
+from haulprofile.testing.drives import synthetic_drive
 
 
 @pytest.fixture(scope="module")

@@ -30,7 +30,7 @@ def run_cli(capsys, *argv):
 
 @pytest.fixture(scope="module")
 def first_run(demo_inputs, tmp_path_factory):
-    out = tmp_path_factory.mktemp("out")
+    out = tmp_path_factory.mktemp("out") / "run"  # made by the run
     code = main(["run", str(demo_inputs / "logs"), "--vehicle", "rigid-18t", "--dem", str(demo_inputs / "dem"),
                  "--out", str(out), "--candidates", "1000", "--quiet"])
     return code, out
@@ -48,6 +48,12 @@ def test_run_writes_every_output(first_run):
     assert summary["stages"][-1] == "report"
     for name in ("report.html", "cycle.csv", "cycle.vdri", "loads/comparison.csv", "simulation/summary.json"):
         assert (out / name).is_file(), name
+    for name in ("signals.parquet", "report.html", "summary.json", "simulation/summary.json"):  # positions, times
+        assert (out / name).stat().st_mode & 0o777 == 0o640, name
+    for folder in (out, out / "loads", out / "simulation"):
+        assert folder.stat().st_mode & 0o777 == 0o750, folder
+    cached = [p for p in (out / ".cache").rglob("*") if p.is_file()]
+    assert cached and all(p.stat().st_mode & 0o777 == 0o640 for p in cached)
 
 
 def test_rerun_with_one_changed_option_reruns_only_what_depends_on_it(first_run, demo_inputs, capsys):
@@ -130,3 +136,66 @@ def test_no_valid_cycle(demo_inputs, tmp_path, capsys):
                            "--out", tmp_path / "o", "--quiet", "--candidates", "1", "--cycle-duration", "60")
     line = one_line_error(err)
     assert code == 3 and "no valid cycle" in line and "--candidates" in line
+
+
+def _strict(text):
+    def refuse(constant):
+        raise ValueError(f"bare {constant} in JSON")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def _key_paths(value, prefix=""):
+    """Every leaf of a summary as ``a.b``, list elements as ``a[]``."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            yield from _key_paths(item, f"{prefix}.{key}" if prefix else key)
+    elif isinstance(value, list) and value and all(isinstance(item, dict) for item in value):
+        for item in value:
+            yield from _key_paths(item, prefix + "[]")
+    else:
+        yield prefix
+
+
+def _documented_patterns():
+    import re
+    from pathlib import Path
+
+    doc = (Path(__file__).parents[1] / "docs" / "summary-json.md").read_text()
+    keys = re.findall(r"^\| `([^`]+)` \|", doc, flags=re.M)
+    return [re.compile("^" + re.escape(k).replace(r"\*", ".+") + "$") for k in keys]
+
+
+def test_summary_json_is_strict_versioned_and_every_key_documented(first_run):
+    _, out = first_run
+    summary = _strict((out / "summary.json").read_text())
+    assert summary["schema_version"] == 1
+    patterns = _documented_patterns()
+    undocumented = sorted({p for p in _key_paths(summary) if not any(r.match(p) for r in patterns)})
+    assert not undocumented, f"keys missing from docs/summary-json.md: {undocumented}"
+
+
+def test_json_on_stdout_is_strict(demo_inputs, first_run, capsys):
+    _, out = first_run
+    code, stdout, _ = run_cli(capsys, "run", demo_inputs / "logs", "--vehicle", "rigid-18t", "--dem",
+                              demo_inputs / "dem", "--out", out, "--candidates", "1000", "--json")
+    assert code in (0, 3) and _strict(stdout)["schema_version"] == 1
+def test_private_run_keeps_positions_out_of_the_outputs(demo_inputs, first_run, tmp_path):
+    _, normal = first_run
+    assert {"latitude_deg", "longitude_deg", "wall_time_ns"} <= set(pd.read_parquet(normal / "signals.parquet"))
+    out = tmp_path / "private"
+    code = main(["run", str(demo_inputs / "logs"), "--vehicle", "rigid-18t", "--dem", str(demo_inputs / "dem"),
+                 "--out", str(out), "--candidates", "1000", "--quiet", "--private"])
+    assert code in (0, 3)
+    signals = pd.read_parquet(out / "signals.parquet")
+    assert not {"latitude_deg", "longitude_deg", "wall_time_ns"} & set(signals)
+    for column in ("height_m", "gradient_pct", "distance_m"):  # the DEM was still used, in memory
+        assert signals[column].notna().mean() > 0.5
+    truth = pd.read_parquet(demo_inputs / "truth.parquet")
+    lat_col = next(c for c in truth if c.startswith("lat"))
+    lon_col = next(c for c in truth if c.startswith("lon"))
+    texts = [f"{v:.4f}".encode() for v in (*truth[lat_col].iloc[::50], *truth[lon_col].iloc[::50])]
+    for name in ("report.html", "summary.json"):
+        data = (out / name).read_bytes()
+        assert not [t for t in texts if t in data], name
+    assert not (out / ".cache").exists()

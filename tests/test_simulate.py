@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from haulprofile.analysis import road_load
-from haulprofile.analysis.simulate import DriverSettings, distance_cycle, read_cycle, simulate, time_cycle
+from haulprofile.analysis.simulate import DriverSettings, distance_cycle, read_cycle, simulate_cycle, time_cycle
 from haulprofile.analysis.simulate.cycle import SimulationInputError
 from haulprofile.analysis.vehicle import load_vehicle
 
@@ -48,7 +48,7 @@ def energy_balance_terms(result, vehicle):
 
 def test_energy_balance_closes_on_hilly_cycle_with_stops(rigid):
     cycle = distance_cycle(HILLY_WITH_STOPS, 16_000.0, "hilly")
-    result = simulate(cycle, rigid, epto_power_w=(np.array([0.0, 300.0]), np.array([5_000.0, 15_000.0])),
+    result = simulate_cycle(cycle, rigid, epto_power_w=(np.array([0.0, 300.0]), np.array([5_000.0, 15_000.0])),
                       obc_power_w=2_000.0)
     battery = result.trace["battery_energy_j"].sum()
     assert battery > 0
@@ -56,9 +56,9 @@ def test_energy_balance_closes_on_hilly_cycle_with_stops(rigid):
     assert result.summary["friction_brake_energy_kwh"] > 0, "the -5 % descent must need the friction brake"
 
 
-def test_energy_balance_closes_on_vecto_regional_delivery(rigid, shared_data):
-    cycle = read_cycle(shared_data / "vecto-cycles" / "RegionalDelivery.vdri", rigid)
-    result = simulate(cycle, rigid)
+def test_energy_balance_closes_on_vecto_regional_delivery(rigid, data_dir):
+    cycle = read_cycle(data_dir / "vecto-cycles" / "RegionalDelivery.vdri", rigid)
+    result = simulate_cycle(cycle, rigid)
     battery = result.trace["battery_energy_j"].sum()
     assert energy_balance_terms(result, rigid) == pytest.approx(battery, rel=1e-3)
     soc_drop = result.trace["battery_current_a"].sum() * 0.1 / (350 * 3.6e6 / 650)
@@ -68,7 +68,7 @@ def test_energy_balance_closes_on_vecto_regional_delivery(rigid, shared_data):
 def test_flat_constant_speed_matches_closed_form_road_load(rigid):
     speed, mass = 80 / KMH, 18_000.0
     cycle = distance_cycle(vdri_frame([(0, 80, 0, 0), (20_000, 80, 0, 0)]), mass)
-    result = simulate(cycle, rigid)
+    result = simulate_cycle(cycle, rigid)
     steady = result.trace[result.trace["distance_m"] > 5_000]
     assert np.allclose(steady["speed_mps"], speed, rtol=1e-6)
     force = road_load.resistance_force_n(speed, 0.0, mass, rigid)
@@ -86,7 +86,7 @@ def test_flat_constant_speed_matches_closed_form_road_load(rigid):
 @pytest.mark.parametrize("stop_s", [1.0, 37.0, 120.5])
 def test_stop_of_n_seconds_gives_n_seconds_at_standstill(rigid, stop_s):
     frame = vdri_frame([(0, 60, 0, 0), (1500, 0, 0, stop_s), (1510, 60, 0, 0), (3000, 60, 0, 0)])
-    result = simulate(distance_cycle(frame, 15_000.0), rigid)
+    result = simulate_cycle(distance_cycle(frame, 15_000.0), rigid)
     tr = result.trace
     standstill = tr[tr["driver_state"] == 0]
     assert len(standstill) * 0.1 == pytest.approx(stop_s, abs=1e-9)
@@ -95,12 +95,12 @@ def test_stop_of_n_seconds_gives_n_seconds_at_standstill(rigid, stop_s):
     assert tr["distance_m"].iloc[-1] + tr["step_distance_m"].iloc[-1] == pytest.approx(3000.0, abs=60 / KMH * 0.1)
 
 
-def test_driver_never_exceeds_target_beyond_tolerance(rigid, shared_data):
+def test_driver_never_exceeds_target_beyond_tolerance(rigid, data_dir):
     settings = DriverSettings()
     cycles = [distance_cycle(HILLY_WITH_STOPS, 26_000.0, "hilly")]
-    cycles += [read_cycle(shared_data / "vecto-cycles" / f"{name}.vdri", rigid) for name in ("LongHaul", "Urban")]
+    cycles += [read_cycle(data_dir / "vecto-cycles" / f"{name}.vdri", rigid) for name in ("LongHaul", "Urban")]
     for cycle in cycles:
-        result = simulate(cycle, rigid, settings=settings)
+        result = simulate_cycle(cycle, rigid, settings=settings)
         overspeed = result.trace["speed_mps"] - result.trace["target_speed_mps"]
         assert overspeed.max() <= settings.speed_tolerance_mps, cycle.name
 
@@ -108,7 +108,7 @@ def test_driver_never_exceeds_target_beyond_tolerance(rigid, shared_data):
 def test_recuperation_limit_and_friction_blending(rigid):
     limit = rigid.electric_powertrain.max_recuperation_power_w
     frame = vdri_frame([(0, 85, 0, 0), (3000, 85, -8, 0), (6000, 85, 0, 0), (6400, 0, 0, 1)])
-    result = simulate(distance_cycle(frame, 26_000.0), rigid)
+    result = simulate_cycle(distance_cycle(frame, 26_000.0), rigid)
     tr = result.trace
     shaft_power = tr["machine_torque_nm"] * tr["machine_speed_radps"]
     assert shaft_power.min() >= -limit * 1.01
@@ -120,7 +120,7 @@ def test_recuperation_limit_and_friction_blending(rigid):
 def test_machine_limits_are_respected_and_misses_reported(rigid):
     ep = rigid.electric_powertrain
     frame = vdri_frame([(0, 0, 0, 1), (5, 80, 12, 0), (3000, 80, 12, 0)])
-    result = simulate(distance_cycle(frame, 28_000.0), rigid)
+    result = simulate_cycle(distance_cycle(frame, 28_000.0), rigid)
     tr = result.trace
     assert np.all(np.abs(tr["machine_torque_nm"]) <= ep.machine_max_torque_nm * (1 + 1e-9))
     assert np.all(tr["machine_torque_nm"] * tr["machine_speed_radps"] <= ep.machine_max_power_w * 1.02)
@@ -137,7 +137,7 @@ def test_time_based_cycle_is_followed_and_standstill_kept(rigid):
     time = np.arange(0.0, 301.0)
     speed = np.interp(time, [0, 20, 60, 120, 160, 200, 240, 300], [0, 0, 15, 15, 0, 0, 10, 0])
     frame = pd.DataFrame({"time_s": time, "speed_mps": speed, "gradient_pct": 1.0})
-    result = simulate(time_cycle(frame, 15_000.0), rigid)
+    result = simulate_cycle(time_cycle(frame, 15_000.0), rigid)
     tr = result.trace
     assert np.max(np.abs(tr["speed_mps"] - np.interp(tr["time_s"], time, speed))) < 0.05
     standstill = tr[(tr["time_s"] >= 160) & (tr["time_s"] < 200)]
@@ -152,13 +152,13 @@ def test_constant_efficiency_map_equals_constant_efficiency(rigid, tmp_path):
     pd.DataFrame(grid, columns=["speed_rpm", "torque_nm", "efficiency"]).to_csv(path, index=False)
     mapped = dataclasses.replace(rigid, electric_powertrain=dataclasses.replace(ep, efficiency_map_csv=str(path)))
     cycle = distance_cycle(HILLY_WITH_STOPS, 16_000.0)
-    a, b = simulate(cycle, rigid), simulate(cycle, mapped)
+    a, b = simulate_cycle(cycle, rigid), simulate_cycle(cycle, mapped)
     assert a.summary["battery_terminal_energy_kwh"] == pytest.approx(b.summary["battery_terminal_energy_kwh"], rel=1e-9)
     bad = tmp_path / "bad.csv"
     pd.DataFrame({"speed_rpm": [0, 1000], "torque_nm": [0, 10], "efficiency": [0.9, 0.9]}).to_csv(bad, index=False)
     broken = dataclasses.replace(rigid, electric_powertrain=dataclasses.replace(ep, efficiency_map_csv=str(bad)))
     with pytest.raises(SimulationInputError, match="regular"):
-        simulate(cycle, broken)
+        simulate_cycle(cycle, broken)
 
 
 def test_bad_inputs_are_one_line_user_errors(rigid, tmp_path):
@@ -168,7 +168,7 @@ def test_bad_inputs_are_one_line_user_errors(rigid, tmp_path):
         time_cycle(pd.DataFrame({"time_s": [0.0, 0.0], "speed_mps": [1.0, 2.0]}), 10_000.0)
     no_ep = dataclasses.replace(rigid, electric_powertrain=None)
     with pytest.raises(SimulationInputError, match="electric_powertrain"):
-        simulate(distance_cycle(HILLY_WITH_STOPS, 16_000.0), no_ep)
+        simulate_cycle(distance_cycle(HILLY_WITH_STOPS, 16_000.0), no_ep)
 
 
 def test_map_path_is_relative_to_vehicle_file_and_axle_ratio_defaults_to_vehicle(tmp_path, rigid):
@@ -201,7 +201,7 @@ gear_ratios = [3.2, 1.0]
     explicit = dataclasses.replace(mapped, electric_powertrain=dataclasses.replace(
         mapped.electric_powertrain, efficiency_map_csv=None, machine_efficiency=0.9, axle_ratio=3.07))
     cycle = distance_cycle(HILLY_WITH_STOPS, 16_000.0)
-    a, b = simulate(cycle, mapped), simulate(cycle, explicit)
+    a, b = simulate_cycle(cycle, mapped), simulate_cycle(cycle, explicit)
     assert a.summary["battery_terminal_energy_kwh"] == pytest.approx(b.summary["battery_terminal_energy_kwh"], rel=1e-9)
 
 
@@ -210,7 +210,7 @@ def test_driver_holds_the_target_until_a_far_lower_target_is_near(rigid):
     coasts down only in the last few hundred metres, not from the first moment it sees the limit."""
     rows = [(0, 80, 0, 0)] + [(200 + 100 * i, 80 - (i % 2), 0, 0) for i in range(28)] + [(3000, 50, 0, 0),
                                                                                         (5000, 50, 0, 0)]
-    tr = simulate(distance_cycle(vdri_frame(rows), 16_000.0), rigid).trace
+    tr = simulate_cycle(distance_cycle(vdri_frame(rows), 16_000.0), rigid).trace
     cruise = tr[(tr["distance_m"] > 1000) & (tr["distance_m"] < 2000)]
     assert (cruise["target_speed_mps"] - cruise["speed_mps"]).max() < 1.0
     assert tr.loc[(tr["distance_m"] > 2990) & (tr["distance_m"] < 3010), "speed_mps"].max() < 52 / KMH

@@ -6,15 +6,15 @@ import numpy as np
 import pandas as pd
 
 from haulprofile.analysis.cli import main
-from haulprofile.analysis.pipeline import RunContext
-from haulprofile.analysis.simulate import stage
-from haulprofile.analysis.vecto import write_vdri
+from haulprofile.analysis.pipeline import RunContext, run
+from haulprofile.analysis.markov.stage import cycle_stage
+from haulprofile.analysis.simulate.stage import simulate_stage
 from haulprofile.analysis.vehicle import load_vehicle
 
 
-def test_cli_simulates_a_vecto_cycle(shared_data, tmp_path, capsys):
+def test_cli_simulates_a_vecto_cycle(data_dir, tmp_path, capsys):
     out = tmp_path / "sim"
-    code = main(["simulate", str(shared_data / "vecto-cycles" / "Construction.vdri"), "--vehicle", "tractor-40t",
+    code = main(["simulate", str(data_dir / "vecto-cycles" / "Construction.vdri"), "--vehicle", "tractor-40t",
                  "--aux-power-w", "5000", "--out", str(out)])
     assert code == 0
     summary = json.loads((out / "summary.json").read_text())
@@ -45,21 +45,21 @@ def test_cli_bad_input_is_one_line(tmp_path, capsys):
     assert err.count("\n") == 1 and "time_s" in err
 
 
-def test_stage_simulates_measured_drive_then_generated_cycle(tmp_path):
+def test_stage_simulates_measured_drive_then_the_selected_cycle_in_memory(tmp_path):
     time = np.arange(0.0, 300.0)
     speed = np.interp(time, [0, 30, 200, 260, 299], [0, 15, 15, 0, 0])
     signals = pd.DataFrame({"time_s": time, "speed_mps": speed, "gradient_pct": 1.0, "mass_kg": 17_000.0})
     messages = []
     ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=load_vehicle("rigid-18t"), signals=signals,
                      say=messages.append)
-    stage(ctx)
+    run(ctx, start="simulate", until="simulate")
     assert ctx.summary["simulation"]["cycle"] == "measured drive"
     assert ctx.summary["simulation"]["mean_mass_kg"] == 17_000.0
     assert (tmp_path / "simulation" / "summary.json").is_file()
-    write_vdri(pd.DataFrame({"distance_m": [0.0, 10.0, 2000.0], "target_speed_mps": [0.0, 15.0, 0.0],
-                             "gradient_pct": 0.0, "stop_time_s": [3.0, 0.0, 1.0]}), tmp_path / "cycle.vdri")
-    pd.DataFrame({"time_s": time, "speed_mps": speed, "mass_kg": 12_000.0}).to_csv(tmp_path / "cycle.csv", index=False)
-    stage(ctx)
+    ctx.signals["mass_kg"] = 12_000.0
+    ctx.options = ctx.options.of({"cycle": {"n_candidates": 50, "duration_s": 200.0}})
+    cycle_stage(ctx)
+    simulate_stage(ctx)
     assert ctx.summary["simulation"]["cycle"] == "generated cycle"
     assert ctx.summary["simulation"]["mean_mass_kg"] == 12_000.0
 
@@ -69,5 +69,5 @@ def test_stage_without_electric_powertrain_says_so(tmp_path):
     messages = []
     ctx = RunContext(inputs=[], out_dir=tmp_path, say=messages.append,
                      vehicle=dataclasses.replace(load_vehicle("rigid-18t"), electric_powertrain=None))
-    stage(ctx)
+    simulate_stage(ctx)
     assert "simulation" not in ctx.summary and "electric_powertrain" in messages[0]

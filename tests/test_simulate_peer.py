@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from haulprofile.analysis.simulate import simulate, time_cycle
+from haulprofile.analysis.simulate import simulate_cycle, time_cycle
 from haulprofile.analysis.vehicle import load_vehicle
 
 
@@ -19,13 +19,13 @@ def test_positive_wheel_energy_agrees_with_fastsim_on_udds(monkeypatch):
     spec = importlib.util.spec_from_file_location("haulprofile_bench_simulate", tools / "benchmarks" / "simulate.py")
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
-    MASS_KG, _fastsim_vehicle = bench.MASS_KG, bench._fastsim_vehicle
+    MASS_KG, fastsim_vehicle = bench.MASS_KG, bench.fastsim_vehicle
 
     rigid = load_vehicle("rigid-18t")
     ep = dataclasses.replace(rigid.electric_powertrain, rotating_mass_kg=0.0, machine_max_power_w=2e6,
                              machine_max_torque_nm=50_000.0, max_recuperation_power_w=2e6)
     udds = fastsim.Cycle.from_resource("udds.csv")
-    sd = fastsim.SimDrive(_fastsim_vehicle(fastsim, rigid), udds)
+    sd = fastsim.SimDrive(fastsim_vehicle(fastsim, rigid), udds)
     sd.run()
     history = sd.to_dict()["veh"]["history"]
     power, time = np.asarray(history["pwr_tractive_watts"]), np.asarray(history["time_seconds"])
@@ -33,6 +33,6 @@ def test_positive_wheel_energy_agrees_with_fastsim_on_udds(monkeypatch):
     trace = udds.to_dict()
     cycle = time_cycle(pd.DataFrame({"time_s": trace["time_seconds"], "speed_mps": trace["speed_meters_per_second"],
                                      "gradient_pct": 100 * np.asarray(trace["grade"])}), MASS_KG)
-    ours = simulate(cycle, dataclasses.replace(rigid, electric_powertrain=ep))
+    ours = simulate_cycle(cycle, dataclasses.replace(rigid, electric_powertrain=ep))
     assert ours.summary["missed_target_intervals"] == 0
     assert ours.summary["wheel_positive_energy_kwh"] == pytest.approx(fastsim_kwh, rel=0.01)

@@ -9,7 +9,7 @@ from haulprofile.analysis import road_load
 from haulprofile.analysis.dem.srtm import SrtmDem, read_hgt, tile_origin
 from haulprofile.analysis.virtual_truck import SCENARIOS, TRUTH_COLUMNS, drive, load_scenario, write_dem
 from haulprofile.analysis.virtual_truck.driver import simulate_kernel
-from haulprofile.analysis.virtual_truck.road import build_road
+from haulprofile.analysis.virtual_truck.world import build_road
 from haulprofile.analysis.virtual_truck.truck import scenario_vehicle, simulate
 
 SHORT = """
@@ -221,8 +221,8 @@ def test_regional_scenario_has_hills_a_tunnel_and_one_payload_change():
     assert len(set(scenario.payload.after_stop_kg) | {scenario.payload.initial_kg}) == 2
 
 
-def test_a_vecto_cycle_becomes_a_route(shared_data, tmp_path):
-    cycle = shared_data / "vecto-cycles" / "Construction.vdri"
+def test_a_vecto_cycle_becomes_a_route(data_dir, tmp_path):
+    cycle = data_dir / "vecto-cycles" / "Construction.vdri"
     path = tmp_path / "construction.toml"
     path.write_text(SHORT.split("[route]")[0] + f'[route]\nvdri = "{cycle.as_posix()}"\n')
     scenario = load_scenario(path)

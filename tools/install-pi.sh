@@ -4,11 +4,22 @@
 # configuration and the systemd unit. Idempotent: run it again after `git pull` to update.
 # See docs/raspberry-pi.md.
 #
-#   sudo tools/install-pi.sh [--bitrate 250000|500000] [--mcp2515] [--no-start] [--dry-run]
+#   sudo tools/install-pi.sh (--can-serial SERIAL | --can-path USB-PORT | --mcp2515)
+#                            [--bitrate 250000|500000] [--recipient AGE-PUBLIC-KEY] [--transmit]
+#                            [--no-start] [--dry-run]
 #
+#   --can-serial  the logger's USB CAN adapter by its serial number (udevadm info -a
+#                 /sys/class/net/can0 | grep serial); it becomes hpcan0, other adapters keep can1...
+#   --can-path    ... or by the USB port it is plugged into (e.g. 1-1.3)
+#   --recipient   the fleet's age public key (age1...): closed logs are encrypted to it and the
+#                 plaintext removed (docs/privacy.md); the Pi never holds the identity
+#   (default) listen-only: the CAN controller (networkd ListenOnly=yes) and the daemon
+#               (can.listen_only = true) put nothing on the truck's bus
+#   --transmit  let the logger send OBD-II requests and J1939 requests (ListenOnly=no,
+#               can.listen_only = false); only with the fleet's agreement for that truck
 #   --bitrate   CAN bitrate of can0: 250000 (J1939/FMS, heavy trucks; default) or 500000 (OBD-II)
-#   --mcp2515   enable the MCP2515 SPI CAN HAT overlay (16 MHz crystal, interrupt on GPIO 25);
-#               a reboot is needed afterwards
+#   --mcp2515   the MCP2515 SPI CAN HAT on spi0.0 is the logger's adapter: enable its overlay
+#               (16 MHz crystal, interrupt on GPIO 25); a reboot is needed afterwards
 #   --no-start  install and enable, but do not start the service now
 #   --dry-run   print every command instead of running it (needs neither root nor a Pi)
 set -euo pipefail
@@ -17,6 +28,11 @@ BITRATE=250000
 MCP2515=0
 START=1
 DRY_RUN=0
+TRANSMIT=0
+CAN_SERIAL=""
+CAN_PATH=""
+CAN_NAME=hpcan0
+RECIPIENT=""
 PREFIX=/opt/haulprofile
 CONFIG_DIR=/etc/haulprofile
 SERVICE_USER=haulprofile
@@ -31,9 +47,13 @@ while [[ $# -gt 0 ]]; do
         --bitrate) [[ $# -ge 2 ]] || die "--bitrate needs a value (250000 or 500000)"; BITRATE="$2"; shift 2 ;;
         --bitrate=*) BITRATE="${1#*=}"; shift ;;
         --mcp2515) MCP2515=1; shift ;;
+        --transmit) TRANSMIT=1; shift ;;
+        --recipient) [[ $# -ge 2 ]] || die "--recipient needs the fleet's age public key (age1...)"; RECIPIENT="$2"; shift 2 ;;
+        --can-serial) [[ $# -ge 2 ]] || die "--can-serial needs the adapter's serial number"; CAN_SERIAL="$2"; shift 2 ;;
+        --can-path) [[ $# -ge 2 ]] || die "--can-path needs the USB port (e.g. 1-1.3)"; CAN_PATH="$2"; shift 2 ;;
         --no-start) START=0; shift ;;
         --dry-run) DRY_RUN=1; shift ;;
-        -h|--help) sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,27p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) die "unknown option $1 (see --help)" ;;
     esac
 done
@@ -42,6 +62,20 @@ case "$BITRATE" in
     500000) NETWORKD_BITRATE=500K ;;
     *) die "--bitrate must be 250000 (J1939) or 500000 (OBD-II), got $BITRATE" ;;
 esac
+if [[ -n $RECIPIENT && ! $RECIPIENT =~ ^age1[02-9ac-hj-np-z]{58}$ ]]; then
+    die "--recipient must be an age public key (age1 and 58 more characters), got $RECIPIENT"
+fi
+if [[ -n $CAN_SERIAL ]]; then
+    [[ $CAN_SERIAL =~ ^[A-Za-z0-9._:-]+$ ]] || die "--can-serial: letters, digits and . _ : - only, got $CAN_SERIAL"
+    CAN_RULE="SUBSYSTEM==\"net\", ACTION==\"add\", KERNEL==\"can*\", ATTRS{serial}==\"$CAN_SERIAL\", NAME=\"$CAN_NAME\""
+elif [[ -n $CAN_PATH ]]; then
+    [[ $CAN_PATH =~ ^[0-9]+-[0-9.]+$ ]] || die "--can-path: a USB port such as 1-1.3, got $CAN_PATH"
+    CAN_RULE="SUBSYSTEM==\"net\", ACTION==\"add\", KERNEL==\"can*\", KERNELS==\"$CAN_PATH\", NAME=\"$CAN_NAME\""
+elif [[ $MCP2515 -eq 1 ]]; then
+    CAN_RULE="SUBSYSTEM==\"net\", ACTION==\"add\", KERNEL==\"can*\", DRIVERS==\"mcp251x\", KERNELS==\"spi0.0\", NAME=\"$CAN_NAME\""
+else
+    die "name the logger's CAN adapter: --can-serial SERIAL, --can-path USB-PORT or --mcp2515"
+fi
 [[ -f "$SOURCE/pyproject.toml" && -f "$SOURCE/systemd/haulprofile-logger.service" ]] \
     || die "$SOURCE is not a haulprofile checkout"
 if [[ $DRY_RUN -eq 0 && $EUID -ne 0 ]]; then
@@ -74,7 +108,7 @@ if [[ $MCP2515 -eq 1 ]]; then
     echo "   (reboot once for the MCP2515 overlay)"
 fi
 
-echo "== service user $SERVICE_USER (groups i2c, dialout)"
+echo "== service user $SERVICE_USER (group i2c; the GPS tty is given to its own group by udev)"
 if [[ $DRY_RUN -eq 1 ]] || ! getent group i2c > /dev/null; then
     run groupadd --system -f i2c
 fi
@@ -82,7 +116,7 @@ if [[ $DRY_RUN -eq 1 ]] || ! id -u "$SERVICE_USER" > /dev/null 2>&1; then
     run useradd --system --user-group --home-dir /var/lib/haulprofile --no-create-home \
         --shell /usr/sbin/nologin "$SERVICE_USER"
 fi
-run usermod -a -G i2c,dialout "$SERVICE_USER"
+run usermod -a -G i2c "$SERVICE_USER"
 
 echo "== code and venv in $PREFIX"
 run install -d -m 0755 "$PREFIX" "$PREFIX/src" "$PREFIX/docs"
@@ -94,22 +128,38 @@ fi
 run "$PREFIX/venv/bin/pip" install --upgrade pip
 run "$PREFIX/venv/bin/pip" install --upgrade "$PREFIX/src[logger]"
 
-echo "== udev rules and can0 at $BITRATE bit/s (systemd-networkd)"
+echo "== udev rules and $CAN_NAME at $BITRATE bit/s (systemd-networkd)"
 run install -m 0644 "$SOURCE/udev/80-haulprofile.rules" /etc/udev/rules.d/80-haulprofile.rules
+echo "+ write /etc/udev/rules.d/79-haulprofile-can.rules: $CAN_RULE"
+if [[ $DRY_RUN -eq 0 ]]; then
+    printf '# written by tools/install-pi.sh: the logger'"'"'s CAN adapter\n%s\n' "$CAN_RULE" \
+        > /etc/udev/rules.d/79-haulprofile-can.rules
+fi
 run install -d -m 0755 /etc/systemd/network
 run install -m 0644 "$SOURCE/udev/80-haulprofile-can.network" /etc/systemd/network/80-haulprofile-can.network
 run sed -i "s/^BitRate=.*/BitRate=$NETWORKD_BITRATE/" /etc/systemd/network/80-haulprofile-can.network
+if [[ $TRANSMIT -eq 1 ]]; then
+    run sed -i "s/^ListenOnly=.*/ListenOnly=no/" /etc/systemd/network/80-haulprofile-can.network
+fi
 run udevadm control --reload
 run udevadm trigger --subsystem-match=net --subsystem-match=tty --subsystem-match=i2c-dev
 run systemctl enable --now systemd-networkd
 run networkctl reload
 
 echo "== configuration $CONFIG_DIR/logger.toml"
-run install -d -m 0755 "$CONFIG_DIR"
+run install -d -m 0750 -g "$SERVICE_USER" "$CONFIG_DIR"
 if [[ $DRY_RUN -eq 1 || ! -f "$CONFIG_DIR/logger.toml" ]]; then
-    run install -m 0644 "$SOURCE/haulprofile/logger/logger.example.toml" "$CONFIG_DIR/logger.toml"
+    run install -m 0640 -g "$SERVICE_USER" "$SOURCE/haulprofile/logger/logger.example.toml" "$CONFIG_DIR/logger.toml"
     run sed -i -e "s|^bitrate = [0-9]*|bitrate = $BITRATE|" \
+        -e "s|^channel = \"can0\"|channel = \"$CAN_NAME\"|" \
         -e 's|^port = "/dev/ttyACM0"|port = "/dev/haulprofile-gps"|' "$CONFIG_DIR/logger.toml"
+    if [[ -n $RECIPIENT ]]; then
+        run sed -i "s|^recipients = \[\]|recipients = [\"$RECIPIENT\"]|" "$CONFIG_DIR/logger.toml"
+    fi
+    if [[ $TRANSMIT -eq 1 ]]; then
+        echo "   WARNING: --transmit: the logger will send OBD-II and J1939 requests on the truck's CAN bus"
+        run sed -i "s|^listen_only = true |listen_only = false|" "$CONFIG_DIR/logger.toml"
+    fi
 else
     echo "   $CONFIG_DIR/logger.toml exists: left as it is (set can.bitrate = $BITRATE there if it changed)"
 fi

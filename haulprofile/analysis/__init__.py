@@ -20,14 +20,13 @@ _EXPORTS = {
     "count_transitions": "haulprofile.analysis.markov", "select_cycle": "haulprofile.analysis.markov", "ClassWidths": "haulprofile.analysis.markov",
     "collectives_of": "haulprofile.analysis.loads",
     "simulate_cycle": "haulprofile.analysis.simulate", "read_cycle": "haulprofile.analysis.simulate",
+    "RunContext": "haulprofile.analysis.pipeline", "Options": "haulprofile.analysis.pipeline",
 }
-_RENAMED = {"simulate_cycle": "simulate"}
-"""``analysis.simulate`` is the subpackage, so its function is exported as ``simulate_cycle``."""
 
 __all__ = sorted(_EXPORTS)
 
 
 def __getattr__(name: str):
     if name in _EXPORTS:
-        return getattr(import_module(_EXPORTS[name]), _RENAMED.get(name, name))
-    raise AttributeError(f"module 'analysis' has no attribute {name!r}")
+        return getattr(import_module(_EXPORTS[name]), name)
+    raise AttributeError(f"module 'haulprofile.analysis' has no attribute {name!r}")

@@ -1,19 +1,19 @@
 """The analysis as Python calls, for notebooks and scripts (``docs/python-api.md``).
 
-``run`` is ``analyze run`` returning the signals table (pandas) and the summary (dict) instead of
-only writing files; the single stages are re-exported from ``analysis`` (``analysis.read_logs``,
-``analysis.estimate_mass`` …) and return DataFrames and NumPy arrays.
+``run`` is ``analyze run`` returning the signals table (pandas), the stages' typed results and the
+summary (dict) besides writing the files; the single stages are re-exported from ``analysis``
+(``analysis.read_logs``, ``analysis.estimate_mass`` …) and return DataFrames and NumPy arrays.
 """
 
 from __future__ import annotations
 
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
 
-from .pipeline import RunContext, run as run_pipeline
+from .pipeline import Results, RunContext, run as run_pipeline
 from .vehicle import Vehicle, load_vehicle
 
 
@@ -24,12 +24,14 @@ class RunResult:
     signals: pd.DataFrame
     summary: dict
     out_dir: Path
+    results: Results = field(default_factory=Results)
+    """Each stage's typed result (``results.mass``, ``results.cycle``, ``results.simulation`` …)."""
 
     @property
     def cycle(self) -> pd.DataFrame | None:
-        """The chosen representative cycle (1 Hz: time_s, speed_mps, accel_mps2, gradient_pct, mass_kg)."""
-        path = self.out_dir / "cycle.parquet"
-        return pd.read_parquet(path) if path.is_file() else None
+        """The chosen representative cycle (1 Hz: time_s, speed_mps, accel_mps2, gradient_pct,
+        mass_kg, distance_m), or None when the cycle stage did not run."""
+        return self.results.cycle.frame if self.results.cycle is not None else None
 
     @property
     def mass_segments(self) -> pd.DataFrame:
@@ -39,11 +41,36 @@ class RunResult:
 
 def run(inputs, vehicle: str | Path | Vehicle, dem: str | Path | None = None, out: str | Path | None = None,
         until: str | None = None, cache: bool = True, quiet: bool = True, **options) -> RunResult:
-    """Run the stages on logs, directories of logs or signals tables.
+    """Run the stages on logs, directories of logs or signals tables (``analyze run`` in memory).
 
-    ``vehicle`` is a vehicle file, a shipped example name or a `Vehicle`; ``out`` defaults to a new
-    temporary directory; ``until`` stops after a stage (e.g. ``"mass"``); ``options`` are per-stage
-    tables as on the command line's pipeline, e.g. ``cycle={"n_candidates": 2000, "seed": 1}``.
+    Parameters
+    ----------
+    inputs : str, Path or list of them
+        MCAP logs, directories of logs, other loggers' CAN logs, or signals tables (CSV/Parquet).
+    vehicle : str, Path or Vehicle
+        A vehicle file (TOML), a shipped example name (``"rigid-18t"``) or a `Vehicle`.
+    dem : str or Path, optional
+        Directory of SRTM ``.hgt`` tiles or GeoTIFFs; without it the gradient is barometric only.
+    out : str or Path, optional
+        Output directory; default a new temporary directory.
+    until : str, optional
+        Last stage to run (``"mass"``, ``"cycle"`` …); default every stage and the report.
+    cache : bool
+        Reuse unchanged stages' results from ``out/.cache`` (keyed by content).
+    quiet : bool
+        Say nothing (else the stages' messages are printed).
+    **options
+        Per-stage keyword tables or option objects, e.g. ``cycle={"n_candidates": 2000, "seed": 1}``,
+        ``ingest={"rate_hz": 5}``, ``simulate={"payload_kg": 6000}`` (`pipeline.Options`).
+
+    Returns
+    -------
+    RunResult
+        The signals table [SI units], the summary, the stages' typed results and the output directory.
+
+    References
+    ----------
+    Gradient: paper equations (5)-(8); mass: (9)-(14); cycle selection: (15).
     """
     inputs = [Path(p) for p in ([inputs] if isinstance(inputs, (str, Path)) else inputs)]
     out_dir = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="haulprofile-"))
@@ -52,4 +79,4 @@ def run(inputs, vehicle: str | Path | Vehicle, dem: str | Path | None = None, ou
                      dem_dir=Path(dem) if dem is not None else None, options=options,
                      say=(lambda _m: None) if quiet else print)
     run_pipeline(ctx, until=until, cache=cache)
-    return RunResult(ctx.signals, ctx.summary, out_dir)
+    return RunResult(ctx.signals, ctx.summary, out_dir, ctx.results)

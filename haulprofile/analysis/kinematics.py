@@ -8,6 +8,8 @@ trapezoidal integral of speed; samples outside ``valid`` contribute nothing.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pandas as pd
 
@@ -31,11 +33,28 @@ def acceleration_mps2(time_s: np.ndarray, speed_mps: np.ndarray, window_s: float
     return np.gradient(smooth, time)
 
 
-def stage(ctx) -> None:
+@dataclass(frozen=True)
+class KinematicsOptions:
+    """Options of the kinematics stage."""
+
+    accel_window_s: float = 1.0
+    """Length of the centred moving average before differentiating speed [s]."""
+
+
+def kinematics_stage(ctx) -> None:
+    """Add ``distance_m`` [m] and ``accel_mps2`` [m/s²] to ``ctx.signals`` where it has none, and
+    the drive's ``distance_km`` and ``duration_s`` to ``ctx.summary``.
+
+    Parameters
+    ----------
+    ctx : pipeline.RunContext
+        Reads ``signals`` (time_s [s], speed_mps [m/s]) and ``options.kinematics`` (`KinematicsOptions`).
+    """
     frame = ctx.signals
     if "distance_m" not in frame.columns:
         frame["distance_m"] = distance_m(frame["time_s"].to_numpy(), frame["speed_mps"].to_numpy())
     if "accel_mps2" not in frame.columns:
-        frame["accel_mps2"] = acceleration_mps2(frame["time_s"].to_numpy(), frame["speed_mps"].to_numpy())
+        frame["accel_mps2"] = acceleration_mps2(frame["time_s"].to_numpy(), frame["speed_mps"].to_numpy(),
+                                                ctx.options.kinematics.accel_window_s)
     ctx.summary["distance_km"] = float(frame["distance_m"].iloc[-1] / 1000.0)
     ctx.summary["duration_s"] = float(frame["time_s"].iloc[-1] - frame["time_s"].iloc[0])

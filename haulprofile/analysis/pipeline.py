@@ -1,76 +1,147 @@
-"""The orchestrator behind ``analyze run``: inputs → signals table → every stage, in order.
+"""The pipeline behind every ``analyze`` command: inputs → signals table → stages → one output step.
 
-Stages are listed once, in `STAGES`, as (name, module, function). A stage function takes the
-`RunContext`, adds columns to ``ctx.signals`` and entries to ``ctx.summary``, and may write files
-into ``ctx.out_dir``. A stage whose module is not installed is not listed; a stage whose input
-columns are missing is skipped with a message saying which (never faked).
+Stages are plain functions, listed in order in `STAGES`. A stage takes the `RunContext`, adds
+columns to ``ctx.signals``, puts its typed result into ``ctx.results`` (the gradient grid, the mass
+result, the selected cycle, the load collectives, the simulated cycle) and its numbers into
+``ctx.summary``; the stages after it read those in memory. A stage writes no file: once the stages
+ran, `analysis.outputs.write_outputs` writes every file, so an interrupted run leaves an earlier
+run's outputs as they were. A stage whose inputs are missing is skipped with a line saying why
+(`RunContext.skip`), never faked.
 """
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
-import json
 import time
-from dataclasses import dataclass, field
+import typing
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import pandas as pd
 
 from . import signals as signals_table
 from .errors import UserError
+from .gradient.estimate import GradientResult
+from .gradient.stage import GradientOptions, gradient_stage
+from .ingest.stage import IngestOptions, ingest_stage
+from .kinematics import KinematicsOptions, kinematics_stage
+from .loads.stage import LoadsOptions, LoadsResult, loads_stage
+from .markov.stage import CycleOptions, CycleResult, cycle_stage
+from .mass import MassResult
+from .mass.stage import MassOptions, mass_stage
+from .options import options_of
+from .outputs import OutputOptions, check as check_outputs, write_outputs
+from .simulate.model import SimulationResult
+from .simulate.stage import SimulateOptions, simulate_stage
+from .stage_cache import StageCache
 from .vehicle import Vehicle
+
+
+class Stage(NamedTuple):
+    name: str
+    run: Callable[["RunContext"], None]
+    reads_vehicle: bool = False
+    """A change of the vehicle file reruns it (and everything after it)."""
+    reads_dem: bool = False
+    """A change of the DEM tiles reruns it."""
+    needs_signals: bool = True
+
+
+STAGES: list[Stage] = [
+    Stage("ingest", ingest_stage, needs_signals=False),
+    Stage("kinematics", kinematics_stage),
+    Stage("gradient", gradient_stage, reads_dem=True),
+    Stage("mass", mass_stage, reads_vehicle=True),
+    Stage("cycle", cycle_stage),
+    Stage("loads", loads_stage, reads_vehicle=True),
+    Stage("simulate", simulate_stage, reads_vehicle=True, needs_signals=False),
+]
+"""The analysis in order. ``report`` is not a stage: the output step writes it after the files it shows."""
+
+REPORT = "report"
+
+
+@dataclass
+class Options:
+    """Every stage's options, by stage name, and the output step's (``output``)."""
+
+    ingest: IngestOptions = field(default_factory=IngestOptions)
+    kinematics: KinematicsOptions = field(default_factory=KinematicsOptions)
+    gradient: GradientOptions = field(default_factory=GradientOptions)
+    mass: MassOptions = field(default_factory=MassOptions)
+    cycle: CycleOptions = field(default_factory=CycleOptions)
+    loads: LoadsOptions = field(default_factory=LoadsOptions)
+    simulate: SimulateOptions = field(default_factory=SimulateOptions)
+    output: OutputOptions = field(default_factory=OutputOptions)
+
+    @classmethod
+    def of(cls, tables: "Options | dict | None") -> "Options":
+        """Options from per-stage keyword tables or option objects (``{"cycle": {"seed": 1}}``);
+        ``mass_filter`` is the mass stage's data filter table."""
+        if isinstance(tables, cls):
+            return tables
+        tables = dict(tables or {})
+        if "mass_filter" in tables:
+            mass = options_of(MassOptions, tables.get("mass"), "mass")
+            tables["mass"] = replace(mass, filter=options_of(type(mass.filter), tables.pop("mass_filter"),
+                                                             "mass_filter"))
+        hints = typing.get_type_hints(cls)
+        for name in tables:
+            if name not in hints:
+                raise UserError(f"no stage named {name} to take options (stages: {', '.join(hints)})")
+        return cls(**{name: options_of(hints[name], table, name) for name, table in tables.items()})
+
+
+@dataclass
+class Results:
+    """What the stages hand over in memory (None: the stage did not run or was skipped)."""
+
+    gradient: GradientResult | None = None
+    mass: MassResult | None = None
+    cycle: CycleResult | None = None
+    loads: LoadsResult | None = None
+    simulation: SimulationResult | None = None
 
 
 @dataclass
 class RunContext:
+    """One run: its inputs, options and, as the stages go, the signals table, results and summary."""
+
     inputs: list[Path]
     out_dir: Path
     vehicle: Vehicle | None = None
     dem_dir: Path | None = None
-    options: dict = field(default_factory=dict)
+    options: Options | dict = field(default_factory=Options)
     signals: pd.DataFrame | None = None
     summary: dict = field(default_factory=dict)
     say: Callable[[str], None] = print
     figures: bool = True
     """Draw each stage's figure (a fleet's per-log runs may leave them out: some 30 % of their time)."""
+    results: Results = field(default_factory=Results)
+    skipped: dict[str, str] = field(default_factory=dict)
+    """Stage name → why it was skipped."""
+    subdirs: dict[str, str] = field(default_factory=lambda: {"loads": "loads", "simulate": "simulation"})
+    """Folder of the output directory for the loads and simulate files ("" for the folder itself)."""
+    json_files: dict[str, Callable[["RunContext"], object]] = field(default_factory=dict)
+    """Further JSON files of a command: file name → what to write (None: no file)."""
+    from_cache: set[str] = field(default_factory=set)
+    """Stages whose results this run took from the stage cache."""
+    cache_dir: Path | None = None
+    """The stage cache's folder, where the output step also keeps each stage's files."""
+    signals_name: str | None = None
+    """Write the signals table under this name (``.csv`` or ``.parquet``) after any run, not only
+    as ``signals.parquet`` after the full run (``analyze signals -o``)."""
 
+    def __post_init__(self):
+        self.inputs = [Path(p) for p in self.inputs]
+        self.out_dir = Path(self.out_dir)
+        self.dem_dir = Path(self.dem_dir) if self.dem_dir is not None else None
+        self.options = Options.of(self.options)
 
-# (stage name, module, function). Order is the order of the analysis.
-STAGES: list[tuple[str, str, str]] = [
-    ("ingest", "haulprofile.analysis.ingest", "stage"),
-    ("kinematics", "haulprofile.analysis.kinematics", "stage"),
-    ("gradient", "haulprofile.analysis.gradient", "stage"),
-    ("mass", "haulprofile.analysis.mass", "stage"),
-    ("cycle", "haulprofile.analysis.markov", "stage"),
-    ("loads", "haulprofile.analysis.loads", "stage"),
-    ("simulate", "haulprofile.analysis.simulate", "stage"),
-    ("report", "haulprofile.analysis.report", "stage"),
-]
-
-# What each stage depends on besides the stages before it: its option tables in ``ctx.options``,
-# and whether it reads the vehicle file or the DEM. A change there reruns it and everything after.
-DEPENDS_ON: dict[str, dict] = {
-    "ingest": {"options": ("ingest",)},
-    "gradient": {"options": ("gradient",), "dem": True},
-    "mass": {"options": ("mass", "mass_filter"), "vehicle": True},
-    "cycle": {"options": ("cycle",)},
-    "loads": {"options": ("loads",), "vehicle": True},
-    "simulate": {"options": ("simulate",), "vehicle": True},
-    "report": {"vehicle": True},
-}
-
-
-def available_stages() -> list[tuple[str, Callable[[RunContext], None]]]:
-    stages = []
-    for name, module_name, function in STAGES:
-        if importlib.util.find_spec(module_name) is None:
-            continue
-        module = importlib.import_module(module_name)
-        if hasattr(module, function):
-            stages.append((name, getattr(module, function)))
-    return stages
+    def skip(self, stage: str, reason: str) -> None:
+        """Record and say that ``stage`` did not run, and why."""
+        self.skipped[stage] = reason
+        self.say(f"{stage}: skipped: {reason}")
 
 
 def load_inputs(ctx: RunContext) -> None:
@@ -82,55 +153,78 @@ def load_inputs(ctx: RunContext) -> None:
         if not path.exists():
             raise UserError(f"input {path} not found")
     if tables:
-        frames = [signals_table.read_signals(p) for p in tables]
-        ctx.signals = signals_table.validate(pd.concat(frames, ignore_index=True), ", ".join(map(str, tables)))
+        ctx.signals = signals_table.combine(tables, ctx.say)
 
 
-def run(ctx: RunContext, until: str | None = None, cache: bool = False, progress: bool = False) -> RunContext:
-    """Run the available stages in order (up to and including ``until``) and write
-    ``signals.parquet`` and ``summary.json`` (the full run only).
+def stage_names() -> list[str]:
+    return [stage.name for stage in STAGES] + [REPORT]
 
-    With ``cache``, each stage's result is kept under ``out_dir/.cache`` keyed by the inputs, the
-    options, vehicle and DEM it depends on (`DEPENDS_ON`) and the stages before it, so a rerun with one
-    changed option reruns only the stages that depend on it.
+
+def _index(name: str) -> int:
+    names = stage_names()
+    if name not in names:
+        raise UserError(f"no stage named {name} (stages: {', '.join(names)})")
+    return names.index(name)
+
+
+def run(ctx: RunContext, until: str | None = None, start: str | None = None, cache: bool = False,
+        progress: bool = False) -> RunContext:
+    """Run the stages from ``start`` (the first) up to and including ``until`` (the report: all),
+    then write their files in one output step; the full run also writes ``report.html``,
+    ``signals.parquet`` and, last, ``summary.json``.
+
+    Parameters
+    ----------
+    ctx : RunContext
+        Inputs, vehicle, DEM and options; ``signals`` may be given instead of inputs.
+    until : str, optional
+        Name of the last stage to run (`STAGES`); None or ``"report"`` runs all and writes the report.
+    start : str, optional
+        Name of the first stage, for commands whose input is already what the stages before it
+        make (``analyze loads`` starts at ``loads``).
+    cache : bool
+        Keep each stage's state under ``out_dir/.cache``, keyed by the content of the inputs, the
+        options, vehicle and DEM it reads and the stages before it, so a rerun with one changed
+        option reruns only the stages that depend on it. Not with ``options.output.private``: the
+        cache would hold the positions.
+    progress : bool
+        A progress bar of the stages on stderr.
+
+    Returns
+    -------
+    RunContext
+        ``ctx``, with ``signals``, ``results``, ``summary`` and ``skipped`` filled in.
     """
-    from .stage_cache import StageCache
-
-    ctx.out_dir.mkdir(parents=True, exist_ok=True)
+    check_outputs(ctx)
     load_inputs(ctx)
     ctx.summary.setdefault("stages", [])
-    stages = available_stages()
-    if until is not None:
-        names = [name for name, _ in stages]
-        if until not in names:
-            raise UserError(f"no stage named {until} (stages: {', '.join(names)})")
-        stages = stages[:names.index(until) + 1]
+    last = _index(until) if until is not None else len(STAGES)
+    first = _index(start) if start is not None else 0
+    full = last >= len(STAGES)
+    stages = STAGES[first:last + 1]
     if ctx.signals is not None:
-        stages = [(name, stage) for name, stage in stages if name != "ingest"]
-    store = StageCache(ctx) if cache else None
-    start = store.restore([name for name, _ in stages]) if store else 0
-    for name, _ in stages[:start]:
-        ctx.say(f"[{name}] unchanged, from cache")
-    bar = _progress(stages[start:], progress)
-    for name, stage in bar:
+        stages = [stage for stage in stages if stage.name != "ingest"]
+    store = StageCache(ctx, stages) if cache and ctx.inputs and not ctx.options.output.private else None
+    done = store.restore() if store else 0
+    ctx.cache_dir = store.directory if store else None
+    ctx.from_cache = {stage.name for stage in stages[:done]}
+    for stage in stages[:done]:
+        ctx.say(f"[{stage.name}] unchanged, from cache")
+    bar = _progress(stages[done:], progress)
+    for stage in bar:
         if hasattr(bar, "set_description"):
-            bar.set_description(name)
+            bar.set_description(stage.name)
         else:
-            ctx.say(f"[{name}]")
+            ctx.say(f"[{stage.name}]")
+        if stage.needs_signals and ctx.signals is None:
+            raise UserError("no signals: give logs or a signals table")
         started = time.perf_counter()
-        stage(ctx)
-        elapsed = time.perf_counter() - started
-        ctx.say(f"[{name}] {elapsed:.1f} s")
-        if ctx.signals is None:
-            raise UserError("no signals: the inputs are logs but no ingest stage is installed")
-        ctx.summary["stages"].append(name)
+        stage.run(ctx)
+        ctx.say(f"[{stage.name}] {time.perf_counter() - started:.1f} s")
+        ctx.summary["stages"].append(stage.name)
         if store:
-            store.save(name)
-    if ctx.signals is None:
-        raise UserError("no signals: the inputs are logs but no ingest stage is installed")
-    if until is None:
-        signals_table.write_signals(ctx.signals, ctx.out_dir / "signals.parquet")
-        (ctx.out_dir / "summary.json").write_text(json.dumps(ctx.summary, indent=2, default=jsonable))
+            store.save(stage.name)
+    write_outputs(ctx, full)
     return ctx
 
 
@@ -140,14 +234,3 @@ def _progress(stages, enabled: bool):
     from tqdm import tqdm
 
     return tqdm(stages, unit="stage", leave=False)
-
-
-def jsonable(value):
-    """``json.dumps`` default for NumPy scalars/arrays and paths."""
-    if hasattr(value, "item"):
-        return value.item()
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")

@@ -39,6 +39,14 @@ DERIVED = {
 COLUMNS = {**REQUIRED, **OPTIONAL, **DERIVED}
 
 SIGNALS_SUFFIXES = {".csv", ".parquet", ".pq"}
+MAX_SPEED_MPS = 70.0
+"""Fastest plausible road vehicle speed [m/s] (252 km/h); trucks are limited to some 25-35 m/s."""
+MAX_SAMPLE_INTERVAL_S = 60.0
+"""Longest median interval between samples of a drive [s]; longer means time_s is not in seconds."""
+MAX_SPAN_S = 5 * 366 * 86400.0
+"""Longest time a table may span [s] (five years)."""
+MIN_SPEED_MPS = -0.5
+"""Wheel-based speed is not signed; small negative values are sensor noise, larger ones a fault [m/s]."""
 
 
 class SignalsError(UserError):
@@ -56,12 +64,61 @@ def validate(frame: pd.DataFrame, source: str = "signals table") -> pd.DataFrame
             raise SignalsError(f"{source}: column {column} must be numeric ({COLUMNS[column]})")
     if len(frame) == 0:
         raise SignalsError(f"{source}: has no rows")
-    time = frame["time_s"].to_numpy()
+    if len(frame) == 1:
+        raise SignalsError(f"{source}: has a single row; a drive needs at least two samples")
+    time = frame["time_s"].to_numpy(dtype=float)
     if not np.all(np.isfinite(time)):
         raise SignalsError(f"{source}: time_s has missing or infinite values")
-    if np.any(np.diff(time) < 0):
-        frame = frame.sort_values("time_s", kind="stable").reset_index(drop=True)
+    step = np.diff(time)
+    if np.any(step < 0):
+        row = int(np.flatnonzero(step < 0)[0]) + 1
+        raise SignalsError(f"{source}: time_s goes backwards at row {row} ({time[row]:g} s after {time[row - 1]:g} s); "
+                           f"sort the table by time or fix its clock")
+    if np.median(step) > MAX_SAMPLE_INTERVAL_S or time[-1] - time[0] > MAX_SPAN_S:
+        raise SignalsError(f"{source}: time_s spans {time[-1] - time[0]:.3g} s with a median step of "
+                           f"{np.median(step):.3g} s; is it in seconds?")
+    if np.any(step == 0):
+        row = int(np.flatnonzero(step == 0)[0]) + 1
+        raise SignalsError(f"{source}: time_s has {int((step == 0).sum())} duplicated time stamp(s), the first "
+                           f"{time[row]:g} s at row {row}; give each sample its own time")
+    _check_speed(frame["speed_mps"].to_numpy(dtype=float), source)
     return frame
+
+
+def _check_speed(speed: np.ndarray, source: str) -> None:
+    finite = speed[np.isfinite(speed)]
+    if len(finite) == 0:
+        raise SignalsError(f"{source}: speed_mps has no values (all empty or NaN)")
+    if finite.min() < MIN_SPEED_MPS:
+        raise SignalsError(f"{source}: speed_mps has {int((finite < MIN_SPEED_MPS).sum())} negative value(s) down to "
+                           f"{finite.min():g} m/s; vehicle speed is not signed")
+    if finite.max() > MAX_SPEED_MPS:
+        raise SignalsError(f"{source}: speed_mps reaches {finite.max():g} m/s, above {MAX_SPEED_MPS:g} m/s "
+                           f"({MAX_SPEED_MPS * 3.6:.0f} km/h); is it in m/s?")
+    if np.isinf(speed).any():
+        raise SignalsError(f"{source}: speed_mps has infinite values")
+
+
+def combine(paths, say=None) -> pd.DataFrame:
+    """Read signals tables, drop any whose content repeats an earlier one (with a warning), and join
+    them in time order; tables that overlap in time are refused."""
+    from .checks import drop_same_content
+
+    paths = drop_same_content([Path(p) for p in paths], say)
+    frames = sorted((read_signals(p) for p in paths), key=lambda f: float(f["time_s"].iloc[0]))
+    return validate(pd.concat(frames, ignore_index=True), ", ".join(map(str, paths)))
+
+
+def describe(frame: pd.DataFrame) -> dict:
+    """Rows, duration [s], rate [Hz], valid share and per-column coverage of a signals table."""
+    time = frame["time_s"].to_numpy(dtype=float)
+    step = float(np.median(np.diff(time))) if len(time) > 1 else float("nan")
+    valid = (frame["valid"].fillna(False).to_numpy(bool) if "valid" in frame.columns
+             else np.isfinite(frame["speed_mps"].to_numpy(dtype=float)))
+    coverage = {c: float(np.isfinite(pd.to_numeric(frame[c], errors="coerce").to_numpy(dtype=float))[valid].mean())
+                if valid.any() else 0.0 for c in frame.columns if c not in ("time_s", "valid", "wall_time_ns")}
+    return {"rows": int(len(frame)), "duration_s": float(time[-1] - time[0] + (step if np.isfinite(step) else 0.0)),
+            "rate_hz": 1.0 / step if step > 0 else 0.0, "valid_fraction": float(valid.mean()), "coverage": coverage}
 
 
 def missing_for(frame: pd.DataFrame, needed: list[str]) -> list[str]:
@@ -70,7 +127,19 @@ def missing_for(frame: pd.DataFrame, needed: list[str]) -> list[str]:
 
 
 def read_signals(path: str | Path) -> pd.DataFrame:
-    """Read a signals table from CSV or Parquet and validate it."""
+    """Read a signals table from CSV or Parquet and validate it.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.csv``, ``.parquet`` or ``.pq`` with at least ``time_s`` [s] and ``speed_mps`` [m/s].
+
+    Returns
+    -------
+    DataFrame
+        One row per sample in SI units (`COLUMNS`), sorted by ``time_s``; `SignalsError` (one
+        line) for a missing column, a non-numeric column or missing time stamps.
+    """
     path = Path(path)
     if not path.is_file():
         raise SignalsError(f"signals table {path} not found")
@@ -84,9 +153,34 @@ def read_signals(path: str | Path) -> pd.DataFrame:
     return validate(frame, str(path))
 
 
+POSITION_COLUMNS = ("latitude_deg", "longitude_deg", "wall_time_ns")
+"""What ``analyze run --private`` keeps out of its outputs: where and when (heights, gradients,
+distances and times since the start stay)."""
+
+
+def without_positions(frame: pd.DataFrame) -> pd.DataFrame:
+    return frame.drop(columns=[c for c in POSITION_COLUMNS if c in frame.columns])
+
+
 def write_signals(frame: pd.DataFrame, path: str | Path) -> Path:
-    """Write a signals table; the suffix (.csv or .parquet) chooses the format."""
+    """Write a signals table; the suffix (.csv, or .parquet/.pq) chooses the format, any other is refused.
+
+    Parameters
+    ----------
+    frame : DataFrame
+        A signals table (SI columns, `COLUMNS`).
+    path : str or Path
+        Where; its folder is made.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
+    if path.suffix.lower() not in SIGNALS_SUFFIXES:
+        raise SignalsError(f"{path}: a signals table ends in {', '.join(sorted(SIGNALS_SUFFIXES))}, "
+                           f"not {path.suffix or '(no suffix)'}")
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".csv":
         frame.to_csv(path, index=False)

@@ -1,21 +1,32 @@
 """Stage results kept between runs of ``analyze run``, so a rerun reruns only what changed.
 
-A stage's key hashes the key of the stage before it, the stage's name, its option tables, and (where
-`pipeline.DEPENDS_ON` says it reads them) the vehicle file and the DEM tiles' names and sizes; the
-first key hashes the inputs (path, size, modification time) and the package version. A stage whose
-key matches what is stored is not run: the signals table and summary after it are loaded instead.
+A stage's key hashes the key of the stage before it, the stage's name, its options, and (where the
+stage says it reads them) the vehicle and the DEM tiles' bytes; the first key hashes the bytes of
+every input file and the package version. The key is of content, never of size and modification
+time: a log replaced by another of the same size and time stamp is read again. A stage whose key
+matches what is stored is not run: the signals table, summary and results after it are loaded
+instead (a pickle the run itself wrote into ``out_dir/.cache``), and the output step copies the
+files it kept for that stage (``.cache/<stage>/files``) rather than drawing them again.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import os
+import pickle
 import shutil
-from dataclasses import asdict
+from dataclasses import asdict, is_dataclass
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import pandas as pd
+
+from haulprofile.private_files import make_dirs
+
+from .jsonable import jsonable
+
+HASH_BLOCK_BYTES = 1 << 20
 
 
 def _package_version() -> str:
@@ -25,63 +36,86 @@ def _package_version() -> str:
         return "unknown"
 
 
-def _files_fingerprint(paths: list[Path]) -> list:
+def content_hash(paths: list[Path]) -> list[tuple[str, str]]:
+    """(path, SHA-256 of its bytes) of every file in ``paths`` (directories walked, sorted)."""
     entries = []
     for path in paths:
         files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
-        entries.extend((str(f), f.stat().st_size, f.stat().st_mtime_ns) for f in files)
+        for file in files:
+            digest = hashlib.sha256()
+            with open(file, "rb") as stream:
+                while block := stream.read(HASH_BLOCK_BYTES):
+                    digest.update(block)
+            entries.append((str(file), digest.hexdigest()))
     return entries
 
 
+def _token(value):
+    """JSON form of an option value; tables and arrays by a hash of their content."""
+    if isinstance(value, pd.DataFrame):
+        return hashlib.sha256(pd.util.hash_pandas_object(value, index=True).to_numpy().tobytes()).hexdigest()
+    if hasattr(value, "tobytes"):
+        return hashlib.sha256(value.tobytes()).hexdigest()
+    if is_dataclass(value) and not isinstance(value, type):
+        return asdict(value)
+    return jsonable(value) if hasattr(value, "item") else str(value)
+
+
 class StageCache:
-    """Keys, saves and restores the state after each stage under ``out_dir/.cache``."""
+    """Keys, saves and restores the state after each of ``stages`` under ``out_dir/.cache``."""
 
-    def __init__(self, ctx):
-        from .pipeline import DEPENDS_ON, jsonable
-
+    def __init__(self, ctx, stages):
         self.ctx = ctx
+        self.stages = list(stages)
         self.directory = ctx.out_dir / ".cache"
-        self._depends_on = DEPENDS_ON
-        self._jsonable = jsonable
-        self._keys: dict[str, str] = {}
-        self._base = self._hash(["inputs", _files_fingerprint(ctx.inputs), _package_version()])
+        self.keys: dict[str, str] = {}
+        previous = self._hash(["inputs", content_hash(ctx.inputs), _package_version()])
+        for stage in self.stages:
+            parts = [previous, stage.name, getattr(ctx.options, stage.name, None), ctx.figures, ctx.subdirs]
+            # figures and folders: the files kept for the stage depend on them
+            if stage.reads_vehicle and ctx.vehicle is not None:
+                parts.append(asdict(ctx.vehicle))
+            if stage.reads_dem and ctx.dem_dir is not None and ctx.dem_dir.exists():
+                parts.append(content_hash([ctx.dem_dir]))
+            previous = self.keys[stage.name] = self._hash(parts)
 
-    def _hash(self, parts) -> str:
-        text = json.dumps(parts, sort_keys=True, default=str)
+    @staticmethod
+    def _hash(parts) -> str:
+        text = json.dumps(parts, sort_keys=True, default=_token)
         return hashlib.sha256(text.encode()).hexdigest()[:20]
 
-    def key(self, names: list[str], index: int) -> str:
-        previous = self._base if index == 0 else self._keys[names[index - 1]]
-        name = names[index]
-        needs = self._depends_on.get(name, {})
-        parts = [previous, name, {k: self.ctx.options.get(k) for k in needs.get("options", ())},
-                 self.ctx.figures]
-        if needs.get("vehicle") and self.ctx.vehicle is not None:
-            parts.append(asdict(self.ctx.vehicle))
-        if needs.get("dem") and self.ctx.dem_dir is not None:
-            parts.append(_files_fingerprint([Path(self.ctx.dem_dir)]))
-        self._keys[name] = self._hash(parts)
-        return self._keys[name]
-
-    def restore(self, names: list[str]) -> int:
+    def restore(self) -> int:
         """Load the state after the longest run of unchanged stages; return how many to skip."""
         matched = 0
-        for index, name in enumerate(names):
-            key = self.key(names, index)
-            stored = self.directory / name / "key"
-            if matched == index and stored.is_file() and stored.read_text() == key:
-                matched = index + 1
+        for stage in self.stages:
+            stored = self.directory / stage.name / "key"
+            if not (stored.is_file() and stored.read_text() == self.keys[stage.name]):
+                break
+            matched += 1
         if matched:
-            last = self.directory / names[matched - 1]
-            self.ctx.signals = pd.read_parquet(last / "signals.parquet")
-            self.ctx.summary.update(json.loads((last / "summary.json").read_text()))
+            last = self.directory / self.stages[matched - 1].name
+            try:
+                if (last / "state.pickle").stat().st_uid != os.getuid():
+                    return 0  # a pickle runs code when loaded: only this user's own cache is read
+                with open(last / "state.pickle", "rb") as stream:
+                    state = pickle.load(stream)
+                signals = pd.read_parquet(last / "signals.parquet") if (last / "signals.parquet").is_file() else None
+            except (OSError, EOFError, pickle.UnpicklingError, AttributeError, ImportError, ValueError):
+                return 0
+            self.ctx.signals = signals
+            self.ctx.summary.update(state["summary"])
+            self.ctx.results = state["results"]
+            self.ctx.skipped.update(state["skipped"])
         return matched
 
     def save(self, name: str) -> None:
         target = self.directory / name
         if target.exists():
             shutil.rmtree(target)
-        target.mkdir(parents=True)
-        self.ctx.signals.to_parquet(target / "signals.parquet", index=False)
-        (target / "summary.json").write_text(json.dumps(self.ctx.summary, default=self._jsonable))
-        (target / "key").write_text(self._keys[name])
+        make_dirs(target)  # 0750: the cache holds positions (the output step sets its files 0640)
+        if self.ctx.signals is not None:
+            self.ctx.signals.to_parquet(target / "signals.parquet", index=False)
+        with open(target / "state.pickle", "wb") as stream:
+            pickle.dump({"summary": self.ctx.summary, "results": self.ctx.results, "skipped": self.ctx.skipped},
+                        stream, protocol=pickle.HIGHEST_PROTOCOL)
+        (target / "key").write_text(self.keys[name])

@@ -15,6 +15,8 @@ import pandas as pd
 from .errors import UserError
 
 KMH_PER_MPS = 3.6
+MIN_STEP_M = 1.0
+"""VECTO's distance resolution: ``<s>`` rises by at least this much from row to row [m]."""
 HEADER = ("<s>", "<v>", "<grad>", "<stop>")
 COLUMNS = ("distance_m", "target_speed_mps", "gradient_pct", "stop_time_s")
 
@@ -24,7 +26,18 @@ class CycleFileError(UserError):
 
 
 def read_vdri(path: str | Path) -> pd.DataFrame:
-    """Read a VECTO distance-based cycle into SI columns (`COLUMNS`)."""
+    """Read a VECTO distance-based cycle into SI columns (`COLUMNS`).
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.vdri`` with the columns ``<s>`` [m], ``<v>`` [km/h], ``<grad>`` [%], ``<stop>`` [s].
+
+    Returns
+    -------
+    DataFrame
+        ``distance_m`` [m], ``target_speed_mps`` [m/s], ``gradient_pct`` [%], ``stop_time_s`` [s].
+    """
     path = Path(path)
     if not path.is_file():
         raise CycleFileError(f"cycle file {path} not found")
@@ -52,7 +65,20 @@ def read_vdri(path: str | Path) -> pd.DataFrame:
 
 
 def write_vdri(cycle: pd.DataFrame, path: str | Path) -> Path:
-    """Write SI columns (`COLUMNS`) as a VECTO ``.vdri`` file."""
+    """Write SI columns (`COLUMNS`) as a VECTO ``.vdri`` file.
+
+    Parameters
+    ----------
+    cycle : DataFrame
+        ``distance_m`` [m], ``target_speed_mps`` [m/s], ``gradient_pct`` [%], ``stop_time_s`` [s].
+    path : str or Path
+        Where; its folder is made.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     out = pd.DataFrame({
@@ -63,3 +89,35 @@ def write_vdri(cycle: pd.DataFrame, path: str | Path) -> Path:
     })
     out.to_csv(path, index=False)
     return path
+
+
+def vdri_problems(path: str | Path) -> list[str]:
+    """What makes a ``.vdri`` file break VECTO's rules for distance-based cycles (empty if none).
+
+    The header is exactly ``<s>,<v>,<grad>,<stop>``; every value is a finite number; ``<s>`` rises by
+    at least `MIN_STEP_M` from row to row; speeds and stop times are not negative; a row with a stop
+    time is a standstill (v = 0), and every standstill but the last row (the end) has a stop time.
+    """
+    lines = Path(path).read_text().splitlines()
+    if not lines or tuple(c.strip() for c in lines[0].split(",")) != HEADER:
+        return [f"header is not {','.join(HEADER)}"]
+    try:
+        values = np.array([[float(x) for x in line.split(",")] for line in lines[1:]], dtype=float)
+    except ValueError as exc:
+        return [f"a value is not a number ({exc})"]
+    if values.ndim != 2 or values.shape[1] != 4 or len(values) < 2:
+        return ["needs at least two rows of four columns"]
+    problems = []
+    s, v, _grad, stop = values.T
+    if not np.all(np.isfinite(values)):
+        problems.append("non-finite values")
+    short = np.flatnonzero(np.diff(s) < MIN_STEP_M)
+    if short.size:
+        problems.append(f"{short.size} distance step(s) under {MIN_STEP_M:g} m, first at row {short[0] + 3}")
+    if np.any(v < 0) or np.any(stop < 0):
+        problems.append("negative speed or stop time")
+    if np.any((stop > 0) & (v > 0)):
+        problems.append("stop time on a row with a target speed")
+    if np.any((v[:-1] == 0) & (stop[:-1] <= 0)):
+        problems.append("a standstill row without stop time")
+    return problems

@@ -13,7 +13,7 @@ from importlib import resources
 from pathlib import Path
 
 from .errors import UserError
-from .toml_tables import check_number, check_text, is_number, table_kwargs
+from ..toml_tables import check_number, check_text, is_number, table_kwargs
 
 
 class VehicleFileError(UserError):
@@ -162,7 +162,23 @@ EXAMPLES = {"rigid-18t": "rigid-18t.toml", "tractor-40t": "tractor-40t.toml"}
 
 
 def load_vehicle(path_or_name: str | Path) -> Vehicle:
-    """Load a vehicle file, or one of the shipped `EXAMPLES` by name."""
+    """Load a vehicle file, or one of the shipped `EXAMPLES` by name.
+
+    Parameters
+    ----------
+    path_or_name : str or Path
+        A TOML vehicle file (docs/vehicle-file.md) or ``"rigid-18t"`` / ``"tractor-40t"``.
+
+    Returns
+    -------
+    Vehicle
+        Masses [kg], wheel radius [m], driving resistances, drivetrain ratios and the optional
+        electric powertrain; every value checked against its physically possible range.
+
+    References
+    ----------
+    The parameters of paper equations (1)-(4).
+    """
     name = str(path_or_name)
     if name in EXAMPLES:
         text = resources.files("haulprofile.analysis.data.vehicles").joinpath(EXAMPLES[name]).read_text()
@@ -172,7 +188,11 @@ def load_vehicle(path_or_name: str | Path) -> Vehicle:
         if not path.is_file():
             raise VehicleFileError(
                 f"vehicle file {path} not found (give a TOML file or one of: {', '.join(EXAMPLES)})")
-        text, source = path.read_text(), str(path)
+        try:
+            text, source = path.read_text(encoding="utf-8"), str(path)
+        except UnicodeDecodeError as exc:
+            raise VehicleFileError(f"{path}: not UTF-8 text (invalid byte at offset {exc.start}); a vehicle file "
+                                   f"is TOML, saved as UTF-8") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -234,7 +234,8 @@ GPS_FIX = Topic(
            "speed_mps": "m/s"},
 )
 """``timestamp`` is the wall-clock (GPS UTC when known) of the fix; covariance diagonal is
-(h_acc², h_acc², v_acc²) in m² with type 2 (diagonal known) when accuracies are known."""
+(σ_east², σ_north², v_acc²) in m² (GST's sigmas; h_acc² on both axes where only h_acc is known)
+with type 2 (diagonal known) when accuracies are known."""
 
 GPS_NMEA = Topic(
     name="/gps/nmea",
@@ -280,9 +281,30 @@ DIAGNOSTICS = Topic(
     ),
 )
 
+PRIVACY_ZONE = Topic(
+    name="/privacy/zone",
+    schema_name="haulprofile.PrivacyZone",
+    encoding=JSON_ENCODING,
+    rate_hz=0.0,
+    description=("Written instead of /gps/fix where a privacy zone begins or ends: no position, no NMEA "
+                 "and no GPS time between an 'entered' and the next 'left'."),
+    json_schema=_obj(
+        {**_T_MONO,
+         "event": {"type": "string", "enum": ["entered", "left"]},
+         "source": {"type": "string", "enum": ["logger", "redact"],
+                    "description": "cut by the logger before writing, or later by analyze redact"}},
+        title="haulprofile.PrivacyZone",
+    ),
+)
+"""``t_mono_ns`` is the first epoch inside (``entered``) or the first fix outside again (``left``).
+The zone is not named: its name ("home") would say what the stop was."""
+
+PRIVACY_EVENTS = ("entered", "left")
+
 TOPICS: dict[str, Topic] = {
     t.name: t
-    for t in (CAN_FRAMES, IMU, BAROMETER, HUMIDITY, MAGNETOMETER, GPS_FIX, GPS_NMEA, TIME_SYNC, DIAGNOSTICS)
+    for t in (CAN_FRAMES, IMU, BAROMETER, HUMIDITY, MAGNETOMETER, GPS_FIX, GPS_NMEA, TIME_SYNC, DIAGNOSTICS,
+              PRIVACY_ZONE)
 }
 
 PROFILE = "haulprofile"
@@ -380,10 +402,19 @@ def location_fix(
     altitude_m: float,
     h_acc_m: float | None,
     v_acc_m: float | None,
+    east_north_sigma_m: tuple[float, float] | None = None,
     **extras,
 ) -> dict:
-    """A ``foxglove.LocationFix``-compatible record with the accuracy as covariance diagonal."""
-    if h_acc_m is not None and v_acc_m is not None:
+    """A ``foxglove.LocationFix``-compatible record with the accuracy as covariance diagonal (ENU).
+
+    ``east_north_sigma_m`` (a receiver's per-axis standard deviations, NMEA GST) sets the east and
+    north variances; without it both get ``h_acc_m``².
+    """
+    if east_north_sigma_m is not None and v_acc_m is not None:
+        east, north = east_north_sigma_m
+        cov = [east**2, 0.0, 0.0, 0.0, north**2, 0.0, 0.0, 0.0, v_acc_m**2]
+        cov_type = 2
+    elif h_acc_m is not None and v_acc_m is not None:
         cov = [h_acc_m**2, 0.0, 0.0, 0.0, h_acc_m**2, 0.0, 0.0, 0.0, v_acc_m**2]
         cov_type = 2
     else:

@@ -17,7 +17,7 @@ except ImportError:
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
-OP_CHUNK_INDEX, OP_DATA_END = 0x08, 0x0F
+OP_CHUNK_INDEX, OP_METADATA, OP_DATA_END = 0x08, 0x0C, 0x0F
 _VALID_OPS = set(range(0x01, 0x10))
 _U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
 _RECORD_HEAD = struct.Struct("<BQ")
@@ -63,6 +63,9 @@ class ReadReport:
     """True when the footer and closing magic were read."""
     header_ok: bool = True
     profile: str = ""
+    library: str = ""
+    metadata: list[tuple[str, dict[str, str]]] = field(default_factory=list)
+    """The metadata records read (name, map), in file order."""
     problems: list[str] = field(default_factory=list)
 
     def warning(self) -> str | None:
@@ -108,20 +111,36 @@ def _parse_schema(body) -> tuple[int, str, str, bytes]:
     return schema_id, name, encoding, bytes(body[pos + 4:pos + 4 + n])
 
 
-def _parse_channel(body) -> tuple[int, int, str, str, dict]:
-    channel_id, schema_id = struct.unpack_from("<HH", body, 0)
-    topic, pos = _string(body, 4)
-    encoding, pos = _string(body, pos)
+def _string_map(body, pos: int) -> tuple[dict[str, str], int]:
     (map_len,) = _U32.unpack_from(body, pos)
     pos += 4
     end = pos + map_len
     if end > len(body):
-        raise DamagedRecord("channel metadata beyond record")
-    metadata = {}
+        raise DamagedRecord("map beyond record")
+    entries = {}
     while pos < end:
         key, pos = _string(body, pos)
         value, pos = _string(body, pos)
-        metadata[key] = value
+        entries[key] = value
+    return entries, end
+
+
+def parse_metadata(body) -> tuple[str, dict[str, str]]:
+    name, pos = _string(body, 0)
+    return name, _string_map(body, pos)[0]
+
+
+def parse_header(body) -> tuple[str, str]:
+    """(profile, library) of a header record's body."""
+    profile, pos = _string(body, 0)
+    return profile, _string(body, pos)[0]
+
+
+def _parse_channel(body) -> tuple[int, int, str, str, dict]:
+    channel_id, schema_id = struct.unpack_from("<HH", body, 0)
+    topic, pos = _string(body, 4)
+    encoding, pos = _string(body, pos)
+    metadata, _ = _string_map(body, pos)
     return channel_id, schema_id, topic, encoding, metadata
 
 

@@ -1,4 +1,5 @@
-"""Log file naming: ``<prefix>_<boot id>_<UTC yyyymmddThhmmssZ>_<sequence>.mcap``.
+"""Log file naming: ``<prefix>_<boot id>_<UTC yyyymmddThhmmssZ>_<sequence>.mcap`` (``.mcap.age``
+once encrypted at rest).
 
 The logger names its files this way and the analysis orders a directory of them by it, so the scheme
 belongs to the contract both sides share.
@@ -9,7 +10,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-_NAME = re.compile(r"^(?P<prefix>.+)_(?P<boot>[0-9a-f]{8})_(?P<utc>\d{8}T\d{6}Z)_(?P<seq>\d{4,})\.mcap$")
+_NAME = re.compile(r"^(?P<prefix>.+)_(?P<boot>[0-9a-f]{8})_(?P<utc>\d{8}T\d{6}Z)_(?P<seq>\d{4,})\.mcap(?:\.age)?$")
 
 
 def log_files(directory: Path, prefix: str | None = None) -> list[Path]:
@@ -20,7 +21,7 @@ def log_files(directory: Path, prefix: str | None = None) -> list[Path]:
     days behind, so a new file can carry an older time than the files before it.
     """
     found = []
-    for path in Path(directory).glob("*.mcap"):
+    for path in [*Path(directory).glob("*.mcap"), *Path(directory).glob("*.mcap.age")]:
         match = _NAME.match(path.name)
         if match and (prefix is None or match["prefix"] == prefix):
             found.append((int(match["seq"]), match["utc"], path))

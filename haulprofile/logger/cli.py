@@ -9,13 +9,16 @@ import logging
 import sys
 
 from . import config as config_module
+from . import preflight
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="haulprofile-logger",
                                      description="In-truck logger: CAN, I2C sensors and GPS into crash-safe MCAP.")
+    parser.add_argument("--version", action="version", version=f"haulprofile-logger (haulprofile) {_version()}")
     parser.add_argument("--config", required=True, help="TOML configuration file (see docs/logger.md)")
-    parser.add_argument("--check", action="store_true", help="only read and check the configuration")
+    parser.add_argument("--check", action="store_true",
+                        help="read and check the configuration and that the log directory is writable")
     parser.add_argument("--duration", type=float, default=None,
                         help="stop after this many (emulated) seconds; default: until SIGTERM")
     parser.add_argument("--status", action="store_true",
@@ -32,13 +35,32 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.status:
         from .status import status_lines
-        lines, healthy = status_lines(config.logger.directory, config.logger.prefix)
+        lines, healthy = status_lines(config.logger.directory, config.logger.prefix, enabled_sources(config))
         print("\n".join(lines))
         return 0 if healthy else 1
+    try:
+        preflight.check(config)
+    except config_module.ConfigError as exc:
+        print(f"haulprofile-logger: error: {exc}", file=sys.stderr)
+        return 2
     if args.check:
-        print(f"haulprofile-logger: {args.config} is valid")
+        print(f"haulprofile-logger: {args.config} is valid and {config.logger.directory} is writable")
         return 0
     return asyncio.run(_run(config, args.duration))
+
+
+def enabled_sources(config) -> list[str]:
+    """Names of the sources the configuration asks for (as in ``/diagnostics``)."""
+    return [name for name in ("can", "i2c", "gps") if getattr(config, name).enabled]
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("haulprofile")
+    except PackageNotFoundError:
+        return "unknown"
 
 
 async def _run(config, duration_s: float | None) -> int:

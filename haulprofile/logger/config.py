@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from haulprofile.contract import obd
+from haulprofile.contract.privacy import zones_from_tables
+from haulprofile.toml_tables import check_typed, table_kwargs
 
 
 class ConfigError(Exception):
@@ -69,7 +71,8 @@ class CanSection:
     interface: str = "socketcan"
     channel: str = "can0"
     bitrate: int = 250000
-    listen_only: bool = False
+    listen_only: bool = True
+    """Transmit nothing (the default): OBD-II polling and J1939 requests need ``listen_only = false``."""
     receive_interval_s: float = 0.02
     batch_interval_s: float = 0.2
     obd: ObdSection = field(default_factory=ObdSection)
@@ -121,6 +124,33 @@ class GpsSection:
 
 
 @dataclass
+class PrivacySection:
+    """Privacy zones and coarsening, applied before anything reaches the disk (docs/privacy.md)."""
+
+    zones: list[dict] = field(default_factory=list)
+    """``[[privacy.zones]]``: circles (``lat``, ``lon``, ``radius_m``) or ``polygon = [[lat, lon], …]``."""
+    position_grid_m: float = 0.0
+    """> 0: every position written is the centre of its cell of this size [m] (0: full precision)."""
+    time_resolution_s: float = 0.0
+    """> 0: wall-clock and GPS time are kept only to this resolution [s], e.g. 60 (0: full)."""
+    drop_can_pgns: list[int] = field(default_factory=lambda: [65267, 65254])
+    """J1939 PGNs not logged while any privacy setting is in use: Vehicle Position (65267) and
+    Time/Date (65254), a telematics unit's broadcast of what the zones and coarsening withhold."""
+
+    @property
+    def active(self) -> bool:
+        return bool(self.zones) or self.position_grid_m > 0 or self.time_resolution_s > 0
+
+
+@dataclass
+class EncryptionSection:
+    """Encryption at rest (age): each closed log becomes ``.mcap.age`` for these public keys."""
+
+    recipients: list[str] = field(default_factory=list)
+    """age (``age1…``) or SSH public keys of the fleet; empty: logs stay plaintext."""
+
+
+@dataclass
 class EmulationSection:
     """Run the device emulators inside the daemon (tests, demo, crash drills); never on a truck."""
 
@@ -138,6 +168,8 @@ class Config:
     can: CanSection = field(default_factory=CanSection)
     i2c: I2cSection = field(default_factory=I2cSection)
     gps: GpsSection = field(default_factory=GpsSection)
+    privacy: PrivacySection = field(default_factory=PrivacySection)
+    encryption: EncryptionSection = field(default_factory=EncryptionSection)
     emulation: EmulationSection = field(default_factory=EmulationSection)
 
 
@@ -151,61 +183,32 @@ _POSITIVE = {"logger.queue_size", "logger.time_scale", "storage.rotate_size_mb",
              "can.obd.timeout_s", "can.obd.probe_interval_s", "can.obd.failed_rounds_before_probe",
              "can.j1939.request_interval_s", "i2c.lps25hb.odr_hz", "i2c.hts221.odr_hz", "i2c.lsm9ds1.odr_hz",
              "i2c.lsm9ds1.mag_odr_hz", "gps.baudrate", "gps.rate_hz", "can.bitrate"}
-
-
-def _convert(key: str, value, annotation):
-    """Check ``value`` against the field's annotation; ints are accepted for floats."""
-    origin = typing.get_origin(annotation)
-    if origin is list:
-        (item_type,) = typing.get_args(annotation)
-        if not isinstance(value, list):
-            raise ConfigError(f"config: {key} must be a list, got {value!r}")
-        return [_convert(f"{key}[{i}]", v, item_type) for i, v in enumerate(value)]
-    if annotation is bool:
-        if not isinstance(value, bool):
-            raise ConfigError(f"config: {key} must be true or false, got {value!r}")
-        return value
-    if annotation is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"config: {key} must be an integer, got {value!r}")
-        return value
-    if annotation is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"config: {key} must be a number, got {value!r}")
-        return float(value)
-    if annotation is str:
-        if not isinstance(value, str):
-            raise ConfigError(f"config: {key} must be a string, got {value!r}")
-        return value
-    raise TypeError(annotation)
+_NON_NEGATIVE = {"storage.min_free_mb"}
+I2C_ADDRESSES = range(0x08, 0x78)
+"""7-bit I2C addresses a device may have (0x00-0x07 and 0x78-0x7F are reserved)."""
 
 
 def _build(cls, data: dict, prefix: str):
+    """``cls`` from its table, nested sections by their own tables (`toml_tables.table_kwargs`)."""
     hints = typing.get_type_hints(cls)
-    names = {f.name for f in dataclasses.fields(cls)}
-    for key in data:
-        if key not in names:
-            where = f"[{prefix}]" if prefix else "top level"
-            raise ConfigError(f"config: unknown key {prefix + '.' if prefix else ''}{key} in {where}; "
-                              f"known: {', '.join(sorted(names))}")
-    kwargs = {}
-    for f in dataclasses.fields(cls):
-        if f.name not in data:
-            continue
-        key = f"{prefix}.{f.name}" if prefix else f.name
-        value = data[f.name]
-        if dataclasses.is_dataclass(hints[f.name]):
+
+    def check(_where, name, value, _annotation):
+        key = f"{prefix}.{name}" if prefix else name
+        if dataclasses.is_dataclass(hints[name]):
             if not isinstance(value, dict):
                 raise ConfigError(f"config: {key} must be a table [{key}]")
-            kwargs[f.name] = _build(hints[f.name], value, key)
-            continue
-        value = _convert(key, value, hints[f.name])
+            return _build(hints[name], value, key)
+        value = check_typed(f"config: {key}", value, hints[name], ConfigError)
         if key in _CHOICES and value not in _CHOICES[key]:
             raise ConfigError(f"config: {key} must be one of {', '.join(_CHOICES[key])}, got {value!r}")
         if key in _POSITIVE and not value > 0:
             raise ConfigError(f"config: {key} must be > 0, got {value!r}")
-        kwargs[f.name] = value
-    return cls(**kwargs)
+        if key in _NON_NEGATIVE and not value >= 0:
+            raise ConfigError(f"config: {key} must be 0 or more, got {value!r}")
+        return value
+
+    return cls(**table_kwargs(cls, data, "config", check, ConfigError,
+                              key_name=lambda name: f"{prefix}.{name}" if prefix else name))
 
 
 MAX_RECEIVE_INTERVAL_S = 0.05
@@ -242,6 +245,25 @@ def _check(config: Config) -> None:
         raise ConfigError("config: i2c.lsm9ds1.mag_odr_hz must be one of 0.625, 1.25, 2.5, 5, 10, 20, 40, 80")
     if config.i2c.hts221.odr_hz not in (1.0, 7.0, 12.5):
         raise ConfigError("config: i2c.hts221.odr_hz must be 1, 7 or 12.5")
+    for key, address in (("i2c.lps25hb.address", config.i2c.lps25hb.address),
+                         ("i2c.hts221.address", config.i2c.hts221.address),
+                         ("i2c.lsm9ds1.address_ag", config.i2c.lsm9ds1.address_ag),
+                         ("i2c.lsm9ds1.address_m", config.i2c.lsm9ds1.address_m)):
+        if address not in I2C_ADDRESSES:
+            raise ConfigError(f"config: {key} must be a 7-bit I2C address 0x08 to 0x77, got {address:#x}")
+    try:
+        zones_from_tables(config.privacy.zones, "privacy.zones")
+    except ValueError as exc:
+        raise ConfigError(f"config: {exc}") from None
+    for key in ("position_grid_m", "time_resolution_s"):
+        if not getattr(config.privacy, key) >= 0:
+            raise ConfigError(f"config: privacy.{key} must be >= 0 (0: off), got {getattr(config.privacy, key)!r}")
+    if config.encryption.recipients:
+        from .encryption import EncryptionUnavailable, parse_recipients
+        try:
+            parse_recipients(config.encryption.recipients)
+        except EncryptionUnavailable as exc:
+            raise ConfigError(f"config: {exc}") from None
     if config.logger.time_scale != 1.0 and not config.emulation.enabled:
         raise ConfigError("config: logger.time_scale other than 1 needs [emulation] enabled = true")
 
@@ -261,11 +283,21 @@ def load(path: str | Path) -> Config:
     """Read and check a configuration file; raises `ConfigError` with a one-line message."""
     path = Path(path)
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as exc:
         raise ConfigError(f"config: cannot read {path}: {exc.strerror}") from None
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise ConfigError(f"config: {path} is saved as UTF-16; save it as UTF-8 (TOML is UTF-8)")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"config: {path} is not UTF-8 text (invalid byte at offset {exc.start}); "
+                          f"TOML is UTF-8") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"config: {path} is not valid TOML: {exc}") from None
+    if not data:
+        raise ConfigError(f"config: {path} sets nothing; start from {example_path()} and set at least "
+                          f"[logger] directory")
     return from_dict(data)

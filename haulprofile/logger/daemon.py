@@ -21,6 +21,7 @@ from .clock import WALL_CLOCK_JUMP_NS, Clock
 from .config import Config
 from .devices import Devices
 from .diagnostics import Diagnostics, SystemdNotifier
+from .privacy import Privacy
 from .sources.base import LogItem, Source
 from .storage import BackgroundFsync, LogDirectory, StorageOptions
 
@@ -48,6 +49,8 @@ class Daemon:
 
     def __init__(self, config: Config, devices: Devices | None = None, clock: Clock | None = None):
         self.config = config
+        self.privacy = Privacy(config.privacy)
+        self.encryptor = None
         self.clock = clock or Clock(config.logger.time_scale)
         self.devices = devices or Devices()
         self.queue: asyncio.Queue | None = None
@@ -161,7 +164,7 @@ class Daemon:
                 if self.storage.writer is not None:  # while paused, warnings wait for the next file
                     now = self.clock.monotonic_ns()
                     self._write_now(contract.TIME_SYNC, {
-                        "t_mono_ns": now, "t_realtime_ns": now + self.clock.mono_offset_ns(),
+                        "t_mono_ns": now, "t_realtime_ns": self.privacy.log_time(now + self.clock.mono_offset_ns(), now),
                         "gps_time_utc_ns": self.devices.last_gps_time_ns(self.sources)})
                     self._write_now(contract.DIAGNOSTICS, self.diagnostics.record(now, self.sources, self.queue.qsize()))
                 if self.config.logger.watchdog and self.alive():
@@ -181,15 +184,23 @@ class Daemon:
         self._install_signals(loop)
         self.queue = asyncio.Queue(self.config.logger.queue_size)
         self.diagnostics = Diagnostics(self.clock)
-        self.sources = self.devices.build_sources(self.config, self.queue, self.clock, self.say)
+        self.sources = self.devices.build_sources(self.config, self.queue, self.clock, self.say, self.privacy)
+        if self.config.encryption.recipients:
+            from .encryption import Encryptor, parse_recipients
+            self.encryptor = Encryptor(parse_recipients(self.config.encryption.recipients), self.say)
         self.storage = LogDirectory(storage_options(self.config), self.devices.channel_metadata(self.sources),
                                     header_metadata={"boot_id": "", "pid": str(os.getpid()),
                                                      "time_scale": str(self.clock.scale)},
-                                    fsync=BackgroundFsync())
+                                    fsync=BackgroundFsync(), privacy=self.privacy,
+                                    on_closed=self.encryptor.submit if self.encryptor is not None else None)
         self.storage.header_metadata["boot_id"] = self.storage.boot_id
         self.diagnostics.storage = self.storage
         if self.storage.enforce_free_space():
             self.storage.open()
+        if self.encryptor is not None:  # a power cut's plaintext: repaired and encrypted in the background
+            left = self.encryptor.submit_leftovers(self.storage.directory, self.config.logger.prefix, self.storage.path)
+            if left:
+                self.say(f"{left} plaintext log(s) from before this start: repairing and encrypting them")
         gc.collect()
         gc.freeze()  # start-up objects leave the collector's view: full collections stay short stalls
         for source in self.sources:
@@ -239,3 +250,5 @@ class Daemon:
             self.storage.close()
         except OSError as exc:
             self.storage.write_failed(exc)
+        if self.encryptor is not None:
+            await asyncio.get_running_loop().run_in_executor(None, self.encryptor.close)

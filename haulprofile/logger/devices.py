@@ -48,13 +48,15 @@ class Devices:
                 drivers.append(Lsm9ds1Magnetometer(bus, m.address_m, clock, m.mag_odr_hz))
         return drivers
 
-    def build_sources(self, config: Config, queue, clock, say) -> list[Source]:
-        """Open every enabled device; a device that is missing is a warning, the rest logs."""
+    def build_sources(self, config: Config, queue, clock, say, privacy=None) -> list[Source]:
+        """Open every enabled device; a device that is missing is a warning, the rest logs.
+        ``privacy``: the daemon's `..privacy.Privacy` (zones, coarsening) for the GPS and CAN."""
         sources: list[Source] = []
         if config.can.enabled:
             from .sources.can import CanSource
             try:
-                sources.append(CanSource(queue, clock, config.can, self.can_bus(config), say))
+                sources.append(CanSource(queue, clock, config.can, self.can_bus(config), say,
+                                         drop_pgns=privacy.can_drop_pgns if privacy is not None else frozenset()))
             except (OSError, ImportError, ValueError) as exc:
                 say(f"can: cannot open {config.can.interface} {config.can.channel}: {exc}; logging without CAN")
             except Exception as exc:  # python-can raises CanError subclasses and others per backend
@@ -80,7 +82,7 @@ class Devices:
         if config.gps.enabled:
             from .sources.gps import GpsSource
             gps = GpsSource(queue, clock, self.gps_port(config), config.gps.baudrate,
-                            config.gps.rate_hz if config.gps.configure_rate else None, say)
+                            config.gps.rate_hz if config.gps.configure_rate else None, say, privacy)
             try:
                 gps.open()
                 sources.append(gps)

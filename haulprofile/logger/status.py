@@ -22,12 +22,17 @@ def last_diagnostics(path: str | Path) -> dict | None:
     return None if payload is None else json.loads(payload)
 
 
-def status_lines(directory: str | Path, prefix: str | None = None) -> tuple[list[str], bool]:
-    """Lines describing the newest log's last `/diagnostics`, and whether all looks healthy."""
+def status_lines(directory: str | Path, prefix: str | None = None,
+                 expected: list[str] | None = None) -> tuple[list[str], bool]:
+    """Lines describing the newest log's last `/diagnostics`, and whether all looks healthy: the file
+    is fresh and every ``expected`` source (the enabled ones) is open and running."""
+    expected = list(expected or [])
     files = log_files(Path(directory), prefix)
-    if not files:
-        return [f"no logs in {directory}"], False
-    newest = files[-1]
+    plain = [f for f in files if f.suffix == ".mcap"]  # encrypted ones (.mcap.age) cannot be read here
+    if not plain:
+        return [f"no logs being written in {directory} ({len(files)} encrypted)" if files
+                else f"no logs in {directory}"], False
+    newest = plain[-1]
     record = last_diagnostics(newest)
     if record is None:
         return [f"{newest.name}: no /diagnostics yet"], False
@@ -46,6 +51,13 @@ def status_lines(directory: str | Path, prefix: str | None = None) -> tuple[list
                 lines.append(f"        {sensor:12s} {sub['state']:8s} errors {sub.get('errors', 0)} "
                              f"overruns {sub.get('overruns', 0)}")
                 healthy &= sub["state"] == "running"
+    missing = [name for name in expected if name not in record["sources"]]
+    for name in missing:
+        lines.append(f"  {name:5s} {'not open':16s} (enabled in the configuration; see the start messages)")
+    healthy &= not missing
+    if not record["sources"]:
+        lines.append("  no source is logging")
+        healthy = False
     for message in record["messages"]:
         lines.append(f"  ! {message}")
     return lines, healthy

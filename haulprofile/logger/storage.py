@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from haulprofile.contract.naming import log_files, log_name_parts
+from haulprofile.private_files import make_dirs, open_new, write_bytes
 
 from .writer import LogWriter
 
@@ -42,7 +43,7 @@ def next_sequence(directory: Path, prefix: str) -> int:
     sequence = max([last] + [log_name_parts(path)[1] for path in log_files(directory, prefix)]) + 1
     partial = marker.with_name(marker.name + ".partial")
     try:
-        partial.write_text(f"{sequence}\n")
+        write_bytes(partial, f"{sequence}\n".encode())
         os.replace(partial, marker)
     except OSError:
         pass  # a full disk: the names of the files still carry the order
@@ -91,12 +92,16 @@ class LogDirectory:
     """Owns the current `LogWriter`; opens, rotates and closes files; enforces free space."""
 
     def __init__(self, options: StorageOptions, channel_metadata: dict | None = None,
-                 header_metadata: dict[str, str] | None = None, fsync=None):
-        """``fsync``: a callable ``fsync(fd)`` to use instead of a blocking ``os.fsync``."""
+                 header_metadata: dict[str, str] | None = None, fsync=None, privacy=None, on_closed=None):
+        """``fsync``: a callable ``fsync(fd)`` to use instead of a blocking ``os.fsync``;
+        ``privacy``: a `Privacy` whose time resolution applies to ``log_time`` and file names;
+        ``on_closed(path)``: called with each file once it is closed (encryption at rest)."""
         self.options = options
+        self.on_closed = on_closed
+        self.privacy = privacy
         self._fsync = (fsync or True) if options.fsync else False
         self.directory = Path(options.directory)
-        self.directory.mkdir(parents=True, exist_ok=True)
+        make_dirs(self.directory)
         self.boot_id = boot_id()
         self.channel_metadata = channel_metadata or {}
         self.header_metadata = header_metadata or {}
@@ -115,17 +120,20 @@ class LogDirectory:
 
     def _next_path(self) -> Path:
         sequence = next_sequence(self.directory, self.options.prefix)
-        utc = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+        now = self.privacy.file_time() if self.privacy is not None else time.gmtime()
+        utc = time.strftime("%Y%m%dT%H%M%SZ", now)
         return self.directory / f"{self.options.prefix}_{self.boot_id}_{utc}_{sequence:04d}.mcap"
 
     def open(self) -> Path:
         """Start a new file (closing the current one with its summary)."""
         self.close()
         self.path = self._next_path()
-        self._stream = open(self.path, "xb")
+        self._stream = open_new(self.path)
         self.writer = LogWriter(self._stream, chunk_size=self.options.chunk_size_bytes,
                                 compression=self.options.compression, channel_metadata=self.channel_metadata,
-                                chunk_interval_s=self.options.chunk_interval_s, fsync=self._fsync)
+                                chunk_interval_s=self.options.chunk_interval_s, fsync=self._fsync,
+                                log_time=self.privacy.log_time if self.privacy is not None and self.privacy.resolution_ns
+                                else None)
         if self.header_metadata:
             self.writer.write_metadata("haulprofile.logger", dict(self.header_metadata))
             self.writer.flush()
@@ -146,7 +154,7 @@ class LogDirectory:
                 self.current_marker.unlink(missing_ok=True)
                 return
             temporary = self.directory / f"{CURRENT_MARKER}.tmp"
-            temporary.write_text(name + "\n")
+            write_bytes(temporary, (name + "\n").encode())
             os.replace(temporary, self.current_marker)
         except OSError:
             pass  # a full disk must not stop logging for a convenience file
@@ -158,6 +166,11 @@ class LogDirectory:
             self.writer = None
             self._stream = None
             self._mark_current(None)
+            self._closed(self.path)
+
+    def _closed(self, path: Path | None) -> None:
+        if self.on_closed is not None and path is not None:
+            self.on_closed(path)
 
     def rotate_if_due(self) -> bool:
         """Rotate by size or age of the current file; True if a new file was started."""
@@ -190,6 +203,7 @@ class LogDirectory:
             self.writer = None
             self._stream = None
             self._mark_current(None)
+            self._closed(self.path)
         self.paused = True
         try:
             free = self.free_bytes()

@@ -109,34 +109,130 @@ CHILD = """
 import json, resource, sys, time
 import pandas as pd
 from haulprofile.analysis.dem import open_dem
-from haulprofile.analysis.gradient import estimate_gradient
+from haulprofile.analysis.gradient import estimate_gradient, smoother
+from haulprofile.analysis import mass as mass_package
 from haulprofile.analysis.mass import estimate_mass
 from haulprofile.analysis.vehicle import load_vehicle
 frame = pd.read_parquet(sys.argv[1])
 dem, vehicle = open_dem(sys.argv[2]), load_vehicle("rigid-18t")
+spent = {"smoother": 0.0, "joint": 0.0}
+def timed(owner, name, key):
+    inner = getattr(owner, name)
+    def wrapper(*args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return inner(*args, **kwargs)
+        finally:
+            spent[key] += time.perf_counter() - t0
+    setattr(owner, name, wrapper)
+timed(smoother.GradientSmoother, "estimate", "smoother")
+timed(mass_package, "_joint", "joint")
 def run(part):
     gradient = estimate_gradient(part, dem)
     part = part.assign(**gradient.samples)
     return estimate_mass(part, vehicle)
 run(frame.iloc[:20000])  # JIT and tile loading
+spent.update(smoother=0.0, joint=0.0)
 t0 = time.perf_counter()
 mass = run(frame)
 seconds = time.perf_counter() - t0
-ok = [s["mass_ls_kg"] for s in mass.segments if s["status"] == "ok"]
+ok = [s["mass_kg"] for s in mass.segments if s["mass_kg"] is not None]
 print(json.dumps({"seconds": seconds, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                  "samples": len(frame), "segments_ok": len(ok), "median_mass_kg": sorted(ok)[len(ok) // 2]}))
+                  "samples": len(frame), "segments_ok": len(ok), "median_mass_kg": sorted(ok)[len(ok) // 2],
+                  "smoother_s": spent["smoother"], "joint_s": spent["joint"],
+                  "old_estimator_s": seconds - spent["smoother"] - spent["joint"]}))
 """
 
 
 def bench_gradient_and_mass_long_drive(quick: bool):
+    """Gradient (paper fusion + smoother) and mass (LS/RLS/LM + joint) of a long drive; the old
+    estimator (paper fusion, LS/RLS/LM) is the same run without the time spent in the smoother
+    and the joint fit, so the ratio says what the new estimation costs."""
     hours = 1.0 if quick else 10.0
     table, dem = long_drive(hours)
     out = subprocess.run([sys.executable, "-c", CHILD, str(table), str(dem)], capture_output=True, text=True,
                          check=True, cwd=Path(__file__).resolve().parents[2])
     measured = json.loads(out.stdout.strip().splitlines()[-1])
-    return [result(f"gradient_and_mass_{hours:g}h_at_10Hz", measured["seconds"], "s", **{
-                k: v for k, v in measured.items() if k != "seconds"}),
+    extra = {k: v for k, v in measured.items() if k not in ("seconds", "old_estimator_s")}
+    return [result(f"estimation_speed_gradient_and_mass_{hours:g}h_at_10Hz", measured["seconds"], "s",
+                   "old estimator (paper fusion + LS/RLS/LM) in the same run", measured["old_estimator_s"], **extra),
             result(f"gradient_and_mass_{hours:g}h_at_10Hz_peak_rss", measured["peak_rss_mb"], "MB")]
 
 
 BENCHMARKS = [bench_rls_vs_padasip, bench_gradient_and_mass_long_drive]
+
+
+def bench_estimation_accuracy(quick: bool):
+    """Gradient RMSE (smoother, paper fusion (8), barometer only, map only) and mass error per
+    segment (old LS, joint with the accelerometer, after calibration with one weighing) on the
+    shipped virtual-truck scenarios, as they are ('ideal') and in the imperfect world of the tests
+    (DEM with 5 m correlated error and a bridge, 1.5 hPa drift, IMU pitch 1.5° + bias, torque gain
+    +3 %, c_r of the vehicle file +15 %)."""
+    tests = Path(__file__).resolve().parents[2] / "tests"
+    sys.path.insert(0, str(tests))
+    from imperfect_world import ErroneousDem, Imperfections, imperfect_signals, mismatched_vehicle, on_grid
+    from test_gradient_virtual_truck import signals_from_drive
+
+    from haulprofile.analysis import virtual_truck
+    from haulprofile.analysis.dem import open_dem
+    from haulprofile.analysis.gradient import estimate_gradient
+    from haulprofile.analysis.mass import estimate_mass
+
+    lines = []
+    for name in ["regional-tunnel"] if quick else ["regional-tunnel", "long-haul", "urban-delivery"]:
+        folder = CACHE_DIR / f"accuracy-{name}"
+        table = folder / "signals.parquet"
+        if not table.is_file():
+            drive = virtual_truck.drive(virtual_truck.load_scenario(name), seed=0)
+            virtual_truck.write_dem(drive, folder / "dem")
+            signals_from_drive(drive).to_parquet(table)
+            drive.truth.to_parquet(folder / "truth.parquet")
+        signals, truth = pd.read_parquet(table), pd.read_parquet(folder / "truth.parquet")
+        dem = open_dem(folder / "dem")
+        vehicle = virtual_truck.scenario_vehicle(virtual_truck.load_scenario(name))
+        imperfections = Imperfections()
+        for world in ("ideal", "imperfect"):
+            if world == "imperfect":
+                signals, dem = imperfect_signals(signals, imperfections), ErroneousDem(dem, truth, imperfections)
+                vehicle = mismatched_vehicle(vehicle, imperfections)
+            gradient = estimate_gradient(signals, dem)
+            grid = gradient.grid
+            s = grid["distance_m"].to_numpy()
+            true_gradient = on_grid(grid, truth, "gradient_pct")
+            tunnel = on_grid(grid, truth, "in_tunnel") > 0.5
+            bridge = (np.abs(s - imperfections.bridge_at_m) < imperfections.bridge_length_m / 2
+                      if world == "imperfect" else np.zeros(len(s), bool))
+            rmse = {}
+            for column in ("gradient_smooth_pct", "gradient_paper_pct", "gradient_baro_pct", "gradient_map_pct"):
+                error = grid[column].to_numpy() - true_gradient
+                rmse[column] = {where: round(float(np.sqrt(np.nanmean(error[mask] ** 2))), 3)
+                                for where, mask in (("outside", ~tunnel & ~bridge), ("tunnel", tunnel),
+                                                    ("bridge", bridge)) if mask.any()}
+            frame = signals.assign(**gradient.samples)
+            mass = estimate_mass(frame, vehicle)
+            time_s, true_mass = truth["time_s"].to_numpy(), truth["mass_kg"].to_numpy()
+            true = [true_mass[(time_s >= seg["start_s"]) & (time_s <= seg["end_s"])][0] for seg in mass.segments]
+            known = next((j for j, seg in enumerate(mass.segments) if seg["mass_kg"] is not None), None)
+            calibrated = estimate_mass(frame, vehicle, known_masses={known: float(true[known])}) if known is not None else None
+
+            def errors(segments, key):
+                return [round(100 * (seg[key] / m - 1), 2) for seg, m in zip(segments, true) if seg.get(key) is not None]
+
+            covered = [abs(seg["mass_kg"] - m) <= 2 * seg["mass_uncertainty_kg"]
+                       for seg, m in zip(mass.segments, true) if seg.get("mass_kg") is not None]
+            lines.append(result(f"estimation_accuracy_{name}_{world}", rmse["gradient_smooth_pct"]["outside"], "%-pt RMSE",
+                                "paper fusion (8)", rmse["gradient_paper_pct"]["outside"], gradient_rmse=rmse,
+                                mass_error_pct={"ls_old": errors(mass.segments, "mass_ls_kg"),
+                                                "joint_imu": errors(mass.segments, "mass_imu_kg"),
+                                                "joint_gradient": errors(mass.segments, "mass_gradient_kg"),
+                                                "final": errors(mass.segments, "mass_kg"),
+                                                "final_after_one_weighing": (errors(calibrated.segments, "mass_kg")
+                                                                             if calibrated else None)},
+                                truth_within_2_sigma=f"{sum(covered)}/{len(covered)}",
+                                road_load={k: v["value"] for k, v in mass.road_load.items()
+                                           if isinstance(v, dict) and "value" in v},
+                                map_gated_km=gradient.smoother["map_gated_km"]))
+    return lines
+
+
+BENCHMARKS.append(bench_estimation_accuracy)

@@ -31,7 +31,7 @@ PERIODIC_HZ = 100 + 20 + 10 + 5 + 10 + 10 + 1 + 7 / 5.0
 
 
 def _log(quick: bool) -> tuple[Path, float]:
-    from haulprofile.analysis.ingest import synthetic
+    from haulprofile.testing import logs as synthetic
 
     hours = 0.1 if quick else 10.0
     path = CACHE_DIR / f"ingest-{hours:g}h-v1.mcap"

@@ -3,6 +3,10 @@
 Load (issue 3): J1939 broadcast at 1500 frames/s (the ECU emulator's broadcasts plus a traffic
 generator filling up to 1500/s), OBD-II polling at 30 Hz, LSM9DS1 at 952 Hz through its FIFO,
 LPS25HB 25 Hz, HTS221 12.5 Hz, magnetometer 10 Hz, GPS 10 Hz, for 60 s (10 s with --quick).
+Encryption at rest is on (age, one generated recipient) and files rotate every 20 s (4 s with
+--quick), so closed files are encrypted during the run; the encryption thread's CPU for the
+whole run (the last file's included, encrypted after the measured window) is added to the
+logger's.
 The real daemon logs it; in the same process and on the same virtual CAN channel a python-can
 ``Notifier`` feeds a ``BLFWriter`` (what ``python -m can.logger`` does), so both see the same
 frames at the same time.
@@ -137,8 +141,12 @@ def logger_full_load(quick: bool) -> list[dict]:
     import can
     duration_s = 10.0 if quick else 60.0
     out_dir = Path(tempfile.mkdtemp(prefix="logger-", dir=CACHE_DIR))
+    import pyrage
+    identity = pyrage.x25519.Identity.generate()
     config = emulation_config(out_dir / "ours", 1.0, Config())
     config.can.j1939.request_interval_s = 10.0
+    config.encryption.recipients = [str(identity.to_public())]
+    config.storage.rotate_interval_s = 4.0 if quick else 20.0
     clock = Clock()
     sensors.EmulatedSMBus, original = _TimedSMBus, sensors.EmulatedSMBus
     try:
@@ -194,12 +202,19 @@ def logger_full_load(quick: bool) -> list[dict]:
     notifier.stop()
     peer_bus.shutdown()
 
-    path = daemon.storage.files_written[0]
+    encrypt_s = daemon.encryptor.cpu_s
+    measured["threads"]["encrypt (whole run)"] = round(encrypt_s, 3)
+    measured["logger_cpu_s"] += encrypt_s
+    encrypted = sorted((out_dir / "ours").glob("*.mcap.age"))
+    assert len(encrypted) == len(daemon.storage.files_written) and not list((out_dir / "ours").glob("*.mcap"))
+    import io
+
     from mcap.records import Channel, Message
     from mcap.stream_reader import StreamReader
-    topics, frames_logged, imu_logged = {}, 0, 0
-    with open(path, "rb") as stream:
-        for record in StreamReader(stream).records:
+    frames_logged, imu_logged = 0, 0
+    for path in encrypted:
+        topics = {}
+        for record in StreamReader(io.BytesIO(pyrage.decrypt(path.read_bytes(), [identity]))).records:
             if isinstance(record, Channel):
                 topics[record.id] = record.topic
             elif isinstance(record, Message) and topics[record.channel_id] == "/can/frames":
@@ -216,14 +231,14 @@ def logger_full_load(quick: bool) -> list[dict]:
     run_s = duration_s + 1.8
     ours_per_frame_us = measured["can_reader_cpu_s"] / frames_on_bus * 1e6
     peer_per_frame_us = measured["peer_cpu_s"] / peer_frames * 1e6
-    size_mb = path.stat().st_size / 1e6
+    size_mb = sum(p.stat().st_size for p in encrypted) / 1e6
     tag = "quick" if quick else "60s"
     return [
         result(f"logger_full_load_{tag}_cpu_s_per_hour", measured["logger_cpu_s"] / duration_s * 3600, "s/h",
                percent_of_one_core=100 * measured["logger_cpu_s"] / duration_s, thread_cpu_s=measured["threads"],
                thread_wakeups_per_s=measured["wakeups_per_s"],
                smbus_transactions_per_s=measured["smbus_transactions_per_s"],
-               smbus_timing_overhead_ns_per_call=round(overhead_ns)),
+               smbus_timing_overhead_ns_per_call=round(overhead_ns), encryption="on", files=len(encrypted)),
         result(f"logger_full_load_{tag}_can_cpu_per_frame (ratio = peer/ours, >1: we are cheaper)",
                ours_per_frame_us, "us/frame", "python-can Notifier+BLFWriter", peer_per_frame_us,
                frames_on_bus=frames_on_bus, frames_logged=frames_logged, peer_frames=peer_frames,
@@ -232,7 +247,7 @@ def logger_full_load(quick: bool) -> list[dict]:
                sensor_overruns=sensor_losses, imu_samples=imu_logged),
         result(f"logger_full_load_{tag}_peak_rss", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "MiB",
                note="whole benchmark process (logger, emulators and peer)"),
-        result(f"logger_full_load_{tag}_written", size_mb / run_s * 3600, "MB/h", "python-can BLF (CAN only)",
+        result(f"logger_full_load_{tag}_written (encrypted)", size_mb / run_s * 3600, "MB/h", "python-can BLF (CAN only)",
                blf_path.stat().st_size / 1e6 / run_s * 3600),
     ]
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from haulprofile.analysis.markov.generate import GOLDEN, _mix, _path_statistics, _uniform
+from haulprofile.analysis.markov.generate import GOLDEN, mix, path_statistics, uniform
 
 CACHE = Path(__file__).resolve().parents[1].parent / ".bench-cache"
 DENSE_LIMIT_BYTES = 4 * 1024**3
@@ -28,7 +28,7 @@ DENSE_LIMIT_BYTES = 4 * 1024**3
 def _input(hours: float) -> Path:
     path = CACHE / f"markov-input-{hours:g}h.parquet"
     if not path.exists():
-        from haulprofile.analysis.markov.synthetic import synthetic_drive
+        from haulprofile.testing.drives import synthetic_drive
         CACHE.mkdir(exist_ok=True)
         synthetic_drive(hours * 3600, seed=2026, kind="regional").to_parquet(path)
     return path
@@ -36,12 +36,12 @@ def _input(hours: float) -> Path:
 
 @numba.njit(cache=True)
 def _dense_batch(cum, start_state, start_cum, speed, gradient, mass, seed, n_steps, stats):
-    """Dense peer of `analysis.markov.generate._batch`: row ``cum[s]`` holds cumulative counts."""
+    """Dense peer of `analysis.markov.generate.batch`: row ``cum[s]`` holds cumulative counts."""
     path = np.empty(n_steps, np.int64)
     rng = np.empty(1, np.uint64)
     for i in range(stats.shape[0]):
-        rng[0] = _mix(np.uint64(seed) ^ _mix(np.uint64(i) + GOLDEN))
-        u = _uniform(rng) * start_cum[-1]
+        rng[0] = mix(np.uint64(seed) ^ mix(np.uint64(i) + GOLDEN))
+        u = uniform(rng) * start_cum[-1]
         j = 0
         while j < start_cum.shape[0] - 1 and start_cum[j] <= u:
             j += 1
@@ -49,9 +49,9 @@ def _dense_batch(cum, start_state, start_cum, speed, gradient, mass, seed, n_ste
         path[0] = s
         for k in range(1, n_steps):
             row = cum[s]
-            s = min(np.searchsorted(row, _uniform(rng) * row[-1], side="right"), row.shape[0] - 1)
+            s = min(np.searchsorted(row, uniform(rng) * row[-1], side="right"), row.shape[0] - 1)
             path[k] = s
-        _path_statistics(path, speed, gradient, mass, stats[i])
+        path_statistics(path, speed, gradient, mass, stats[i])
 
 
 def _dense_size(chain) -> tuple[int, int]:
@@ -89,7 +89,7 @@ def child(kind: str, hours: float, mass_class_kg: float, n_candidates: int) -> d
     """One measurement in this process: wall seconds from the 1 Hz table to the selected cycle."""
     import pandas as pd
     from haulprofile.analysis.markov import ClassWidths, build_chain, count_transitions, select_cycle
-    from haulprofile.analysis.markov.synthetic import synthetic_drive
+    from haulprofile.testing.drives import synthetic_drive
     warm = count_transitions(synthetic_drive(900, seed=1, kind="urban"), ClassWidths(5.0, 2.0, 5000.0))
     select_cycle(warm, 120, 4, seed=0)
     if kind == "dense":

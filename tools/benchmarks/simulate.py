@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from haulprofile.analysis.simulate import DriverSettings, read_cycle, simulate, time_cycle
+from haulprofile.analysis.simulate import DriverSettings, read_cycle, simulate_cycle, time_cycle
 from haulprofile.analysis.vehicle import load_vehicle
 from bench import result
 
-SHARED_DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
+TEST_DATA = Path(__file__).resolve().parents[2] / "tests" / "data"
 MASS_KG = 18_000.0
 
 
@@ -40,7 +40,7 @@ def _fastsim_trace(fastsim, hours: float) -> dict:
             "speed_meters_per_second": np.concatenate([p[1] for p in pieces])[keep].tolist()}
 
 
-def _fastsim_vehicle(fastsim, vehicle):
+def fastsim_vehicle(fastsim, vehicle):
     """A FASTSim BEV with our road load (mass, c_d, A, c_r, r_dyn; no wheel inertia) and a
     powertrain large enough to follow the trace, as ours is in this comparison."""
     d = fastsim.Vehicle.from_resource("2022_Renault_Zoe_ZE50_R135.yaml").to_dict()
@@ -70,7 +70,7 @@ def bench_simulate_vs_fastsim(quick: bool):
     trace = _fastsim_trace(fastsim, hours)
     cycle = time_cycle(pd.DataFrame({"time_s": trace["time_seconds"], "speed_mps": trace["speed_meters_per_second"]}),
                        MASS_KG, "FASTSim UDDS+HWFET")
-    fs_vehicle = _fastsim_vehicle(fastsim, rigid)
+    fs_vehicle = fastsim_vehicle(fastsim, rigid)
     fs_cycle = fastsim.Cycle.from_dict({**fastsim.Cycle.from_resource("udds.csv").to_dict(), **trace,
                                         "grade": [0.0] * len(trace["time_seconds"]),
                                         "dist_meters": [], "elev_meters": [], "pwr_max_chrg_watts": [],
@@ -83,7 +83,7 @@ def bench_simulate_vs_fastsim(quick: bool):
         holder["fs"] = sd
 
     lines = []
-    simulate(cycle, ours_vehicle)
+    simulate_cycle(cycle, ours_vehicle)
     repeats = 3 if quick else 5
     t_fastsim = _best_of(repeats, run_fastsim)
     history = holder["fs"].to_dict()["veh"]["history"]
@@ -92,8 +92,8 @@ def bench_simulate_vs_fastsim(quick: bool):
     fs_positive_kwh = float(np.sum(np.clip(fs_power, 0, None)[1:] * np.diff(fs_time))) / 3.6e6
     for dt in (1.0, 0.1):
         settings = DriverSettings(time_step_s=dt)
-        holder["ours"] = simulate(cycle, ours_vehicle, settings=settings)
-        t_ours = _best_of(repeats, lambda: simulate(cycle, ours_vehicle, settings=settings))
+        holder["ours"] = simulate_cycle(cycle, ours_vehicle, settings=settings)
+        t_ours = _best_of(repeats, lambda: simulate_cycle(cycle, ours_vehicle, settings=settings))
         ours_kwh = holder["ours"].summary["wheel_positive_energy_kwh"]
         lines.append(result(f"simulate_{hours:g}h_trace_dt{dt:g}s_run_time", t_ours, "s (ratio>1: ours faster)",
                             "FASTSim 3 SimDrive.run (1 s steps)", t_fastsim))
@@ -106,14 +106,14 @@ def bench_energy_per_km(quick: bool):
     """Closing note: battery and wheel kWh/km of the example vehicles (half payload on VECTO
     cycles, the scenario's own mass on virtual-truck drives)."""
     lines = []
-    vecto = SHARED_DATA / "vecto-cycles"
+    vecto = TEST_DATA / "vecto-cycles"
     names = ["RegionalDelivery"] if quick else ["RegionalDelivery", "LongHaul"]
     for vehicle_name in ("rigid-18t", "tractor-40t"):
         vehicle = load_vehicle(vehicle_name)
         cycles = [read_cycle(vecto / f"{n}.vdri", vehicle) for n in names if (vecto / f"{n}.vdri").is_file()]
         cycles += _virtual_truck_cycles(vehicle, quick)
         for cycle in cycles:
-            s = simulate(cycle, vehicle).summary
+            s = simulate_cycle(cycle, vehicle).summary
             lines.append(result(f"energy_per_km_{vehicle_name}_{cycle.name}", s["battery_kwh_per_km"],
                                 "kWh/km at the battery", None, None,
                                 wheel_positive_kwh_per_km=s["wheel_positive_kwh_per_km"],

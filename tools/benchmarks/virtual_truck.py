@@ -7,7 +7,7 @@ from pathlib import Path
 
 from haulprofile.analysis.virtual_truck import drive, load_scenario, write_dem, write_mcap
 from haulprofile.analysis.virtual_truck.driver import simulate_kernel
-from haulprofile.analysis.virtual_truck.road import build_road
+from haulprofile.analysis.virtual_truck.world import build_road
 from haulprofile.analysis.virtual_truck.truck import scenario_vehicle, simulate
 from bench import result
 

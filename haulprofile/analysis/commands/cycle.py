@@ -1,29 +1,27 @@
-"""``analyze cycle INPUT… --duration 1800 --candidates 100000 --seed 0 --out DIR``.
+"""``analyze cycle INPUT… --cycle-duration 1800 --candidates 100000 --seed 0 --out DIR``.
 
-INPUT is a signals table (CSV/Parquet) or, when the ingest stage is installed, MCAP logs. Missing
-gradient or mass columns are computed by the pipeline's own stages (kinematics, gradient, mass)
-when installed; ``--mass-kg`` gives a known constant total mass instead.
+INPUT is a signals table (CSV/Parquet) or logs. The pipeline runs up to the cycle stage; gradient
+or mass columns the input already has are kept, missing ones are estimated by the gradient and
+mass stages; ``--mass-kg`` gives a known constant total mass instead.
 """
 
 from __future__ import annotations
 
-import json
+import sys
 from pathlib import Path
 
-from .. import pipeline
-from .. import signals as signals_table
+from .. import checks
 from ..errors import UserError
-from ..markov.classes import ClassWidths
-from ..markov.stage import stage as cycle_stage
 from ..vehicle import load_vehicle
 
-PRODUCES = {"kinematics": "accel_mps2", "gradient": "gradient_pct", "mass": "mass_kg"}
+EXIT_UNTRUSTWORTHY_RESULT = 3
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="signals tables (CSV/Parquet) or MCAP logs")
-    parser.add_argument("--out", type=Path, required=True, help="output directory")
-    parser.add_argument("--duration", type=float, default=1800.0, help="cycle duration [s] (1800)")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, required=True, help="output directory")
+    parser.add_argument("--cycle-duration", "--duration", dest="cycle_duration", type=float, default=1800.0,
+                        help="cycle duration [s] (1800)")
     parser.add_argument("--speed-class-kmh", type=float, default=1.0, help="speed class width [km/h] (1)")
     parser.add_argument("--gradient-class-pct", type=float, default=0.5, help="gradient class width [%%] (0.5)")
     parser.add_argument("--mass-class-kg", type=float, default=100.0, help="mass class width [kg] (100)")
@@ -37,56 +35,37 @@ def add_arguments(parser) -> None:
     parser.add_argument("--quiet", action="store_true", help="print only errors")
 
 
-def _prepare(ctx: pipeline.RunContext, mass_kg: float | None) -> None:
-    """Signals with speed, gradient and mass: read, or ingest and estimate through the pipeline."""
-    pipeline.load_inputs(ctx)
-    stages = dict(pipeline.available_stages())
-    if ctx.signals is None:
-        if "ingest" not in stages:
-            raise UserError("the inputs are logs but no ingest stage is installed; give a signals table")
-        ctx.say("[ingest]")
-        stages["ingest"](ctx)
-    if mass_kg is not None:
-        if not mass_kg > 0:
-            raise UserError(f"--mass-kg must be a positive mass in kg, got {mass_kg}")
-        ctx.signals["mass_kg"] = float(mass_kg)
-    for name, column in PRODUCES.items():
-        if not signals_table.missing_for(ctx.signals, [column]):
-            continue
-        if name not in stages:
-            ctx.say(f"{column} missing and the {name} stage is not installed")
-            continue
-        if name == "mass" and ctx.vehicle is None:
-            raise UserError("the input has no mass_kg: give --vehicle for the mass stage, or --mass-kg")
-        ctx.say(f"[{name}]")
-        stages[name](ctx)
-
-
-def _plain(value):
-    """JSON form of NumPy scalars and paths in the summary."""
-    if hasattr(value, "item"):
-        return value.item()
-    return str(value)
-
-
 def run(args) -> int:
     if args.candidates < 1:
         raise UserError(f"--candidates must be at least 1, got {args.candidates}")
-    if not args.duration >= 2:
-        raise UserError(f"--duration must be at least 2 s, got {args.duration}")
+    checks.cycle_duration_s(args.cycle_duration)
     if args.seed < 0:
         raise UserError(f"--seed must be a non-negative integer, got {args.seed}")
+    if args.mass_kg is not None and not args.mass_kg > 0:
+        raise UserError(f"--mass-kg must be a positive mass in kg, got {args.mass_kg}")
+    from ..gradient.stage import GradientOptions
+    from ..markov.classes import ClassWidths
+    from ..markov.stage import CycleOptions
+    from ..mass.stage import MassOptions
+    from ..pipeline import Options, RunContext, run as run_pipeline
+
     widths = ClassWidths(args.speed_class_kmh, args.gradient_class_pct, args.mass_class_kg)
-    ctx = pipeline.RunContext(
-        inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle) if args.vehicle else None,
-        dem_dir=args.dem, say=(lambda _msg: None) if args.quiet else print,
-        options={"cycle": {"duration_s": args.duration, "widths": widths, "n_candidates": args.candidates,
-                           "seed": args.seed, "update_counts": args.update_counts}})
-    args.out.mkdir(parents=True, exist_ok=True)
-    _prepare(ctx, args.mass_kg)
-    cycle_stage(ctx)
-    if "cycle" not in ctx.summary:
-        raise UserError("no cycle: the signals lack " + ", ".join(
-            signals_table.missing_for(ctx.signals, ["gradient_pct", "mass_kg"])) + " (see the messages above)")
-    (args.out / "cycle.json").write_text(json.dumps(ctx.summary["cycle"], indent=2, default=_plain))
-    return 0 if ctx.summary["cycle"]["valid"] else 1
+    options = Options(gradient=GradientOptions(keep_existing=True),
+                      mass=MassOptions(known_mass_kg=args.mass_kg, keep_existing=True),
+                      cycle=CycleOptions(duration_s=args.cycle_duration, widths=widths, n_candidates=args.candidates,
+                                         seed=args.seed, update_counts=args.update_counts))
+    ctx = RunContext(inputs=list(args.inputs), out_dir=args.out,
+                     vehicle=load_vehicle(args.vehicle) if args.vehicle else None, dem_dir=args.dem,
+                     say=(lambda _msg: None) if args.quiet else print, options=options,
+                     json_files={"cycle.json": lambda ctx: ctx.summary.get("cycle")})
+    ctx = run_pipeline(ctx, until="cycle")
+    if ctx.results.cycle is None:
+        reasons = [f"{name}: {reason}" for name, reason in ctx.skipped.items()]
+        if "mass" in ctx.skipped and ctx.vehicle is None:
+            reasons = ["the input has no mass_kg: give --vehicle for the mass stage, or --mass-kg"]
+        raise UserError("no cycle: " + "; ".join(reasons))
+    if not ctx.summary["cycle"]["valid"]:
+        print(f"analyze cycle: warning: no valid cycle: {ctx.summary['cycle'].get('statement', '')} "
+              f"(try more --candidates or a longer --cycle-duration)", file=sys.stderr)
+        return EXIT_UNTRUSTWORTHY_RESULT
+    return 0

@@ -1,7 +1,9 @@
 """``analyze demo [--out DIR] [--scenario NAME] [--seed N]``: the whole product on a virtual truck.
 
-Drives a scenario (regional route with a tunnel by default), writes its terrain as SRTM tiles into
-``DIR/dem/`` and its ground truth into ``DIR/truth.parquet``, logs its sensor streams through the
+Drives a scenario (regional route with a tunnel by default) at a realism level (``typical`` by
+default: terrain with an engineered road, a DEM with real DEMs' errors, sensors with real errors),
+writes its DEM as SRTM tiles into ``DIR/dem/`` and its ground truth into ``DIR/truth*`` (10 Hz
+states, the road per 10 m, the mass per segment and every injected error), logs its sensor streams through the
 real logger daemon against the device emulators (ECU on a virtual CAN bus, register-level I2C
 sensors, NMEA GPS on a pty) into ``DIR/logs/``, then runs every analysis stage on the log into
 ``DIR``. The emulated world runs ``--time-scale`` times faster than real time (20: a 40-minute drive
@@ -13,16 +15,18 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from ..pipeline import RunContext, available_stages, run as run_pipeline
-from ..signals import write_signals
-from ..virtual_truck import drive, load_scenario, scenario_vehicle, write_dem, write_mcap
+from ..pipeline import RunContext, run as run_pipeline
+from ..virtual_truck import drive, load_scenario, realism_level, scenario_vehicle, write_dem, write_mcap, write_truth
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--out", type=Path, default=Path("demo-out"), help="output directory (default demo-out)")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("demo-out"),
+                        help="output directory (default demo-out)")
     parser.add_argument("--scenario", default="regional-tunnel",
                         help="shipped scenario name (urban-delivery, regional-tunnel, long-haul) or a TOML file")
     parser.add_argument("--seed", type=int, default=0, help="seed of the virtual world and its sensor noise")
+    parser.add_argument("--realism", default="typical",
+                        help="ideal (the old, exact world), typical (default) or harsh")
     parser.add_argument("--time-scale", type=float, default=20.0,
                         help="emulated seconds per real second while logging through the daemon (20)")
     parser.add_argument("--direct", action="store_true",
@@ -34,10 +38,11 @@ def run(args) -> int:
     say = (lambda _msg: None) if args.quiet else print
     started = time.perf_counter()
     scenario = load_scenario(args.scenario)
+    level = realism_level(args.realism)
     vehicle = scenario_vehicle(scenario)
     out: Path = args.out
-    say(f"virtual truck: scenario {scenario.name}, {vehicle.name}, seed {args.seed}")
-    virtual = drive(scenario, vehicle, seed=args.seed)
+    say(f"virtual truck: scenario {scenario.name}, {vehicle.name}, seed {args.seed}, realism {level.level}")
+    virtual = drive(scenario, vehicle, seed=args.seed, realism=level)
     say(f"  drove {virtual.truth['distance_m'].iloc[-1] / 1000:.1f} km in {virtual.duration_s / 60:.1f} min")
     tiles = write_dem(virtual, out / "dem")
     say(f"  DEM: {', '.join(p.name for p in tiles)} in {out / 'dem'}")
@@ -52,18 +57,16 @@ def run(args) -> int:
             old.unlink()
         log = record_streams(virtual.sensors, out / "logs", time_scale=args.time_scale)
     say(f"  log: {log} ({log.stat().st_size / 1e6:.1f} MB)")
-    truth = write_signals(virtual.truth, out / "truth.parquet")
-    say(f"  ground truth: {truth}")
+    truth = write_truth(virtual, out)
+    say(f"  ground truth: {', '.join(p.name for p in truth)} in {out}")
 
     ctx = RunContext(inputs=[out / "logs"], out_dir=out, vehicle=vehicle, dem_dir=out / "dem", say=say)
-    if "ingest" not in [name for name, _ in available_stages()]:
-        print(f"the analysis has no ingest stage installed: log and DEM are in {out}, nothing analysed")
-        return 0
     run_pipeline(ctx)
     elapsed = time.perf_counter() - started
     print(f"demo done in {elapsed:.0f} s. Look at:")
     for name in ("report.html", "summary.json", "signals.parquet"):
         if (out / name).exists():
             print(f"  {out / name}")
-    print(f"  {out / 'truth.parquet'}  (the virtual truck's ground truth, to compare with the estimates)")
+    print(f"  {out / 'truth.parquet'}, truth-road-10m.csv, truth-mass.csv, truth-errors.json  (the virtual "
+          f"truck's ground truth and every injected error, to compare with the estimates)")
     return 0

@@ -12,8 +12,10 @@ import json
 import sys
 from pathlib import Path
 
+from .. import checks, jsonable
 from ..fleet import FleetSpec, run_fleet
-from ..pipeline import jsonable
+from ..ingest.stage import IngestOptions
+from ..pipeline import Options
 from ..vehicle import load_vehicle
 
 EXIT_INCOMPLETE = 3
@@ -25,15 +27,17 @@ def add_arguments(parser) -> None:
     parser.add_argument("--vehicle", action="append", required=True,
                         help="vehicle file (TOML) or shipped example name; once for all groups or once per LOGDIR")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles (or GeoTIFFs) covering every route")
-    parser.add_argument("--out", type=Path, required=True, help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, required=True, help="output directory")
     parser.add_argument("--workers", type=int, help="local worker processes (default: the CPU count; 1 = serial)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="run on an existing Dask distributed cluster, e.g. tcp://host:8786")
-    parser.add_argument("--duration", type=float, default=1800.0, help="generated cycle length per group [s] (1800)")
+    parser.add_argument("--cycle-duration", "--duration", dest="cycle_duration", type=float, default=1800.0,
+                        help="generated cycle length per group [s] (1800)")
     parser.add_argument("--candidates", type=int, default=100_000,
                         help="Monte Carlo candidates per group (100000, as analyze run)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
-    parser.add_argument("--rate-hz", type=float, default=10.0, help="rate of the signals tables (10 Hz)")
+    parser.add_argument("--rate-hz", "--rate", dest="rate_hz", type=float, default=10.0,
+                        help="rate of the signals tables (10 Hz)")
     parser.add_argument("--no-figures", action="store_true",
                         help="skip each log's gradient and mass figures (some 30 %% of the time per log)")
     output = parser.add_mutually_exclusive_group()
@@ -42,9 +46,13 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    checks.output_dir(args.out, args.log_dirs)
+    checks.rate_hz(args.rate_hz)
+    checks.cycle_duration_s(args.cycle_duration)
     vehicles = [load_vehicle(v) for v in args.vehicle]
-    spec = FleetSpec.of(args.log_dirs, vehicles, dem_dir=args.dem, duration_s=args.duration,
-                        n_candidates=args.candidates, seed=args.seed, options={"ingest": {"rate_hz": args.rate_hz}},
+    spec = FleetSpec.of(args.log_dirs, vehicles, dem_dir=args.dem, duration_s=args.cycle_duration,
+                        n_candidates=args.candidates, seed=args.seed,
+                        options=Options(ingest=IngestOptions(rate_hz=args.rate_hz)),
                         figures=not args.no_figures)
     quiet = args.quiet or args.json
     fleet = run_fleet(spec, args.out, workers=args.workers, scheduler=args.scheduler,
@@ -57,9 +65,9 @@ def run(args) -> int:
             problems.append(f"{group.name}: no cycle: {group.error}")
         elif group.selection and not group.selection.get("valid", True):
             problems.append(f"{group.name}: no valid cycle: {group.selection['statement']} (try more --candidates "
-                            f"or a longer --duration)")
+                            f"or a longer --cycle-duration)")
     if args.json:
-        print(json.dumps(json.loads((args.out / "fleet-summary.json").read_text()), default=jsonable))
+        print(jsonable.dumps(json.loads((args.out / "fleet-summary.json").read_text())))
     for problem in problems:
         print(f"analyze fleet: warning: {problem}", file=sys.stderr)
     return EXIT_INCOMPLETE if problems else 0

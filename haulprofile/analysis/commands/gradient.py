@@ -7,49 +7,38 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import checks
 from ..errors import UserError
-from ..pipeline import RunContext, available_stages, load_inputs
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles or GeoTIFFs (else barometer only)")
-    parser.add_argument("--out", type=Path, default=Path("gradient-out"), help="output directory")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("gradient-out"),
+                        help="output directory")
     parser.add_argument("--spacing", type=float, default=10.0, help="distance grid spacing [m] (default 10)")
     parser.add_argument("--no-figure", action="store_true", help="skip the figure")
-
-
-def signals_for(inputs, say, out_dir: Path, vehicle=None, dem_dir=None, options=None) -> RunContext:
-    """Signals table of the inputs after ingest and kinematics (what the gradient and mass stages read)."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    ctx = RunContext(inputs=list(inputs), out_dir=out_dir, vehicle=vehicle, dem_dir=dem_dir,
-                     options=options or {}, say=say)
-    load_inputs(ctx)
-    stages = dict(available_stages())
-    if ctx.signals is None:
-        if "ingest" not in stages:
-            raise UserError("these inputs are logs but the ingest stage is not installed; give a signals table")
-        stages["ingest"](ctx)
-    if "kinematics" in stages:
-        stages["kinematics"](ctx)
-    return ctx
+    parser.add_argument("--gradient-method", choices=("smoother", "paper"), default="smoother",
+                        help="gradient_pct from the Kalman smoother (default) or the paper's fusion (8)")
 
 
 def run(args) -> int:
-    from ..gradient import GradientSettings, gradient_with_dem_fallback
-    from ..gradient.figure import draw_sources
+    from ..gradient import GradientSettings
+    from ..gradient.stage import GradientOptions
+    from ..pipeline import Options, RunContext, run as run_pipeline
 
-    ctx = signals_for(args.inputs, print, args.out, dem_dir=args.dem)
-    result = gradient_with_dem_fallback(ctx.signals, args.dem, GradientSettings(spacing_m=args.spacing), print)
-    for note in result.notes:
-        print(f"note: {note}")
-    args.out.mkdir(parents=True, exist_ok=True)
-    grid = result.grid
-    grid.to_csv(args.out / "gradient.csv", index=False)
+    checks.positive(args.spacing, "--spacing", "m")
+    options = Options(gradient=GradientOptions(GradientSettings(spacing_m=args.spacing, gradient_method=args.gradient_method),
+                                               barometer_off_map=True))
+    ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, dem_dir=args.dem, options=options,
+                     figures=not args.no_figure)
+    ctx = run_pipeline(ctx, until="gradient")
+    if ctx.results.gradient is None:
+        raise UserError(ctx.skipped.get("gradient", "no gradient estimated"))
+    grid = ctx.results.gradient.grid
     gradient = grid["gradient_pct"].to_numpy()
     print(f"{grid['distance_m'].iloc[-1] / 1000:.2f} km on a {args.spacing:g} m grid; gradient "
           f"{np.nanmin(gradient):+.2f} .. {np.nanmax(gradient):+.2f} %, mean map weight {grid['weight_map'].mean():.2f}")
-    print(f"wrote {args.out / 'gradient.csv'}")
-    if not args.no_figure:
-        print(f"wrote {draw_sources(grid, args.out / 'gradient.png')}")
+    for name in ctx.summary["gradient"]["files"]:
+        print(f"wrote {args.out / name}")
     return 0

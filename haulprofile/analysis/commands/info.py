@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
+from .. import jsonable
 from ..ingest import ingest_logs
 
 
@@ -16,10 +16,13 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    _, summary = ingest_logs(args.inputs, dbc=args.dbc, progress=sys.stderr.isatty(),
-                             say=lambda msg: print(msg, file=sys.stderr))
+    def say(msg: str) -> None:
+        if args.json or not msg.startswith("warning: "):  # the summary below lists the warnings once
+            print(msg, file=sys.stderr)
+
+    _, summary = ingest_logs(args.inputs, dbc=args.dbc, progress=sys.stderr.isatty(), say=say)
     if args.json:
-        print(json.dumps(summary, indent=2, default=str))
+        print(jsonable.dumps(summary, indent=2))
         return 0
     print("\n".join(describe(summary)))
     return 0
@@ -36,6 +39,10 @@ def describe(summary: dict) -> list[str]:
     lines.append(f"duration {duration:.1f} s, {summary.get('rows', 0)} rows at {summary.get('rate_hz', 0):g} Hz, "
                  f"{summary.get('valid_fraction', 0):.1%} valid, {summary.get('gaps', 0)} gaps "
                  f"({summary.get('gap_s', 0):.1f} s)")
+    if summary.get("source") == "signals table":
+        lines.append("signal coverage (share of valid rows with a value):")
+        lines += [f"  {column:<28} {share:7.1%}" for column, share in summary.get("coverage", {}).items()]
+        return lines
     lines.append("topics (messages, rate):")
     for topic, count in sorted(summary.get("topics", {}).items()):
         lines.append(f"  {topic:<28} {count:>10}  {count / duration if duration else 0:8.2f} /s")

@@ -7,11 +7,20 @@ not meet its criteria (no confident mass in any segment, or no valid cycle), sai
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
-from ..pipeline import RunContext, jsonable, run as run_pipeline
+from .. import checks, jsonable
+from ..errors import UserError
+from ..gradient import GradientSettings
+from ..gradient.stage import GradientOptions
+from ..ingest.stage import IngestOptions
+from ..markov.stage import CycleOptions
+from ..mass.calibration import parse_known_masses
+from ..mass.stage import MassOptions
+from ..outputs import OutputOptions
+from ..pipeline import Options, RunContext, run as run_pipeline
+from ..simulate.stage import SimulateOptions
 from ..vehicle import load_vehicle
 
 EXIT_UNTRUSTWORTHY_RESULT = 3
@@ -21,34 +30,44 @@ def add_arguments(parser) -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
     parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
     parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles (or GeoTIFFs)")
-    parser.add_argument("--out", type=Path, required=True, help="output directory")
-    parser.add_argument("--rate-hz", type=float, default=10.0, help="rate of the signals table (10 Hz)")
+    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, required=True, help="output directory")
+    parser.add_argument("--rate-hz", "--rate", dest="rate_hz", type=float, default=10.0,
+                        help="rate of the signals table (10 Hz)")
     parser.add_argument("--dbc", type=Path, help="a DBC file whose signals are decoded as further columns")
-    parser.add_argument("--cycle-duration", type=float, default=1800.0, help="generated cycle length [s] (1800)")
+    parser.add_argument("--cycle-duration", "--duration", dest="cycle_duration", type=float, default=1800.0,
+                        help="generated cycle length [s] (1800)")
     parser.add_argument("--candidates", type=int, default=100_000, help="Monte Carlo candidates (100000, about 2-3 s)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
     parser.add_argument("--payload-kg", type=float, help="payload of the simulated electric truck [kg]")
     parser.add_argument("--no-cache", action="store_true", help="rerun every stage (default: reuse unchanged ones)")
+    parser.add_argument("--known-mass", action="append", metavar="SEGMENT=KG",
+                        help="a weighed total mass of one segment (numbered from 1, as printed; KG alone: the "
+                             "first): calibrates the engine torque gain for every segment (repeatable)")
+    parser.add_argument("--gradient-method", choices=("smoother", "paper"), default="smoother",
+                        help="gradient_pct from the Kalman smoother (default) or the paper's fusion (8)")
+    parser.add_argument("--private", action="store_true",
+                        help="keep positions and wall-clock time out of signals.parquet and the report (they are "
+                             "used in memory for the DEM; heights and gradients stay); no stage cache is written")
     output = parser.add_mutually_exclusive_group()
     output.add_argument("--quiet", action="store_true", help="print only errors")
     output.add_argument("--json", action="store_true", help="print the summary as JSON on stdout, nothing else")
 
 
-def options_from(args) -> dict:
-    options = {"ingest": {"rate_hz": args.rate_hz}, "cycle": {"duration_s": args.cycle_duration,
-                                                              "n_candidates": args.candidates, "seed": args.seed}}
-    if args.dbc is not None:
-        options["ingest"]["dbc"] = str(args.dbc)
-    if args.payload_kg is not None:
-        options["simulate"] = {"payload_kg": args.payload_kg}
-    return options
+def options_from(args) -> Options:
+    return Options(ingest=IngestOptions(rate_hz=args.rate_hz, dbc=args.dbc),
+                   gradient=GradientOptions(GradientSettings(gradient_method=args.gradient_method)),
+                   mass=MassOptions(weighed_masses_kg=tuple(parse_known_masses(args.known_mass).items())),
+                   cycle=CycleOptions(duration_s=args.cycle_duration, n_candidates=args.candidates, seed=args.seed),
+                   simulate=SimulateOptions(payload_kg=args.payload_kg),
+                   output=OutputOptions(private=args.private))
 
 
 def verdict(summary: dict) -> str | None:
     """One line when a result did not meet its criteria, else None."""
-    problems = []
+    problems = [f"no {what}: the {stage} stage was skipped (see its message)"
+                for stage, what in (("mass", "mass estimate"), ("cycle", "cycle")) if stage not in summary]
     segments = summary.get("mass", {}).get("segments")
-    if segments is not None and not any(s["status"] == "ok" for s in segments):
+    if segments is not None and not any("ok" in (s["status"], s.get("mass_joint_status")) for s in segments):
         problems.append("no segment has enough excitation for a confident mass (see the report's mass chapter)")
     cycle = summary.get("cycle")
     if cycle is not None and not cycle.get("valid", True):
@@ -57,14 +76,25 @@ def verdict(summary: dict) -> str | None:
     return "; ".join(problems) or None
 
 
+def check_arguments(args) -> None:
+    """Every value of ``analyze run`` that can be checked before reading anything."""
+    checks.rate_hz(args.rate_hz)
+    checks.cycle_duration_s(args.cycle_duration)
+    if args.candidates < 1:
+        raise UserError(f"--candidates must be at least 1, got {args.candidates}")
+    if args.payload_kg is not None:
+        checks.non_negative(args.payload_kg, "--payload-kg", "kg")
+
+
 def run(args) -> int:
+    check_arguments(args)
     quiet = args.quiet or args.json
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle),
                      dem_dir=args.dem, options=options_from(args), say=(lambda _msg: None) if quiet else print)
     run_pipeline(ctx, cache=not args.no_cache, progress=not quiet and sys.stderr.isatty())
     problem = verdict(ctx.summary)
     if args.json:
-        print(json.dumps(ctx.summary, default=jsonable))
+        print(jsonable.dumps(ctx.summary))
     else:
         ctx.say(f"wrote {args.out / 'report.html'}, {args.out / 'signals.parquet'} and {args.out / 'summary.json'}")
     if problem:

@@ -15,7 +15,23 @@ __all__ = ["open_dem", "MissingTileError", "SrtmDem"]
 
 
 def open_dem(directory: str | Path):
-    """The DEM in ``directory``: SRTM tiles if any ``.hgt`` is there, else GeoTIFFs."""
+    """The DEM in ``directory``: SRTM tiles if any ``.hgt`` is there, else GeoTIFFs.
+
+    Parameters
+    ----------
+    directory : str or Path
+        Folder of SRTM ``.hgt`` tiles (1″ or 3″) or GeoTIFF rasters; nothing is downloaded.
+
+    Returns
+    -------
+    SrtmDem or GeoTiffDem
+        ``.height_m(latitude_deg, longitude_deg)`` → terrain height [m]; a position outside the
+        tiles raises `MissingTileError` naming the tile.
+
+    References
+    ----------
+    The map-matching height of paper equation (5).
+    """
     directory = Path(directory)
     if not directory.is_dir():
         raise UserError(f"DEM directory {directory} not found (give a folder of SRTM .hgt tiles or GeoTIFFs)")

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import UserError
 from .bilinear import bilinear_m
+from .plausible import check_heights
 from .srtm import MissingTileError
 
 GEOTIFF_SUFFIXES = (".tif", ".tiff")
@@ -56,7 +57,7 @@ class GeoTiffDem:
                 if src.nodata is not None:
                     grid[grid == src.nodata] = np.nan
                 grid[grid <= -32767] = np.nan
-            self._grids[index] = grid
+            self._grids[index] = check_heights(grid, str(self.paths[index]))
         return self._grids[index]
 
     def height_m(self, latitude_deg, longitude_deg) -> np.ndarray:

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import UserError
 from .bilinear import bilinear_m
+from .plausible import check_heights
 
 VOID = -32768
 SAMPLES_PER_SIDE = {1: 3601, 3: 1201}
@@ -45,7 +46,7 @@ def read_hgt(path: str | Path) -> np.ndarray:
         raise UserError(f"{path}: {raw.size * 2} bytes is not an SRTM tile (1201² or 3601² samples)")
     heights = raw.reshape(side, side).astype(np.float64)
     heights[raw.reshape(side, side) == VOID] = np.nan
-    return heights
+    return check_heights(heights, str(path))
 
 
 def write_hgt(path: str | Path, heights_m: np.ndarray) -> Path:

@@ -5,14 +5,13 @@ lists the groups and every failed log."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ..markov import ClassWidths, TransitionCounts, write_cycle
-from ..pipeline import jsonable
+from .. import jsonable
 
 VALUE_NAMES = {"rainflow_range_mean_counts": "cycles", "level_crossings_torque": "upward_crossings"}
 
@@ -79,7 +78,7 @@ def write_group(group, spec, out_dir: Path) -> dict:
             pd.DataFrame(statistics.mass_segments).to_csv(group_dir / "mass_segments.csv", index=False)
             files["mass_segments"] = "mass_segments.csv"
     summary = {**group_summary(group, spec), "files": files}
-    (group_dir / "fleet-summary.json").write_text(json.dumps(summary, indent=2, default=jsonable))
+    (group_dir / "fleet-summary.json").write_text(jsonable.dumps(summary, indent=2))
     return summary
 
 
@@ -89,7 +88,7 @@ def write_fleet(fleet, spec, out_dir: Path, say=print) -> dict:
     summary = {"executor": fleet.executor, "dem_dir": spec.dem_dir, "groups": [
         {key: g.get(key) for key in ("group", "vehicle", "error", "totals", "transitions", "failed")}
         | {"cycle": g.get("cycle", {}).get("statement"), "logs": len(g["logs"])} for g in groups]}
-    (out_dir / "fleet-summary.json").write_text(json.dumps(summary, indent=2, default=jsonable))
+    (out_dir / "fleet-summary.json").write_text(jsonable.dumps(summary, indent=2))
     for g in groups:
         line = g.get("cycle", {}).get("statement") or g["error"]
         say(f"fleet: {g['group']}: {len(g['logs'])} logs, {len(g['failed'])} failed; cycle: {line}; "

@@ -5,11 +5,13 @@ the same result whichever runs them."""
 from __future__ import annotations
 
 import os
+import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from ..checks import repeated_content
 from ..errors import UserError
 from ..ingest.foreign import SUFFIXES as FOREIGN_SUFFIXES
 from ..ingest.logs import MCAP_SUFFIXES
@@ -186,6 +188,10 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
         group.logs = [log for log in group.logs if inside_out not in log.resolve().parents]
         if not group.logs:
             raise FleetError(f"{group.log_dir}: no logs outside the output directory {out_dir}")
+    flat = [(group, log) for group in spec.groups for log in group.logs]
+    repeated = repeated_content([log for _, log in flat], lambda line: print(f"fleet: {line}", file=sys.stderr))
+    for group in spec.groups:
+        group.logs = [log for i, (owner, log) in enumerate(flat) if owner is group and i not in repeated]
     tasks = [LogTask(log, group.name, group.vehicle, log_out_dir(out_dir, group, log), spec.dem_dir, spec.options,
                      spec.widths, spec.bins, debug, spec.figures) for group in spec.groups for log in group.logs]
     executor = executor_for(workers, scheduler)

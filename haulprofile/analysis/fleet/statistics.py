@@ -20,7 +20,7 @@ from ..loads.collectives import (EQUIVALENT_FREQUENCY_HZ, QUANTITIES, WOEHLER_EX
                                  rainflow_cycles, sample_durations_s)
 from ..markov import ClassWidths, TransitionCounts, count_transitions
 from ..markov.counting import CountingError
-from ..pipeline import jsonable
+from ..jsonable import jsonable
 from ..vehicle import Vehicle
 from .histograms import SparseHistogram
 
@@ -126,7 +126,7 @@ def load_histograms(signals: pd.DataFrame, vehicle: Vehicle, bins: LoadBins) -> 
     histograms["rainflow_range_mean_counts"] = SparseHistogram.of(
         {"range_nm": cycles["range"], "mean_nm": cycles["mean"]},
         {"range_nm": bins.rainflow_nm, "mean_nm": bins.rainflow_nm}, cycles["count"])
-    histograms["level_crossings_torque"] = _crossings(torque, bins.wheel_torque_nm)
+    histograms["level_crossings_torque"] = crossing_histogram(torque, bins.wheel_torque_nm)
     ranges, counts = cycles["range"].to_numpy(float), cycles["count"].to_numpy(float)
     damage = np.array([float(np.sum(counts * ranges ** k)) for k in WOEHLER_EXPONENTS])
     power = loads["wheel_power_w"].to_numpy()
@@ -136,7 +136,7 @@ def load_histograms(signals: pd.DataFrame, vehicle: Vehicle, bins: LoadBins) -> 
     return histograms, damage, totals
 
 
-def _crossings(torque: np.ndarray, width: float) -> SparseHistogram:
+def crossing_histogram(torque: np.ndarray, width: float) -> SparseHistogram:
     """Upward crossings of the torque levels k·width spanned by the data (key k)."""
     finite = torque[np.isfinite(torque)]
     if finite.size < 2:

@@ -1,16 +1,20 @@
-"""Road height and gradient on a distance grid: map-matching, barometer, IMU and fusion (5)-(8)."""
+"""Road height and gradient on a distance grid: map-matching, barometer, IMU, the paper's fusion
+(5)-(8) and the state-space smoother (``kalman``, ``smoother``) that is the default."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
 
-from .. import kinematics
+from .. import checks, kinematics
 from ..errors import UserError
 from . import grid as distance_grid
-from . import sources
+from . import kalman, sources
+from .smoother import GradientSmoother, Measurements, SmootherSettings, bin_times
+
+METHODS = ("smoother", "paper")
 
 
 @dataclass(frozen=True)
@@ -19,6 +23,10 @@ class GradientSettings:
     (see ``docs/estimation.md``)."""
 
     spacing_m: float = 10.0
+    gradient_method: str = "smoother"
+    """Which estimate becomes ``gradient_pct``/``height_m``: "smoother" (Kalman smoother over
+    distance, all sources) or "paper" (fusion (8)); both are always written as columns."""
+    smoother: SmootherSettings = SmootherSettings()
     map_sigma_m: float | None = None
     """Gaussian sigma of the map-matching fit [m]; None: chosen per drive among
     ``map_sigma_candidates_m`` as the one whose map gradient agrees best with the barometric one
@@ -45,6 +53,12 @@ class GradientResult:
     notes: list[str] = field(default_factory=list)
     map_sigma_m: float | None = None
     """The map-matching smoothing used [m] (None without map-matching)."""
+    smoother: dict | None = None
+    """The smoother's data-estimated noise levels and calibrations (None if it could not run)."""
+
+    def __post_init__(self):
+        if self.smoother is None:
+            self.smoother = {}
 
 
 def _column(frame: pd.DataFrame, name: str) -> np.ndarray | None:
@@ -66,6 +80,10 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     ``dem`` anything with ``height_m(lat, lon)`` (`analysis.dem.open_dem`). Raises `UserError`
     when neither a DEM with GPS nor a barometer is available, or no sample is valid.
     """
+    if settings.gradient_method not in METHODS:
+        raise UserError(f"gradient: unknown method {settings.gradient_method!r} (choose {' or '.join(METHODS)})")
+    if isinstance(settings.smoother, dict):
+        settings = replace(settings, smoother=SmootherSettings(**settings.smoother))
     notes: list[str] = []
     time_s = frame["time_s"].to_numpy(dtype=float)
     speed = frame["speed_mps"].to_numpy(dtype=float)
@@ -80,10 +98,12 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     spacing = settings.spacing_m
     index = np.where(valid, distance_grid.grid_index(distance, spacing), -1)
     n_bins = int(index.max()) + 1
+    checks.rows(n_bins, f"the {spacing:g} m distance grid of {distance[valid].max() / 1000:.3g} km",
+                "is speed_mps in m/s and time_s in s?")
     s_grid = np.arange(n_bins) * spacing
     out = pd.DataFrame({"distance_m": s_grid})
 
-    map_bins = _map_bins(frame, dem, distance, valid, index, n_bins, settings, notes)
+    map_bins, map_accuracy = _map_bins(frame, dem, distance, valid, index, n_bins, settings, notes)
     map_level = map_slope = None
     weight_map = np.zeros(n_bins)
     map_sigma = None
@@ -110,9 +130,11 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     out["weight_map"] = weight_map
 
     accel_imu = _column(frame, "accel_x_mps2")
+    imu_excess = None
     if accel_imu is not None:
         accel = _column(frame, "accel_mps2")
         accel = kinematics.acceleration_mps2(time_s, speed) if accel is None else accel
+        imu_excess = sources.imu_excess_mps2(accel_imu, accel, time_s)
         sin_angle = distance_grid.bin_mean(index, sources.imu_sin_angle(accel_imu, accel), n_bins)
         level, _, _ = distance_grid.local_linear(sin_angle, np.ones(n_bins), spacing, settings.imu_sigma_m)
         out["gradient_imu_pct"] = 100 * np.tan(np.arcsin(np.clip(level, -1, 1)))
@@ -120,26 +142,97 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     if map_slope is None and baro_slope is None:
         raise UserError("gradient: needs a DEM (--dem DIR) with GPS positions, or a barometer (pressure_pa); "
                         "this input has neither")
-    fused_slope = _fuse(map_slope, weight_map, baro_slope, s_grid, notes)
+    paper_notes: list[str] = []
+    fused_slope = _fuse(map_slope, weight_map, baro_slope, s_grid, paper_notes)
     fused_height = _integrate(fused_slope, spacing)
     fused_height += _height_offset(fused_height, map_level, weight_map, baro_level)
-    out["height_m"] = fused_height
-    out["gradient_pct"] = 100 * fused_slope
+    out["height_paper_m"] = fused_height
+    out["gradient_paper_pct"] = 100 * fused_slope
+
+    measurements = _measurements(frame, index, n_bins, time_s, bin_baro, map_bins, map_accuracy, imu_excess, settings,
+                                 notes)
+    smoothed = GradientSmoother(measurements, settings.smoother).estimate()
+    notes.extend(smoothed.notes)
+    smooth_height = _integrate(smoothed.gradient, spacing)
+    out["height_smooth_m"] = smooth_height + np.mean(smoothed.height_m - smooth_height)
+    out["gradient_smooth_pct"] = 100 * smoothed.gradient
+    out["gradient_smooth_std_pct"] = 100 * smoothed.gradient_std
+    out["baro_drift_m"] = smoothed.drift_m if bin_baro is not None else np.nan
+    out["imu_bias_mps2"] = smoothed.imu_bias_mps2 if imu_excess is not None else np.nan
+    out["imu_bias_std_mps2"] = smoothed.imu_bias_std_mps2 if imu_excess is not None else np.nan
+    out["map_gated"] = smoothed.map_gated
+    for name, weight in smoothed.weights.items():
+        out[f"weight_smooth_{name}"] = weight
+    if settings.gradient_method == "smoother":
+        out["height_m"], out["gradient_pct"] = out["height_smooth_m"], out["gradient_smooth_pct"]
+    else:
+        notes.extend(paper_notes)
+        out["height_m"], out["gradient_pct"] = out["height_paper_m"], out["gradient_paper_pct"]
 
     samples = {name: np.interp(distance, s_grid, out[name].to_numpy(), left=np.nan, right=np.nan)
                for name in out.columns if name != "distance_m"}
-    return GradientResult(grid=out, samples=samples, notes=notes, map_sigma_m=map_sigma)
+    return GradientResult(grid=out, samples=samples, notes=notes, map_sigma_m=map_sigma,
+                          smoother={"method": settings.gradient_method, **smoothed.noise,
+                                    "imu_bias_mps2": (float(np.median(smoothed.imu_bias_mps2))
+                                                      if imu_excess is not None else None),
+                                    "map_gated_km": float(smoothed.map_gated.sum() * spacing / 1000),
+                                    "mean_weights": {k: float(np.mean(v)) for k, v in smoothed.weights.items()}})
+
+
+def _bin_count(index, values, n_bins):
+    ok = (index >= 0) & np.isfinite(values)
+    return np.bincount(index[ok], minlength=n_bins)[:n_bins].astype(float)
+
+
+def _measurements(frame, index, n_bins, time_s, bin_baro, map_bins, map_accuracy, imu_excess, settings, notes):
+    """The smoother's per-bin measurements (`smoother.Measurements`); says which sources are missing."""
+    z = np.full((n_bins, kalman.N_MEASUREMENTS), np.nan)
+    count = np.zeros((n_bins, kalman.N_MEASUREMENTS))
+    h_acc = v_acc = np.full(n_bins, np.nan)
+    if bin_baro is not None:
+        z[:, kalman.BARO] = bin_baro
+        count[:, kalman.BARO] = np.isfinite(bin_baro) * map_accuracy["rate_count"]
+    if map_bins is not None:
+        z[:, kalman.DEM] = map_bins[0]
+        count[:, kalman.DEM] = np.isfinite(map_bins[0])
+        h_acc = map_accuracy["h_acc"]
+    if imu_excess is not None:
+        z[:, kalman.IMU] = distance_grid.bin_mean(index, imu_excess, n_bins)
+        count[:, kalman.IMU] = _bin_count(index, imu_excess, n_bins)
+    else:
+        notes.append("no IMU (accel_x_mps2): smoother without the accelerometer")
+    altitude, v_acc_samples = _column(frame, "gps_altitude_m"), _column(frame, "gps_v_acc_m")
+    if altitude is not None and v_acc_samples is not None:
+        altitude = np.where(np.isfinite(v_acc_samples), altitude, np.nan)
+        z[:, kalman.GPS] = distance_grid.bin_mean(index, altitude, n_bins)
+        count[:, kalman.GPS] = _bin_count(index, altitude, n_bins)
+        v_acc = distance_grid.bin_mean(index, v_acc_samples, n_bins)
+    else:
+        notes.append("no GPS altitude with accuracy (gps_altitude_m, gps_v_acc_m): smoother without it")
+    missing_gps = np.isnan(z[:, kalman.GPS]).mean() if altitude is not None else 0.0
+    if 0.01 < missing_gps < 1:
+        notes.append(f"no GPS altitude on {100 * missing_gps:.0f} % of the distance (outages): "
+                     f"barometer and IMU carry the profile there")
+    return Measurements(z=z, count=count, h_acc_m=h_acc, v_acc_m=v_acc,
+                        dt_s=bin_times(index, frame["speed_mps"].to_numpy(dtype=float), n_bins, settings.spacing_m), spacing_m=settings.spacing_m)
 
 
 def _map_bins(frame, dem, distance, valid, index, n_bins, settings, notes):
     """Per-bin DEM height [m] at the GPS fixes and per-bin accuracy weight, or None without map."""
     lat, lon = _column(frame, "latitude_deg"), _column(frame, "longitude_deg")
+    h_acc = _column(frame, "gps_h_acc_m")
+    accuracy = {"h_acc": (distance_grid.bin_mean(index, h_acc, n_bins) if h_acc is not None
+                          else np.full(n_bins, np.nan)),
+                "rate_count": np.ones(n_bins)}
+    pressure = _column(frame, "pressure_pa")
+    if pressure is not None:
+        accuracy["rate_count"] = _bin_count(index, np.where(valid, pressure, np.nan), n_bins)
     if dem is None:
         notes.append("no DEM: map-matching off")
-        return None
+        return None, accuracy
     if lat is None or lon is None:
         notes.append("no GPS position columns (latitude_deg, longitude_deg): map-matching off")
-        return None
+        return None, accuracy
     time_s = frame["time_s"].to_numpy(dtype=float)
     east, north = sources.local_east_north_m(lat, lon)
     jumped = sources.gps_outliers(east, north, distance, time_s, settings.gps_jump_tolerance_m,
@@ -158,7 +251,7 @@ def _map_bins(frame, dem, distance, valid, index, n_bins, settings, notes):
         accuracy_weight = sources.map_weight(h_acc, v_acc)
     accuracy_weight = np.where(np.isfinite(terrain), accuracy_weight, np.nan)
     return (distance_grid.bin_mean(index, terrain, n_bins),
-            np.nan_to_num(distance_grid.bin_mean(index, accuracy_weight, n_bins)))
+            np.nan_to_num(distance_grid.bin_mean(index, accuracy_weight, n_bins))), accuracy
 
 
 def _baro_bins(frame, speed, time_s, index, n_bins, settings, notes):
@@ -195,10 +288,20 @@ def _baro_offset(frame, bin_baro, map_level, weight_map, index, n_bins, s_grid, 
     return np.full(n_bins, np.nanmedian(gap) if np.isfinite(gap).any() else 0.0)
 
 
+MAX_ROAD_SLOPE = 0.30
+"""Steepest gradient of a road a truck drives [-] (public roads stay below some 25-35 %)."""
+
+
 def _fuse(map_slope, weight_map, baro_slope, s_grid, notes):
     """(8): (w_map g_map + w_baro g_baro) / (w_map + w_baro) [-]; bins with no source interpolated."""
     n_bins = len(s_grid)
     w_map = weight_map if map_slope is not None else np.zeros(n_bins)
+    if map_slope is not None:
+        steep = np.abs(np.nan_to_num(map_slope)) > MAX_ROAD_SLOPE
+        if steep.any():
+            notes.append(f"map gradient above {100 * MAX_ROAD_SLOPE:.0f} % (no road is that steep) on "
+                         f"{100 * steep.mean():.1f} % of the distance: the map is left out there")
+            w_map = np.where(steep, 0.0, w_map)
     w_baro = sources.WEIGHT_BARO * np.isfinite(baro_slope) if baro_slope is not None else np.zeros(n_bins)
     g_map = np.nan_to_num(map_slope) if map_slope is not None else np.zeros(n_bins)
     g_baro = np.nan_to_num(baro_slope) if baro_slope is not None else np.zeros(n_bins)

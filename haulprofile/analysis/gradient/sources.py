@@ -37,6 +37,22 @@ def imu_sin_angle(accel_imu_mps2, accel_mps2):
     return np.clip((np.asarray(accel_imu_mps2, dtype=float) - np.asarray(accel_mps2, dtype=float)) / G_MPS2, -1, 1)
 
 
+def imu_excess_mps2(accel_imu_mps2, accel_mps2, time_s, window_s: float = 1.0):
+    """a_imu - dv/dt [m/s²] (= g sin(alpha) + bias, (7)), with a_imu through the same centred
+    moving mean that made dv/dt from wheel speed, so both describe the same moment."""
+    time_s = np.asarray(time_s, dtype=float)
+    steps = np.diff(time_s)
+    dt = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0
+    window = max(1, int(round(window_s / dt)))
+    kernel = np.ones(window)
+    accel_imu = np.asarray(accel_imu_mps2, dtype=float)
+    finite = np.isfinite(accel_imu)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        smooth = (np.convolve(np.where(finite, accel_imu, 0.0), kernel, "same")
+                  / np.convolve(finite.astype(float), kernel, "same"))
+    return np.where(finite, smooth, np.nan) - np.asarray(accel_mps2, dtype=float)
+
+
 def stuck_to_nan(values, run_samples: int):
     """NaN for runs of at least ``run_samples`` bit-identical values (a sensor that stopped but
     whose last reading was carried forward); a live barometer never repeats itself that long."""

@@ -6,7 +6,7 @@ Public entry points:
 * `ingest_logs(...)` → (signals table, summary dict) — what `stage` and ``analyze signals`` use.
 * `iter_log_messages(paths)` → every recoverable MCAP message, in time order across files.
 * `read_frames(paths)` → raw CAN records and IMU records (contract dtypes) and JSON records.
-* `stage(ctx)` → the pipeline's ingest stage.
+* the pipeline's ingest stage is `analysis.ingest.stage.ingest_stage`.
 """
 
 from __future__ import annotations
@@ -17,8 +17,9 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
+from .. import checks
 from .. import signals as signals_table
-from ..errors import UserError
+from . import align
 from . import dbc as dbc_module
 from . import foreign
 from .columns import build_table
@@ -26,7 +27,7 @@ from .logs import (LogArrays, LogError, LogMessage, Timeline, expand, is_mcap, i
                    read_frames)
 from .table import BLOCK_FRAMES, Ingest
 
-__all__ = ["read_logs", "ingest_logs", "iter_log_messages", "read_frames", "stage", "LogArrays",
+__all__ = ["read_logs", "ingest_logs", "iter_log_messages", "read_frames", "LogArrays",
            "LogMessage", "Timeline", "expand"]
 
 
@@ -40,19 +41,23 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
                 say: Callable[[str], None] | None = None) -> tuple[pd.DataFrame, dict]:
     """Signals table [SI units, one row per 1/rate_hz s] and summary of logs or signals tables."""
     say = say or (lambda _msg: None)
+    checks.rate_hz(rate_hz)
     files = expand(paths)
     tables = [p for p in files if signals_table.is_signals_path(p)]
     if tables:
         if len(tables) != len(files):
             raise LogError("give either logs or signals tables, not both")
-        frame = pd.concat([signals_table.read_signals(p) for p in tables], ignore_index=True)
-        frame = signals_table.validate(frame, ", ".join(map(str, tables)))
-        return frame, {"inputs": [str(p) for p in tables], "rows": len(frame), "source": "signals table"}
+        frame = signals_table.combine(tables, say)
+        return frame, {"inputs": [str(p) for p in tables], "source": "signals table",
+                       **signals_table.describe(frame)}
+    files = checks.drop_same_content(files, say)
     mcap_files = [p for p in files if is_mcap(p)]
     other = [p for p in files if p not in mcap_files]
-    unknown = [p for p in other if not foreign.is_foreign(p)]
+    kinds = {p: foreign.kind(p) for p in other}
+    unknown = [p for p in other if kinds[p] is None]
     if unknown:
-        raise LogError(f"{unknown[0]}: not an MCAP log, a .log/.asc/.blf/.mf4 CAN log or a signals table")
+        raise LogError(f"{unknown[0]}: not an MCAP log, a candump/ASC/BLF/MF4 CAN log, an NMEA/UBX GPS log "
+                       f"or a signals table")
     if mcap_files and other:
         raise LogError("give either MCAP logs or other loggers' CAN logs, not both in one run")
     database = dbc_module.load(dbc) if dbc is not None else None
@@ -62,7 +67,10 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
         if mcap_files:
             _feed_mcap(ingest, mcap_files, timeline, bar)
         for path in other:
-            _feed_foreign(ingest, path, bar)
+            if kinds[path] == "gnss":
+                _feed_gnss(ingest, path, bar)
+            else:
+                _feed_foreign(ingest, path, bar)
     ingest.finish_streams()
     try:
         frame, summary = build_table(ingest)
@@ -70,6 +78,13 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
         damage = "; ".join(f"{Path(r.path).name}: {r.warning()}" for r in timeline.reports if r.warning())
         raise LogError(f"{exc}" + (f" ({damage})" if damage else "")) from None
     warnings = [w for w in (r.warning() for r in timeline.reports) if w]
+    warnings += [w for w in map(foreign.cut_short, other) if w]
+    shortened = summary["gaps_shortened"]
+    if shortened:
+        longest = max(g["removed_s"] for g in shortened)
+        warnings.append(f"{len(shortened)} silence(s) between recordings longer than {align.MAX_GAP_S:.0f} s "
+                        f"(longest {longest / 3600:.1f} h) shortened to {align.KEPT_GAP_S:.0f} s of gap rows each: "
+                        f"time_s counts recorded time, wall_time_ns keeps the real time")
     if "imu-scale" in ingest.notes:
         warnings.append("IMU channel metadata has no accel_scale_mps2_per_lsb: accel_x/y/z_mps2 left out")
     for line in warnings:
@@ -110,6 +125,28 @@ def _feed_foreign(ingest: Ingest, path: Path, bar) -> None:
     bar.update(path.stat().st_size)
 
 
+def _feed_gnss(ingest: Ingest, path: Path, bar) -> None:
+    """A GPS-only receiver log: its fixes as ``/gps/fix`` records on their UTC time line."""
+    from haulprofile import contract
+
+    from .gnss import read_fixes
+    from .table import JSON_FIELDS, _Json
+
+    fixes = read_fixes(path)
+    if not fixes:
+        raise LogError(f"{path}: NMEA/UBX GPS log without a single position fix")
+    stream = ingest.json.setdefault(contract.GPS_FIX.name, _Json())
+    for fix in fixes:
+        stream.pending.append(contract.encode_json(fix))
+        stream.offsets.append(0)
+    stream.flush(JSON_FIELDS[contract.GPS_FIX.name])
+    dated = [f["t_mono_ns"] for f in fixes if f.get("gps_time_utc_ns") is not None]
+    ingest.log_pairs[0].extend(dated[:1] + dated[-1:])
+    ingest.log_pairs[1].extend(dated[:1] + dated[-1:])
+    ingest.topic_counts[str(path)] = len(fixes)
+    bar.update(path.stat().st_size)
+
+
 def read_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, progress: bool = False) -> pd.DataFrame:
     """The signals table of logs (columns of `analysis.signals`; absent sources, absent columns).
 
@@ -118,24 +155,3 @@ def read_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, progr
     frame, summary = ingest_logs(paths, rate_hz=rate_hz, dbc=dbc, progress=progress)
     frame.attrs["ingest"] = summary
     return frame
-
-
-def stage(ctx) -> None:
-    """Pipeline stage: ``ctx.inputs`` → ``ctx.signals`` and ``ctx.summary["ingest"]``.
-
-    Options (``ctx.options["ingest"]``): ``rate_hz`` (10), ``dbc`` (a DBC file for further signals), ``progress``.
-    """
-    options = ctx.options.get("ingest", {})
-    frame, summary = ingest_logs(ctx.inputs, rate_hz=float(options.get("rate_hz", 10.0)),
-                                 dbc=options.get("dbc"), progress=bool(options.get("progress", False)),
-                                 say=ctx.say)
-    if "speed_mps" not in frame.columns:
-        raise UserError("the logs hold no vehicle speed (neither J1939 CCVS1 wheel-based speed nor OBD-II "
-                        "PID 0x0D): log the vehicle's CAN bus, or give a signals table with speed_mps")
-    ctx.signals = frame
-    ctx.summary["ingest"] = summary
-    if "rate_hz" in summary:
-        ctx.say(f"ingest: {summary['rows']} rows at {summary['rate_hz']:g} Hz, "
-                f"{summary['valid_fraction']:.0%} valid, {summary['can_frames']} CAN frames")
-    else:
-        ctx.say(f"ingest: signals table, {summary['rows']} rows")

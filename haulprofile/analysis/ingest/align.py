@@ -6,6 +6,10 @@ sample falls in bin ``t_mono_ns // period_ns``; a bin's value is the mean of its
 held into following empty bins for at most `hold_bins` (1.5 sample periods, never more than 1 s
 for dynamic signals), and never into a bin where the logger recorded nothing: such bins are
 gaps, ``valid`` False, every signal NaN.
+
+Rows are not made for every bin between the first and the last: a silence longer than
+`MAX_GAP_S` (the truck parked overnight, two logs months apart) is shortened to `KEPT_GAP_S` of
+gap rows (`Grid`), so memory grows with the recorded time, not with the calendar time between logs.
 """
 
 from __future__ import annotations
@@ -19,6 +23,52 @@ MAX_HOLD_S = 1.0
 """No value is carried across a missing second."""
 QUASI_STATIC_HOLD_S = 60.0
 """Signals that change only at stops (reported mass) are held this long between messages."""
+MAX_GAP_S = 600.0
+"""Silences longer than this [s] are shortened in the table (`Grid`)."""
+KEPT_GAP_S = 60.0
+"""Gap rows [s] kept in place of a shortened silence: longer than every hold and bridge, so no value
+or transition crosses it."""
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Output rows as runs of consecutive bins: run ``i`` maps bins ``run_bins[i] …`` to rows
+    ``run_rows[i] …``; between runs, a silence longer than `MAX_GAP_S` was shortened."""
+
+    run_bins: np.ndarray
+    run_rows: np.ndarray
+    n: int
+
+    @classmethod
+    def uniform(cls, first_bin: int, n_bins: int) -> "Grid":
+        return cls(np.array([first_bin], np.int64), np.array([0], np.int64), int(n_bins))
+
+    @property
+    def lengths(self) -> np.ndarray:
+        return np.diff(np.append(self.run_rows, self.n))
+
+    def rows_of(self, bins: np.ndarray) -> np.ndarray:
+        """Row of each bin; -1 for a bin outside every run."""
+        bins = np.asarray(bins, dtype=np.int64)
+        run = np.searchsorted(self.run_bins, bins, side="right") - 1
+        safe = np.clip(run, 0, len(self.run_bins) - 1)
+        offset = bins - self.run_bins[safe]
+        inside = (run >= 0) & (offset < self.lengths[safe])
+        return np.where(inside, self.run_rows[safe] + offset, -1)
+
+    def bins(self) -> np.ndarray:
+        """The bin of every row."""
+        return np.repeat(self.run_bins - self.run_rows, self.lengths) + np.arange(self.n, dtype=np.int64)
+
+    def shortened(self, period_ns: int) -> list[dict]:
+        """Where silences were shortened: the row after each, its time in the table [s] and the time taken out [s]."""
+        lengths = self.lengths
+        out = []
+        for i in range(1, len(self.run_bins)):
+            removed = int(self.run_bins[i] - (self.run_bins[i - 1] + lengths[i - 1]))
+            out.append({"row": int(self.run_rows[i]), "time_s": self.run_rows[i] * period_ns / 1e9,
+                        "removed_s": removed * period_ns / 1e9})
+        return out
 
 
 @dataclass
@@ -74,6 +124,20 @@ class BinAccumulator:
             runs = bins[np.flatnonzero(np.diff(bins, prepend=bins[0] - 1))]  # mostly sorted: few runs
             self._activity.append(np.unique(runs))
 
+    def grid(self, max_gap_s: float = MAX_GAP_S, kept_gap_s: float = KEPT_GAP_S) -> Grid | None:
+        """Rows for every recorded bin and the silences between them, each silence longer than
+        ``max_gap_s`` [s] shortened to ``kept_gap_s`` [s]; None if nothing was recorded."""
+        if not self._activity:
+            return None
+        recorded = np.unique(np.concatenate(self._activity))
+        max_gap = int(round(max_gap_s * 1e9 / self.period_ns))
+        kept = int(round(kept_gap_s * 1e9 / self.period_ns))
+        long_gap = np.flatnonzero(np.diff(recorded) > max_gap)
+        starts = np.concatenate([recorded[:1], recorded[long_gap + 1]])
+        ends = np.concatenate([recorded[long_gap] + 1 + kept, recorded[-1:] + 1])
+        rows = np.concatenate([[0], np.cumsum(ends - starts)])
+        return Grid(starts.astype(np.int64), rows[:-1].astype(np.int64), int(rows[-1]))
+
     def bin_range(self) -> tuple[int, int] | None:
         """(first bin, number of bins) covering every recorded time; None if nothing was."""
         if not self._activity:
@@ -82,12 +146,16 @@ class BinAccumulator:
         hi = max(int(a[-1]) for a in self._activity)
         return lo, hi - lo + 1
 
-    def recorded(self, first_bin: int, n_bins: int, bridge_s: float = MAX_HOLD_S) -> np.ndarray:
-        """Bins backed by data. A silence shorter than ``bridge_s`` (a late batch, a scheduling stall)
-        is not a gap: values are held across it; a silence of ``bridge_s`` or more stays a gap."""
+    def recorded(self, grid: Grid | int, n_bins: int | None = None, bridge_s: float = MAX_HOLD_S) -> np.ndarray:
+        """Rows of ``grid`` (or bins ``grid …`` of ``n_bins``) backed by data. A silence shorter than
+        ``bridge_s`` (a late batch, a scheduling stall) is not a gap: values are held across it; a
+        silence of ``bridge_s`` or more stays a gap."""
+        grid = grid if isinstance(grid, Grid) else Grid.uniform(grid, n_bins)
+        n_bins = grid.n
         mask = np.zeros(n_bins, dtype=bool)
         for bins in self._activity:
-            mask[bins - first_bin] = True
+            rows = grid.rows_of(bins)
+            mask[rows[rows >= 0]] = True
         bridge_bins = int(round(bridge_s * 1e9 / self.period_ns))
         edges = np.flatnonzero(np.diff(np.concatenate([[1], mask.astype(np.int8), [1]])))
         for start, stop in zip(edges[::2], edges[1::2]):
@@ -95,16 +163,19 @@ class BinAccumulator:
                 mask[start:stop] = True
         return mask
 
-    def series(self, name: str, first_bin: int, n_bins: int) -> np.ndarray:
-        """Per-bin value of one stream (NaN where it has no sample), before holding."""
+    def series(self, name: str, grid: Grid | int, n_bins: int | None = None) -> np.ndarray:
+        """Per-row value of one stream on ``grid`` (or bins ``grid …`` of ``n_bins``), NaN where it
+        has no sample, before holding."""
+        grid = grid if isinstance(grid, Grid) else Grid.uniform(grid, n_bins)
+        n_bins = grid.n
         stream = self.streams[name]
         out = np.full(n_bins, np.nan)
         if not stream.bins:
             return out
-        bins = np.concatenate(stream.bins) - first_bin
+        bins = grid.rows_of(np.concatenate(stream.bins))
         sums, counts = np.concatenate(stream.sums), np.concatenate(stream.counts)
-        # a GPS fix placed at its epoch can fall before the first recorded bin
-        inside = (bins >= 0) & (bins < n_bins)
+        # a GPS fix placed at its epoch can fall before the first recorded bin, or into a shortened silence
+        inside = bins >= 0
         bins, sums, counts = bins[inside], sums[inside], counts[inside]
         if stream.kind == "last":
             out[bins] = sums
@@ -133,6 +204,22 @@ def hold(values: np.ndarray, recorded: np.ndarray, limit_bins: int) -> np.ndarra
         source_gap = pd.Series(np.where(np.isfinite(values), gap_id, np.nan)).ffill().to_numpy()
         crossed = np.isfinite(out) & ~np.isfinite(values) & (source_gap != gap_id)
         out[crossed] = np.nan
+    out[~recorded] = np.nan
+    return out
+
+
+def interpolate(values: np.ndarray, recorded: np.ndarray, limit_bins: int) -> np.ndarray:
+    """Linear between two values at most ``limit_bins`` apart (a quantity that changes smoothly,
+    sampled slower than the table: GPS speed), else `hold`; never into unrecorded bins."""
+    out = hold(values, recorded, limit_bins)
+    known = np.flatnonzero(np.isfinite(values))
+    if known.size < 2:
+        return out
+    index = np.arange(len(values))
+    before = np.maximum.accumulate(np.where(np.isfinite(values), index, -1))
+    after = np.minimum.accumulate(np.where(np.isfinite(values), index, len(values))[::-1])[::-1]
+    inside = (before >= 0) & (after < len(values)) & (after - before <= limit_bins) & ~np.isfinite(values)
+    out[inside] = np.interp(index[inside], known, values[known])
     out[~recorded] = np.nan
     return out
 

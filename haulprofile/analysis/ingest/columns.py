@@ -11,7 +11,7 @@ import re
 import numpy as np
 import pandas as pd
 
-from .. import kinematics
+from .. import checks, kinematics
 from . import align
 from .logs import LogError
 
@@ -28,16 +28,18 @@ class _Columns:
     def __init__(self, ingest):
         self.ingest = ingest
         self.acc = ingest.acc
-        span = self.acc.bin_range()
-        if span is None:
+        grid = self.acc.grid()
+        if grid is None:
             raise LogError("the logs hold no data (no CAN frames, sensor samples or GPS fixes)")
-        self.first_bin, self.n = span
-        self.recorded = self.acc.recorded(self.first_bin, self.n)
+        checks.rows(grid.n, f"the signals table at {ingest.rate_hz:g} Hz", "give a lower --rate-hz or fewer logs")
+        self.grid, self.n = grid, grid.n
+        self.first_bin = int(grid.run_bins[0])
+        self.recorded = self.acc.recorded(grid)
         self.rate_hz = ingest.rate_hz
         self.chosen: dict[str, dict] = {}
 
     def held(self, key: str, max_hold_s: float = align.MAX_HOLD_S) -> np.ndarray:
-        values = self.acc.series(key, self.first_bin, self.n)
+        values = self.acc.series(key, self.grid)
         limit = align.hold_bins(self.acc.sample_period_s(key), self.rate_hz, max_hold_s)
         return align.hold(values, self.recorded, limit)
 
@@ -60,7 +62,7 @@ class _Columns:
         """A configuration value (reference torque): the median of what was sent."""
         for key in [k for k, _ in _sources(self.acc, spn_name)] + [obd_name]:
             if key in self.acc.streams and self.acc.streams[key].n:
-                values = self.acc.series(key, self.first_bin, self.n)
+                values = self.acc.series(key, self.grid)
                 self.chosen[spn_name] = {"key": key}
                 return float(np.nanmedian(values))
         return None
@@ -86,12 +88,17 @@ def build_table(ingest) -> tuple[pd.DataFrame, dict]:
     """The signals table of an `Ingest` after `finish_streams`, and the coverage summary."""
     c = _Columns(ingest)
     acc = ingest.acc
-    grid_mono = (c.first_bin + np.arange(c.n, dtype=np.int64)) * acc.period_ns
-    table: dict[str, np.ndarray] = {"time_s": (grid_mono - grid_mono[0]) / 1e9}
+    grid_mono = c.grid.bins() * acc.period_ns
+    table: dict[str, np.ndarray] = {"time_s": np.arange(c.n, dtype=np.int64) * acc.period_ns / 1e9}
     wall = align.wall_clock_ns(grid_mono, ingest.clock_pairs())
     if wall is not None:
         table["wall_time_ns"] = wall
     speed = c.pick("speed_mps", "wheel_speed_kmh", "obd:vehicle_speed_kmh", KMH)
+    if speed is None and "gps:speed_mps" in acc.streams and acc.streams["gps:speed_mps"].n:
+        # no CAN speed: the receiver's speed over ground (RMC/VTG, NAV-PVT), linear between fixes
+        c.chosen["speed_mps"] = {"source": "gps", "key": "gps:speed_mps"}
+        speed = align.interpolate(acc.series("gps:speed_mps", c.first_bin, c.n), c.recorded,
+                                  align.hold_bins(acc.sample_period_s("gps:speed_mps"), c.rate_hz))
     columns = {
         "engine_speed_rpm": c.pick("engine_speed_rpm", "engine_speed_rpm", "obd:engine_speed_rpm"),
         "driver_demand_torque_pct": c.pick("driver_demand_torque_pct", "driver_demand_torque_pct",
@@ -153,6 +160,8 @@ def _summary(ingest, c: _Columns, frame: pd.DataFrame) -> dict:
         "valid_fraction": float(valid.mean()),
         "gaps": int(len(gaps)),
         "gap_s": float((~c.recorded).sum() / ingest.rate_hz),
+        "span_s": float((c.grid.run_bins[-1] + c.grid.lengths[-1] - c.first_bin) * ingest.acc.period_ns / 1e9),
+        "gaps_shortened": c.grid.shortened(ingest.acc.period_ns),
         "can_frames": int(ingest.can_frames),
         "imu_samples": int(ingest.imu_samples),
         "topics": dict(ingest.topic_counts),

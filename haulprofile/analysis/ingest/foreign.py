@@ -1,4 +1,5 @@
-"""CAN logs of other loggers as raw CAN record arrays (contract dtype), ready for the same decoding.
+"""CAN logs of other loggers as raw CAN record arrays (contract dtype), ready for the same decoding;
+which kind of log a file is, by its content (`kind`), GPS-only receiver logs included (`gnss`).
 
 candump ``.log``, Vector ``.asc`` and ``.blf`` through python-can's readers; CSS Electronics
 CANedge ``.mf4`` through asammdf, whole columns at a time. Timestamps become nanoseconds on the
@@ -8,6 +9,9 @@ format knows it (epoch timestamps, MF4 start time).
 
 from __future__ import annotations
 
+import gc
+import logging
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +22,9 @@ from ..errors import UserError
 
 PYTHON_CAN_SUFFIXES = {".log", ".asc", ".blf"}
 MF4_SUFFIXES = {".mf4"}
-SUFFIXES = PYTHON_CAN_SUFFIXES | MF4_SUFFIXES
+GNSS_SUFFIXES = {".nmea", ".ubx"}
+SUFFIXES = PYTHON_CAN_SUFFIXES | MF4_SUFFIXES | GNSS_SUFFIXES
+SNIFF_BYTES = 4096
 _EPOCH_2000_S = 946_684_800.0
 
 
@@ -26,16 +32,56 @@ class ForeignLogError(UserError):
     pass
 
 
+def kind(path: str | Path) -> str | None:
+    """What a foreign log holds, by its content first (a receiver's ``.log`` is no candump file):
+    ``"mf4"``, ``"blf"``, ``"gnss"`` (raw NMEA/UBX), ``"can"`` (candump, ASC by suffix), or None."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(SNIFF_BYTES)
+    except OSError:
+        return None
+    if head[:8] in (b"MDF     ", b"UnFinMF "):
+        return "mf4"
+    if head[:4] == b"LOGG":
+        return "blf"
+    from .gnss import looks_like_gnss
+
+    if looks_like_gnss(head):
+        return "gnss"
+    suffix = path.suffix.lower()
+    if suffix in MF4_SUFFIXES:
+        return "mf4"
+    if suffix in PYTHON_CAN_SUFFIXES:
+        return "can"
+    return None
+
+
 def is_foreign(path: str | Path) -> bool:
-    return Path(path).suffix.lower() in SUFFIXES
+    return kind(path) is not None
 
 
 def read_can_log(path: str | Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
-    """(CAN records, (t_mono_ns, wall_ns) pairs) of a foreign CAN log."""
+    """(CAN records, (t_mono_ns, wall_ns) pairs) of a foreign CAN log (no CAN records for a GNSS log)."""
     path = Path(path)
-    if path.suffix.lower() in MF4_SUFFIXES:
+    what = kind(path)
+    if what == "gnss":
+        return np.zeros(0, CAN_FRAME_DTYPE), (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    if what == "mf4":
         return read_mf4(path)
     return read_python_can(path)
+
+
+def cut_short(path: str | Path) -> str | None:
+    """Why a foreign log is cut short (a truncated MF4), or None if nothing shows it."""
+    path = Path(path)
+    if kind(path) == "mf4":
+        from .mf4_check import truncation
+
+        reason = truncation(path)
+        if reason:
+            return f"{path.name}: MF4 file cut short, {reason}: the recording went on beyond what is read"
+    return None
 
 
 def read_python_can(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
@@ -70,17 +116,28 @@ def _epoch_pairs(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def read_mf4(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
-    """CAN data frames of every data group of a CANedge MF4 (``CAN_DataFrame.*`` channels)."""
-    from asammdf import MDF
-
+    """CAN data frames of every data group of a CANedge MF4 (``CAN_DataFrame.*`` channels); what
+    asammdf would log about a damaged file is left out (the error or `cut_short` says it once)."""
+    log = logging.getLogger("asammdf")
+    disabled, log.disabled = log.disabled, True
     try:
-        mdf = MDF(str(path))
-    except Exception as exc:  # asammdf raises many types for unreadable files
-        raise ForeignLogError(f"{path}: cannot read as MF4 ({type(exc).__name__}: {exc})") from None
+        return _read_mf4(path)
+    finally:
+        log.disabled = disabled
+
+
+def _read_mf4(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    mdf, error = _open_mdf(path)
+    if error is not None:
+        raise ForeignLogError(f"{path}: cannot read as MF4 ({error})")
     try:
         parts, start_ns = _mf4_frames(mdf)
     except Exception as exc:  # noqa: BLE001 - asammdf raises many types on damaged files
-        raise ForeignLogError(f"{path}: cannot read the CAN frames of this MF4 ({type(exc).__name__}: {exc})") from None
+        parts = _cut_mf4_frames(path)
+        if parts is None:
+            raise ForeignLogError(f"{path}: cannot read the CAN frames of this MF4 ({type(exc).__name__}: {exc})") \
+                from None
+        parts, start_ns = parts
     finally:
         mdf.close()
     if not parts:
@@ -89,6 +146,47 @@ def read_mf4(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
     frames = frames[np.argsort(frames["t_mono_ns"], kind="stable")]
     mono = frames["t_mono_ns"][[0, -1]].astype(np.int64)
     return frames, (mono, mono + start_ns)
+
+
+def _cut_mf4_frames(path: Path) -> tuple[list[np.ndarray], int] | None:
+    """The frames of a cut MF4 that asammdf cannot read as it is: a copy ending after a whole
+    record (a CAN frame and its data bytes are two records, so a few ends are tried)."""
+    import tempfile
+
+    from asammdf import MDF
+
+    from .mf4_check import whole_prefixes
+
+    with tempfile.TemporaryDirectory() as folder:
+        for length in whole_prefixes(path)[:4]:
+            copy = Path(folder) / path.name
+            with open(path, "rb") as source, open(copy, "wb") as target:
+                target.write(source.read(length))
+            try:
+                with MDF(str(copy)) as mdf:
+                    return _mf4_frames(mdf)
+            except Exception:  # noqa: BLE001,S112 - asammdf raises many types; the next end may read
+                continue
+    return None
+
+
+def _open_mdf(path: Path):
+    """(MDF, None) or (None, the reason it cannot be read). asammdf leaves a half-built object whose
+    ``__del__`` raises on a cut file; it is collected here, its complaint silenced, so the user sees
+    only the one-line error."""
+    from asammdf import MDF
+
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda _unraisable: None
+    try:
+        try:
+            return MDF(str(path)), None
+        except Exception as exc:  # asammdf raises many types for unreadable files
+            error = f"{type(exc).__name__}: {exc}"
+        gc.collect()
+        return None, error
+    finally:
+        sys.unraisablehook = hook
 
 
 def _mf4_frames(mdf) -> tuple[list[np.ndarray], int]:

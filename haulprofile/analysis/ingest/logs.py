@@ -20,6 +20,7 @@ from haulprofile.contract.naming import log_name_parts
 
 from haulprofile.contract.reader import Channel, ReadReport, Window, first_message, read_windows
 
+from ..encrypted import decrypted, is_encrypted
 from ..errors import UserError
 from . import foreign
 
@@ -39,9 +40,9 @@ def expand(paths) -> list[Path]:
         path = Path(raw)
         if path.is_dir():
             found = sorted(p for p in path.rglob("*") if p.is_file()
-                           and p.suffix.lower() in MCAP_SUFFIXES | foreign.SUFFIXES)
+                           and (p.suffix.lower() in MCAP_SUFFIXES | foreign.SUFFIXES or is_encrypted(p)))
             if not found:
-                raise LogError(f"{path}: directory holds no .mcap (or .log/.asc/.blf/.mf4) files")
+                raise LogError(f"{path}: directory holds no .mcap (or .log/.asc/.blf/.mf4/.nmea/.ubx) files")
             files.extend(found)
         elif path.is_file():
             files.append(path)
@@ -49,7 +50,7 @@ def expand(paths) -> list[Path]:
             raise LogError(f"input {path} not found")
     if not files:
         raise LogError("no input logs given")
-    return files
+    return [decrypted(p) for p in files]
 
 
 def is_mcap(path: Path) -> bool:

@@ -46,15 +46,22 @@ def write_csvs(c: Collectives, out_dir: Path) -> list[Path]:
     return written
 
 
+FIGURE_UNITS = {"wheel_force_n": ("wheel force [kN]", 1e-3), "wheel_torque_nm": ("wheel torque [kNm]", 1e-3),
+                "wheel_speed_rpm": ("wheel speed [rpm]", 1.0), "wheel_power_w": ("wheel power [kW]", 1e-3)}
+"""Axis label and scale of each quantity in the figures: kN, kNm and kW keep tick labels short."""
+KNM = 1e-3
+
+
 def write_figures(drives: list[Collectives], comparison: pd.DataFrame | None, out_dir: Path) -> list[Path]:
     """Histograms, residence and rainflow matrices, level crossings and damage-equivalent torques."""
     written = []
     fig, axes = plt.subplots(2, 2, figsize=(11, 7))
-    for ax, (quantity, label) in zip(axes.ravel(), QUANTITIES.items()):
+    for ax, quantity in zip(axes.ravel(), QUANTITIES):
+        label, scale = FIGURE_UNITS[quantity]
         for c in drives:
             edges = c.edges[quantity]
             share = c.time_at_level[quantity] / max(c.duration_s, 1e-12) * 100
-            ax.stairs(share, edges, label=c.name)
+            ax.stairs(share, edges * scale, label=c.name)
         ax.set_xlabel(label)
         ax.set_ylabel("time share [%]")
     axes[0, 0].legend()
@@ -65,24 +72,26 @@ def write_figures(drives: list[Collectives], comparison: pd.DataFrame | None, ou
     fig, axes = plt.subplots(2, len(drives), figsize=(6 * len(drives), 9), squeeze=False)
     for col, c in enumerate(drives):
         hours = np.where(c.residence_s > 0, c.residence_s / 3600, np.nan)
-        mesh = axes[0, col].pcolormesh(c.edges["residence_speed_rpm"], c.edges["residence_torque_nm"], hours.T, norm=LogNorm())
+        mesh = axes[0, col].pcolormesh(c.edges["residence_speed_rpm"], c.edges["residence_torque_nm"] * KNM, hours.T,
+                                       norm=LogNorm())
         fig.colorbar(mesh, ax=axes[0, col], label="residence [h]")
-        axes[0, col].set(xlabel="wheel speed [rpm]", ylabel="wheel torque [Nm]", title=f"{c.name}: speed x torque")
+        axes[0, col].set(xlabel="wheel speed [rpm]", ylabel="wheel torque [kNm]", title=f"{c.name}: speed x torque")
         counts = np.where(c.rainflow_counts > 0, c.rainflow_counts, np.nan)
-        mesh = axes[1, col].pcolormesh(c.edges["rainflow_range_nm"], c.edges["rainflow_mean_nm"], counts.T, norm=LogNorm())
+        mesh = axes[1, col].pcolormesh(c.edges["rainflow_range_nm"] * KNM, c.edges["rainflow_mean_nm"] * KNM, counts.T,
+                                       norm=LogNorm())
         fig.colorbar(mesh, ax=axes[1, col], label="cycles")
-        axes[1, col].set(xlabel="torque range [Nm]", ylabel="torque mean [Nm]", title=f"{c.name}: rainflow")
+        axes[1, col].set(xlabel="torque range [kNm]", ylabel="torque mean [kNm]", title=f"{c.name}: rainflow")
     fig.tight_layout()
     written.append(_save(fig, out_dir / "matrices.png"))
 
     fig, (ax_cross, ax_det) = plt.subplots(1, 2, figsize=(11, 4))
     for c in drives:
         per_hour = c.crossings / max(c.duration_s, 1e-12) * 3600
-        ax_cross.semilogx(np.where(per_hour > 0, per_hour, np.nan), c.crossing_levels_nm, label=c.name)
-        ax_det.plot(list(c.damage_equivalent_torque_nm), list(c.damage_equivalent_torque_nm.values()), "o-",
-                    label=c.name)
-    ax_cross.set(xlabel="upward crossings per hour", ylabel="wheel torque [Nm]", title="level crossings")
-    ax_det.set(xlabel="Wöhler exponent k", ylabel="damage-equivalent torque range [Nm]",
+        ax_cross.semilogx(np.where(per_hour > 0, per_hour, np.nan), c.crossing_levels_nm * KNM, label=c.name)
+        ax_det.plot(list(c.damage_equivalent_torque_nm), np.array(list(c.damage_equivalent_torque_nm.values())) * KNM,
+                    "o-", label=c.name)
+    ax_cross.set(xlabel="upward crossings per hour", ylabel="wheel torque [kNm]", title="level crossings")
+    ax_det.set(xlabel="Wöhler exponent k", ylabel="damage-equivalent torque range [kNm]",
                title="1 cycle per second of operation")
     ax_det.legend()
     fig.tight_layout()

@@ -7,8 +7,8 @@ from .criteria import Criteria, evaluate
 from .export import cycle_to_vdri, vdri_to_time_cycle, write_cycle
 from .generate import Candidates, generate
 from .select import Selection, select_cycle
-from .stage import stage
+from .stage import CycleOptions, CycleResult, cycle_stage
 
-__all__ = ["Candidates", "Chain", "ClassWidths", "Criteria", "Selection", "TransitionCounts", "build_chain",
-           "count_transitions", "cycle_to_vdri", "evaluate", "generate", "resample_1hz", "select_cycle", "stage",
-           "vdri_to_time_cycle", "write_cycle"]
+__all__ = ["Candidates", "Chain", "ClassWidths", "Criteria", "CycleOptions", "CycleResult", "Selection",
+           "TransitionCounts", "build_chain", "count_transitions", "cycle_stage", "cycle_to_vdri", "evaluate",
+           "generate", "resample_1hz", "select_cycle", "vdri_to_time_cycle", "write_cycle"]

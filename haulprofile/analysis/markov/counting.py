@@ -34,7 +34,7 @@ class CountingError(UserError):
     pass
 
 
-def _mass_at_stops(speed_mps: np.ndarray, mass_kg: np.ndarray, standing_mps: float = 0.1) -> np.ndarray:
+def mass_at_stops(speed_mps: np.ndarray, mass_kg: np.ndarray, standing_mps: float = 0.1) -> np.ndarray:
     """Mass with the gaps a per-segment mass estimator leaves around stops filled: a driving run
     (between two stops) with some mass takes its median where it has none (slow samples at
     departure and arrival), and a stop takes the mass of the run before it (the truck arrived with
@@ -58,7 +58,7 @@ def _mass_at_stops(speed_mps: np.ndarray, mass_kg: np.ndarray, standing_mps: flo
 def resample_1hz(signals: pd.DataFrame, gap_s: float = GAP_S) -> pd.DataFrame:
     """Signals at whole seconds: speed and gradient linear, mass held (it changes in steps).
 
-    Mass missing inside a stop is filled (`_mass_at_stops`). Samples with ``valid`` False or any
+    Mass missing inside a stop is filled (`mass_at_stops`). Samples with ``valid`` False or any
     missing value are left out; where that leaves more than ``gap_s`` [s] without a usable sample,
     the data is split into segments (column ``segment``) and no transition is counted across the
     split. Shorter dropouts (a lost CAN frame, a stalled batch) are interpolated over.
@@ -67,7 +67,7 @@ def resample_1hz(signals: pd.DataFrame, gap_s: float = GAP_S) -> pd.DataFrame:
     if missing:
         raise CountingError(f"signals lack column(s) {', '.join(missing)} needed for the driving cycle")
     frame = signals[list(NEEDED)].astype(float)
-    frame["mass_kg"] = _mass_at_stops(frame["speed_mps"].to_numpy(), frame["mass_kg"].to_numpy())
+    frame["mass_kg"] = mass_at_stops(frame["speed_mps"].to_numpy(), frame["mass_kg"].to_numpy())
     usable = np.isfinite(frame.to_numpy()).all(axis=1)
     if "valid" in signals.columns:
         usable &= signals["valid"].fillna(False).to_numpy(bool)
@@ -231,7 +231,7 @@ def _stops(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return starts[stop], ends[stop] - 1
 
 
-def _closures(segments: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def closures(segments: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Closing transitions, standstill to standstill at the same gradient class: each segment's
     final stop → the first other stop like it in the following segments (cyclically, then its
     own), and the last other stop like a segment's initial stop in the preceding segments → that
@@ -273,8 +273,27 @@ def count_transitions(signals, widths: cls.ClassWidths | None = None, close_loop
     ``segment``), or a list of either (one vehicle's logs, linked by ``close_loops``).
 
     ``close_loops`` **[choice]**: the truck's next drive starts from a standstill like the one it
-    parked at (`_closures`); without it, every drive's end is a dead end and, at fine mass classes,
+    parked at (`closures`); without it, every drive's end is a dead end and, at fine mass classes,
     every payload is its own closed chain (docs/cycles.md).
+
+    Parameters
+    ----------
+    signals : DataFrame, mapping of arrays, or list of them
+        ``time_s`` [s], ``speed_mps`` [m/s], ``gradient_pct`` [%], ``mass_kg`` [kg].
+    widths : ClassWidths, optional
+        Class widths: speed [km/h], gradient [%], mass [kg]; default 1 km/h, 0.5 %, 100 kg.
+    close_loops : bool
+        Link each drive's end to a start from a like standstill.
+
+    Returns
+    -------
+    TransitionCounts
+        Sparse counts of (from state, to state), per-state moments and start counts; counts of
+        several logs add up with ``+``.
+
+    References
+    ----------
+    Paper §2.3: the 2D Markov chain of speed and combined gradient-and-mass classes.
     """
     widths = widths or cls.ClassWidths()
     items = signals if isinstance(signals, (list, tuple)) else [signals]
@@ -303,7 +322,7 @@ def count_transitions(signals, widths: cls.ClassWidths | None = None, close_loop
                                           moments_of(mass)]))
     n_closed = 0
     if close_loops:
-        closing_from, closing_to = _closures(segments)
+        closing_from, closing_to = closures(segments)
         from_parts.append(closing_from)
         to_parts.append(closing_to)
         n_closed = len(closing_from)

@@ -4,7 +4,7 @@ A generated cycle holds one class-centre speed per second. `cycle_to_vdri` write
 distance-based cycle whose target speed is piecewise constant over distance: row k starts at the
 distance reached after k seconds at the speeds before it and holds speed v_k for one second
 (consecutive equal rows merged); a standstill run becomes one row with v = 0 and its duration as
-``stop_time_s``. `vdri_to_time_cycle` reads that back exactly (time, distance, speed, gradient), and
+``stop_time_s``. Rows are at least 1 m apart, as VECTO requires (see `_metre_steps`). `vdri_to_time_cycle` reads that back exactly (time, distance, speed, gradient), and
 reads any other VECTO cycle as the time trace of its target speeds.
 """
 
@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserError
-from ..vecto import COLUMNS as VDRI_COLUMNS, write_vdri
+from ..vecto import COLUMNS as VDRI_COLUMNS, MIN_STEP_M, write_vdri
 
 CSV_COLUMNS = ("time_s", "speed_mps", "accel_mps2", "gradient_pct", "mass_kg", "distance_m")
 
@@ -51,7 +51,74 @@ def cycle_to_vdri(cycle: pd.DataFrame) -> pd.DataFrame:
             continue
         rows.append((distance[k], speed[k], gradient[k], 0.0))
         k += 1
-    return pd.DataFrame(rows, columns=list(VDRI_COLUMNS))
+    return pd.DataFrame(_metre_steps(rows), columns=list(VDRI_COLUMNS))
+
+
+def _metre_steps(rows: list[tuple]) -> list[tuple]:
+    """Rows (distance, speed, gradient, stop time; the last marks the end) at least VECTO's 1 m apart.
+
+    Consecutive moving rows are joined until they span 1 m (2 m after a stop, whose next row then
+    sits 1 m on: a stop drives on at the next row's speed anyway) into one row of their mean speed
+    (distance over time) and distance-weighted gradient, so time and distance stay exact. Creeping
+    under that span before a stop or the end joins the row before it (into a stop: the creep's
+    time becomes stop time, its distance, under 2 m, is lost).
+    """
+    step = MIN_STEP_M + 0.01  # the file rounds distances to 1 cm
+    out: list[list] = []
+    group: list = []  # [start distance, length, time, gradient x length, rows, first row]
+
+    def close() -> None:
+        start, length, time, g_len, count, first = group
+        if count == 1:
+            row = list(first)
+        else:
+            row = [start, length / time, g_len / length, 0.0]
+        if out and out[-1][1] == 0:
+            row[0] = start + step
+        out.append(row)
+        group.clear()
+
+    def fold() -> None:
+        """Creep under the minimum span into the row before it."""
+        start, length, time, g_len, _count, _first = group
+        group.clear()
+        if not out:
+            out.append([start, 0.0, g_len / length, time])
+        elif out[-1][1] == 0:
+            out[-1][3] += time
+        else:
+            begins = out[-2][0] if len(out) > 1 and out[-2][1] == 0 else out[-1][0]  # a stop drives on at its speed
+            previous_length = start - begins
+            previous_time = previous_length / out[-1][1]
+            out[-1][2] = (out[-1][2] * previous_length + g_len) / (previous_length + length)
+            out[-1][1] = (previous_length + length) / (previous_time + time)
+
+    for i, row in enumerate(rows[:-1]):
+        if row[1] == 0:
+            if group:
+                fold()
+            if out and out[-1][1] == 0:
+                out[-1][3] += row[3]
+            else:
+                out.append(list(row))
+            continue
+        span = rows[i + 1][0] - row[0]
+        if not group:
+            group[:] = [row[0], 0.0, 0.0, 0.0, 0, row]
+        group[1] += span
+        group[2] += span / row[1]
+        group[3] += row[2] * span
+        group[4] += 1
+        need = 2 * step if out and out[-1][1] == 0 else step
+        if group[1] >= need:
+            close()
+    end = list(rows[-1])
+    if group:
+        fold()
+    if out and out[-1][1] == 0 and end[0] - out[-1][0] < step:
+        out[-1][3] += end[3]
+        return [tuple(r) for r in out]
+    return [tuple(r) for r in out] + [tuple(end)]
 
 
 def vdri_to_time_cycle(vdri: pd.DataFrame) -> pd.DataFrame:

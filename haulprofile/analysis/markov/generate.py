@@ -34,26 +34,26 @@ class GenerationError(UserError):
 
 
 @numba.njit(cache=True)
-def _mix(z):
+def mix(z):
     z = (z ^ (z >> np.uint64(30))) * MIX1
     z = (z ^ (z >> np.uint64(27))) * MIX2
     return z ^ (z >> np.uint64(31))
 
 
 @numba.njit(cache=True)
-def _uniform(rng):
+def uniform(rng):
     """Next uniform number in [0, 1) of the SplitMix64 stream in ``rng`` (uint64[1])."""
     rng[0] += GOLDEN
-    return np.float64(_mix(rng[0]) >> np.uint64(11)) * TWO_POW_MINUS_53
+    return np.float64(mix(rng[0]) >> np.uint64(11)) * TWO_POW_MINUS_53
 
 
 @numba.njit(cache=True)
-def _walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, index, update, remaining, touched,
+def walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, index, update, remaining, touched,
           path):
     """One candidate: states ``path[0..n-1]`` from a start state, one transition per second."""
     rng = np.empty(1, np.uint64)
-    rng[0] = _mix(np.uint64(seed) ^ _mix(np.uint64(index) + GOLDEN))
-    u = _uniform(rng) * start_cum[-1]
+    rng[0] = mix(np.uint64(seed) ^ mix(np.uint64(index) + GOLDEN))
+    u = uniform(rng) * start_cum[-1]
     j = 0
     while j < start_cum.shape[0] - 1 and start_cum[j] <= u:
         j += 1
@@ -71,7 +71,7 @@ def _walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, index, 
                 for j in range(a, b):
                     remaining[j] = count[j]
                     total += count[j]
-            u = _uniform(rng) * total
+            u = uniform(rng) * total
             acc = 0
             j = a
             while j < b - 1:
@@ -83,7 +83,7 @@ def _walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, index, 
             touched[n_touched] = j
             n_touched += 1
         else:
-            u = _uniform(rng) * cum_count[b - 1]
+            u = uniform(rng) * cum_count[b - 1]
             j = a
             while j < b - 1 and cum_count[j] <= u:
                 j += 1
@@ -94,7 +94,7 @@ def _walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, index, 
 
 
 @numba.njit(cache=True)
-def _path_statistics(path, speed, gradient, mass, out):
+def path_statistics(path, speed, gradient, mass, out):
     """(mean, std, min, max) of speed, gradient, acceleration (1 Hz speed difference) and mass
     along ``path`` into ``out[4, 4]`` (population std)."""
     for q in range(4):
@@ -124,13 +124,13 @@ def _path_statistics(path, speed, gradient, mass, out):
 
 
 def path_statistics_reference(path, speed, gradient, mass) -> np.ndarray:
-    """NumPy reference of `_path_statistics`."""
+    """NumPy reference of `path_statistics`."""
     series = [speed[path], gradient[path], np.diff(speed[path]), mass[path]]
     return np.array([[x.mean(), x.std(), x.min(), x.max()] for x in series])
 
 
 @numba.njit(cache=True)
-def _batch(row_ptr, dest, count, cum_count, start_state, start_cum, speed, gradient, mass, seed, first_index,
+def batch(row_ptr, dest, count, cum_count, start_state, start_cum, speed, gradient, mass, seed, first_index,
            n_steps, update, stats, paths):
     """Candidates ``first_index …`` : statistics into ``stats[i]``; paths into ``paths[i]`` when
     ``paths`` has rows (otherwise one path buffer is reused)."""
@@ -140,9 +140,9 @@ def _batch(row_ptr, dest, count, cum_count, start_state, start_cum, speed, gradi
     touched = np.empty(n_steps, np.int64)
     for i in range(stats.shape[0]):
         path = paths[i] if keep else buffer
-        _walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, first_index + i, update,
+        walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, first_index + i, update,
               remaining, touched, path)
-        _path_statistics(path, speed, gradient, mass, stats[i])
+        path_statistics(path, speed, gradient, mass, stats[i])
 
 
 def _as_chain(counts) -> Chain:
@@ -167,7 +167,7 @@ def run_batch(chain: Chain, duration_s: float, n_candidates: int, seed: int, fir
     n_steps = _steps(duration_s)
     stats = np.empty((n_candidates, 4, 4))
     paths = np.empty((n_candidates if keep_paths else 0, n_steps), np.int64)
-    _batch(chain.row_ptr, chain.dest, chain.count, chain.cum_count, chain.start_state, chain.start_cum,
+    batch(chain.row_ptr, chain.dest, chain.count, chain.cum_count, chain.start_state, chain.start_cum,
            chain.speed_mps, chain.gradient_pct, chain.mass_kg, _check_seed(seed), int(first_index), n_steps,
            bool(update_counts), stats, paths)
     return stats, paths

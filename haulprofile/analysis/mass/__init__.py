@@ -1,10 +1,13 @@
 """Vehicle mass (paper §2.2.2, equations (9)-(14)): the data filter, then least squares, recursive
 least squares with forgetting and the damped Levenberg-Marquardt form, one mass per segment
-between stops, each with an uncertainty.
+between stops, each with an uncertainty; and the joint estimate (``joint``): masses of all
+segments with the drive's c_r and c_d·A, from the accelerometer where there is one (so the mass
+does not depend on the gradient estimate), calibrated by a known mass (``calibration``).
 
-Public: `estimate_mass(frame, vehicle, filter_settings, segment_settings) -> MassResult`, and the
-pipeline `stage(ctx)` which adds ``mass_kg`` (and ``mass_ls_kg``, ``mass_rls_kg``, ``mass_lm_kg``)
-and ``ctx.summary["mass"]["segments"]``.
+Public: `estimate_mass(frame, vehicle, filter_settings, segment_settings, joint_settings,
+known_masses) -> MassResult`; the
+pipeline's stage, which adds ``mass_kg`` (and ``mass_ls_kg``, ``mass_rls_kg``, ``mass_lm_kg``), is
+`analysis.mass.stage.mass_stage`.
 """
 
 from __future__ import annotations
@@ -14,12 +17,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..errors import UserError
+from ..road_load import G_MPS2
+from . import calibration
+from .joint import JointFit, JointSettings, fit_joint
 from .regression import FilterSettings, Regression, build_regression
-from .figure import draw_estimates
 from .segments import SegmentSettings, estimate_segment, segment_bounds
 
-__all__ = ["estimate_mass", "MassResult", "FilterSettings", "SegmentSettings", "stage"]
+__all__ = ["estimate_mass", "MassResult", "FilterSettings", "SegmentSettings", "JointSettings"]
 
 
 @dataclass
@@ -31,11 +35,17 @@ class MassResult:
     """mass_kg (LS of 'ok' segments, else NaN), mass_ls_kg, mass_rls_kg, mass_lm_kg."""
     regression: Regression
     notes: list[str] = field(default_factory=list)
+    road_load: dict = field(default_factory=dict)
+    """The joint fit: regressor, c_r and c_d·A (value, std, identified, reason), torque gain."""
+    joint: JointFit | None = None
 
 
 def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings = FilterSettings(),
-                  segment_settings: SegmentSettings = SegmentSettings()) -> MassResult:
-    """Per-segment masses [kg] of a signals table (see `MassResult`). UserError if columns are missing."""
+                  segment_settings: SegmentSettings = SegmentSettings(),
+                  joint_settings: JointSettings = JointSettings(), known_masses: dict[int, float] | None = None
+                  ) -> MassResult:
+    """Per-segment masses [kg] of a signals table (see `MassResult`); ``known_masses`` {segment
+    index from 0: kg} calibrates the torque gain. UserError if columns are missing."""
     regression = build_regression(frame, vehicle, filter_settings)
     time_s = frame["time_s"].to_numpy(dtype=float)
     speed = frame["speed_mps"].to_numpy(dtype=float)
@@ -43,7 +53,8 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     max_mass = vehicle.curb_mass_kg + 2.0 * (vehicle.max_payload_kg or 3.0 * vehicle.curb_mass_kg)
     columns = {name: np.full(len(frame), np.nan) for name in ("mass_kg", "mass_ls_kg", "mass_rls_kg", "mass_lm_kg")}
     segments = []
-    for start, end in segment_bounds(time_s, speed, segment_settings):
+    bounds = segment_bounds(time_s, speed, segment_settings)
+    for start, end in bounds:
         part = slice(start, end)
         estimate = estimate_segment(regression.phi[part], regression.y[part], vehicle.curb_mass_kg, max_mass,
                                     segment_settings)
@@ -66,27 +77,91 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
         worst = max(regression.rejected, key=regression.rejected.get)
         notes.append(f"no sample passes the data filter (most fail: {worst}, {regression.rejected[worst]} "
                      f"of {len(frame)}): no mass estimated")
-    return MassResult(segments=segments, columns=columns, regression=regression, notes=notes)
+    road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
+                              columns, max_mass, notes, segment_settings)
+    return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
+                      joint=joint)
 
 
-def stage(ctx) -> None:
-    if ctx.vehicle is None:
-        ctx.say("mass: skipped: needs a vehicle file (--vehicle)")
-        return
-    try:
-        result = estimate_mass(ctx.signals, ctx.vehicle, FilterSettings(**ctx.options.get("mass_filter", {})),
-                               SegmentSettings(**ctx.options.get("mass", {})))
-    except UserError as exc:
-        ctx.say(f"mass: skipped: {exc}")
-        return
-    for note in result.notes:
-        ctx.say(f"mass: {note}")
-    for name, values in result.columns.items():
-        ctx.signals[name] = values
-    for segment in result.segments:
-        if segment["status"] != "ok":
-            ctx.say(f"mass: segment {segment['start_s']:.0f}-{segment['end_s']:.0f} s: no confident mass "
-                    f"({segment['reason']})")
-    files = [draw_estimates(ctx.signals, result, ctx.out_dir / "mass.png").name] if ctx.figures else []
-    ctx.summary["mass"] = {"segments": result.segments, "samples_used": int(result.regression.usable.sum()),
-                           "rejected_by": result.regression.rejected, "notes": result.notes, "files": files}
+def regressor_bias_kg(fit: JointFit, regressor_std, bounds) -> np.ndarray:
+    """Mass error [kg] per segment of a systematic regressor error sigma_psi (IMU bias calibration
+    or gradient bias): dm = m sigma_psi sum(w phi) / sum(w phi^2) over the segment's used samples."""
+    out = np.zeros(len(bounds))
+    for j, (start, end) in enumerate(bounds):
+        w = fit.weights[start:end]
+        phi = fit.regressor_values[start:end]
+        if np.isfinite(fit.masses_kg[j]) and np.sum(w * phi * phi) > 0:
+            sigma = float(np.sum(w * regressor_std[start:end]) / max(np.sum(w), 1e-12))
+            out[j] = abs(fit.masses_kg[j]) * sigma * np.sum(w * phi) / np.sum(w * phi * phi)
+    return out
+
+
+def _joint(regression, time_s, bounds, vehicle, settings, known, segments, columns, max_mass, notes,
+           segment_settings):
+    """Joint fit with the IMU regressor (else the gradient one), calibration, and per segment the
+    chosen ``mass_kg`` and its total ``mass_uncertainty_kg``; the gradient-based joint fit too,
+    for comparison."""
+    fits = {}
+    if regression.excess_imu is not None:
+        fits["imu"] = fit_joint(regression.force, regression.excess_imu, regression.cos_angle,
+                                regression.aero_per_cda, time_s, bounds, regression.usable_imu, vehicle, settings, "imu",
+                                instrument=regression.excess_gradient)
+    else:
+        notes.append("no accelerometer with a calibrated bias (accel_x_mps2, imu_bias_mps2): mass from the "
+                     "gradient-based regressor")
+    fits["gradient"] = fit_joint(regression.force, regression.excess_gradient, regression.cos_angle,
+                                 regression.aero_per_cda, time_s, bounds, regression.usable, vehicle, settings, "gradient")
+    chosen = fits.get("imu", fits["gradient"])
+    gradient_bias = G_MPS2 * np.sin(np.arctan(segment_settings.gradient_bias_pct / 100))
+    for name, fit in fits.items():
+        regressor_std = (np.nan_to_num(regression.excess_imu_std, nan=0.0) if name == "imu" and
+                         regression.excess_imu_std is not None else np.full(len(time_s), gradient_bias))
+        fit.sensitivity_kg = np.hypot(fit.sensitivity_kg, regressor_bias_kg(fit, regressor_std, bounds))
+    gain_uncertainty = float(np.hypot(settings.torque_gain_uncertainty, settings.driveline_efficiency_uncertainty))
+    results = {}
+    for name, fit in fits.items():
+        results[name] = calibration.calibrate(fit.masses_kg, fit.mass_std_kg, fit.sensitivity_kg, known,
+                                              gain_uncertainty)
+    masses, total, gain = results[chosen.regressor]
+    for j, (segment, (start, end)) in enumerate(zip(segments, bounds)):
+        for name, (m, sigma, _) in results.items():
+            segment[f"mass_{name}_kg"] = float(m[j]) if np.isfinite(m[j]) else None
+            segment[f"mass_{name}_uncertainty_kg"] = float(sigma[j]) if np.isfinite(m[j]) else None
+        mass, sigma = masses[j], total[j]
+        status, reason = "ok", ""
+        if not np.isfinite(mass):
+            status, reason = "no_excitation", f"only {int(chosen.samples[j])} samples for the joint fit"
+        elif not (0.5 * vehicle.curb_mass_kg < mass < max_mass):
+            status, reason = "implausible", f"joint mass {mass:.0f} kg outside {0.5 * vehicle.curb_mass_kg:.0f}.." \
+                                            f"{max_mass:.0f} kg"
+        elif chosen.mass_std_kg[j] > settings.max_relative_uncertainty * mass:
+            status, reason = "uncertain", f"statistical uncertainty {chosen.mass_std_kg[j]:.0f} kg over " \
+                                          f"{100 * settings.max_relative_uncertainty:.0f} %"
+        segment.update(mass_regressor=chosen.regressor, mass_joint_status=status, mass_joint_reason=reason)
+        if status == "ok":
+            segment["mass_kg"], segment["mass_uncertainty_kg"] = float(mass), float(sigma)
+            columns["mass_kg"][start:end] = mass
+        elif segment["status"] == "ok":
+            segment["mass_kg"], segment["mass_uncertainty_kg"] = segment["mass_ls_kg"], segment["uncertainty_kg"]
+        else:
+            segment["mass_kg"] = segment["mass_uncertainty_kg"] = None
+    if chosen.outliers:
+        notes.append(f"{chosen.outliers} samples got weight 0 in the joint fit: their force balance is broken "
+                     f"(auxiliary loads, unflagged braking)")
+    road_load = {"regressor": chosen.regressor, "condition_number": chosen.condition,
+                 "samples_zero_weight": chosen.outliers, "torque_gain": gain}
+    for name in chosen.coefficients:
+        scale = 1 / gain["gain"] if name == "drag_area_m2" else 1.0  # F_aero scales with the torque gain
+        std = chosen.coefficient_std[name]
+        road_load[name] = {"value": chosen.coefficients[name] * scale, "std": None if std is None else std * scale,
+                           "identified": chosen.identified[name], "reason": chosen.reasons[name]}
+    if gain["calibrated_from"] is None:
+        notes.append(f"mass uncertainty includes {100 * gain_uncertainty:.1f} % for the engine torque report and "
+                     f"driveline efficiency gain (give one weighed segment with --known-mass to calibrate it)")
+    else:
+        notes.append(f"torque gain calibrated from segment(s) {gain['calibrated_from']}: {gain['gain']:.4f} "
+                     f"± {100 * gain['relative_std']:.2f} %")
+    for name, entry in road_load.items():
+        if isinstance(entry, dict) and "identified" in entry and not entry["identified"]:
+            notes.append(f"{name}: {entry['reason']}")
+    return road_load, chosen

@@ -29,6 +29,7 @@ def draw_estimates(frame, result, path: Path, true_mass_kg: list[float] | None =
             ax.fill_between([segment["start_s"], segment["end_s"]],
                             (segment["mass_ls_kg"] - 2 * segment["uncertainty_kg"]) / 1000,
                             (segment["mass_ls_kg"] + 2 * segment["uncertainty_kg"]) / 1000, alpha=0.2, color="C2")
+    ax.set_ylim(*_mass_limits_t(frame, result, true_mass_kg))
     ax.set_xlabel("time [s]")
     ax.set_ylabel("mass [t]")
     ax.legend(loc="best")
@@ -36,3 +37,26 @@ def draw_estimates(frame, result, path: Path, true_mass_kg: list[float] | None =
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+def _mass_limits_t(frame, result, true_mass_kg) -> tuple[float, float]:
+    """Mass axis [t] around what was estimated and reported, not the recursive estimators' start
+    values (the first samples of RLS and LM sit wherever they were started)."""
+    values = [m for m in (true_mass_kg or [])]
+    for segment in result.segments:
+        if segment.get("mass_ls_kg") is not None:
+            spread = 2 * segment["uncertainty_kg"] if segment.get("uncertainty_kg") not in (None, np.inf) else 0.0
+            values += [segment["mass_ls_kg"] - spread, segment["mass_ls_kg"] + spread]
+    if "reported_mass_kg" in frame and frame["reported_mass_kg"].notna().any():
+        values += list(np.nanpercentile(frame["reported_mass_kg"].to_numpy(float), [1, 99]))
+    if not values:
+        for column in ("mass_rls_kg", "mass_lm_kg"):
+            series = np.asarray(result.columns[column], dtype=float)
+            if np.isfinite(series).any():
+                values += list(np.nanpercentile(series, [10, 99]))
+    values = [v for v in values if np.isfinite(v)]
+    if not values:
+        return 0.0, 1.0
+    low, high = min(values) / 1000, max(values) / 1000
+    pad = max(0.08 * (high - low), 0.3)
+    return low - pad, high + pad

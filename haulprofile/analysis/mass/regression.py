@@ -48,6 +48,22 @@ class Regression:
     """Samples passing the data filter."""
     rejected: dict[str, int]
     """How many samples each filter rule removed (a sample may fail several)."""
+    force: np.ndarray | None = None
+    """Wheel force F_wheel [N] (smoothed like the acceleration), every sample."""
+    aero_per_cda: np.ndarray | None = None
+    """1/2 rho v² [N/m²]: F_aero per m² of c_d A."""
+    cos_angle: np.ndarray | None = None
+    """cos(alpha) of the estimated gradient [-]."""
+    excess_gradient: np.ndarray | None = None
+    """a + g sin(alpha) from wheel speed and the estimated gradient [m/s²]."""
+    excess_imu: np.ndarray | None = None
+    """The accelerometer's a + g sin(alpha) [m/s²]: a_x,imu smoothed like the acceleration, minus
+    the IMU bias (mounting pitch and accelerometer bias) the gradient smoother calibrated; None
+    without an IMU or that calibration."""
+    usable_imu: np.ndarray | None = None
+    """The data filter where the accelerometer regressor is finite too."""
+    excess_imu_std: np.ndarray | None = None
+    """1-sigma of the IMU bias calibration [m/s²] (a systematic regressor error)."""
 
 
 def _centred_mean(values: np.ndarray, window: int) -> np.ndarray:
@@ -83,12 +99,29 @@ def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = Fi
     wheel_torque = road_load.wheel_torque_from_engine_nm(engine_torque, engine_rpm, speed, vehicle.wheel_radius_m,
                                                          vehicle.driveline_efficiency)
     wheel_force = road_load.wheel_force_from_torque_n(wheel_torque, vehicle.wheel_radius_m)
+    if vehicle.total_ratios:
+        # with the clutch closed the ratio is one of the gearbox's: engine speed and wheel speed
+        # come from different messages sampled at different instants, and their quotient carries
+        # that timing error into the force in proportion to the acceleration (+0.5 % mass on the
+        # virtual truck); samples not near any gear are dropped by the shift rule below
+        ratios = np.asarray(vehicle.total_ratios)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            measured = (2 * np.pi * engine_rpm / 60.0) * vehicle.wheel_radius_m / speed
+            nearest = ratios[np.argmin(np.abs(np.nan_to_num(measured, nan=-1.0)[:, None] / ratios[None, :] - 1), axis=1)]
+            wheel_force = np.where(np.isfinite(measured), wheel_force * nearest / measured, np.nan)
     # the same centred window that made accel_mps2 from wheel speed, so both sides of (1) match in time
     y = _centred_mean(wheel_force, window) - road_load.aero_force_n(speed, vehicle.drag_coefficient,
                                                                      vehicle.frontal_area_m2)
     per_kg = (road_load.rolling_force_n(1.0, gradient, vehicle.rolling_resistance_coefficient)
               + road_load.climbing_force_n(1.0, gradient))
     phi = accel + per_kg
+    cos_angle = np.cos(road_load.road_angle_rad(gradient))
+    rolling_per_kg = road_load.G_MPS2 * vehicle.rolling_resistance_coefficient * cos_angle
+    excess_imu = None
+    accel_imu, bias = _column(frame, "accel_x_mps2"), _column(frame, "imu_bias_mps2")
+    if accel_imu is not None and bias is not None and np.isfinite(accel_imu).any() and np.isfinite(bias).any():
+        excess_imu = _centred_mean(accel_imu, window) - bias
+    bias_std = _column(frame, "imu_bias_std_mps2")
 
     with np.errstate(invalid="ignore", divide="ignore"):
         total_ratio = (2 * np.pi * engine_rpm / 60.0) * vehicle.wheel_radius_m / speed
@@ -122,5 +155,12 @@ def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = Fi
     usable = np.ones(len(frame), bool)
     for rejected in rules.values():
         usable &= ~rejected
+    # the excitation rule is applied to the wheel-speed/gradient regressor also for the IMU one:
+    # selecting samples on the noisy accelerometer itself would keep the ones its noise pushed up
+    usable_imu = usable & np.isfinite(excess_imu + rolling_per_kg) if excess_imu is not None else None
     return Regression(phi=np.where(usable, phi, np.nan), y=np.where(usable, y, np.nan), usable=usable,
-                      rejected={name: int(mask.sum()) for name, mask in rules.items()})
+                      rejected={name: int(mask.sum()) for name, mask in rules.items()},
+                      force=_centred_mean(wheel_force, window), aero_per_cda=0.5 * road_load.AIR_DENSITY_KGPM3 * speed ** 2,
+                      cos_angle=cos_angle, excess_gradient=accel + road_load.G_MPS2 * np.sin(road_load.road_angle_rad(gradient)),
+                      excess_imu=excess_imu, usable_imu=usable_imu,
+                      excess_imu_std=bias_std if excess_imu is not None else None)

@@ -1,12 +1,16 @@
 """The run's report: one self-contained ``report.html`` that reads like the paper's results section.
 
-The pipeline's last stage. Chapters come from what the stages left in ``ctx.summary`` and
-``ctx.out_dir``; a stage that did not run gives no chapter and is named in the lead.
+The last file of the pipeline's output step. Chapters come from what the stages left in the summary
+and the figures the output step drew; a stage that did not run gives no chapter and is named in
+the lead.
 """
 
 from __future__ import annotations
 
-from .chapters import cycle_section, gradient_section, loads_section, mass_section, simulation_section
+from pathlib import Path
+
+from .chapters import (cycle_section, gradient_section, loads_section, mass_section, simulation_section,
+                       simulation_skipped_section)
 from .drive import drive_section
 from .html import Section, render
 
@@ -17,9 +21,12 @@ CHAPTERS = [("gradient", gradient_section), ("mass", mass_section), ("cycle", cy
 def build_report(signals, summary: dict, out_dir, title: str = "haulprofile report") -> str:
     sections: list[Section] = [drive_section(signals, summary)]
     missing = []
+    skipped = summary.get("skipped", {})
     for key, chapter in CHAPTERS:
         if key in summary:
             sections.append(chapter(summary, out_dir))
+        elif key == "simulation" and skipped.get("simulation"):
+            sections.append(simulation_skipped_section(skipped["simulation"]))
         else:
             missing.append(key)
     lead = (f"{len(summary.get('ingest', {}).get('inputs', [])) or 'the'} input(s), "
@@ -29,10 +36,10 @@ def build_report(signals, summary: dict, out_dir, title: str = "haulprofile repo
     return render(title, lead, sections)
 
 
-def stage(ctx) -> None:
-    vehicle = f" — {ctx.vehicle.name}" if ctx.vehicle is not None else ""
-    text = build_report(ctx.signals, ctx.summary, ctx.out_dir, title=f"haulprofile report{vehicle}")
-    path = ctx.out_dir / "report.html"
-    path.write_text(text, encoding="utf-8")
-    ctx.summary["report"] = str(path.name)
-    ctx.say(f"report: {path}")
+def write_report(signals, summary: dict, directory, vehicle=None) -> str:
+    """``report.html`` from the summary and the figures already written into ``directory``;
+    returns its name."""
+    title = "haulprofile report" + (f" — {vehicle.name}" if vehicle is not None else "")
+    path = Path(directory) / "report.html"
+    path.write_text(build_report(signals, summary, directory, title=title), encoding="utf-8")
+    return path.name

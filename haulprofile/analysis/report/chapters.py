@@ -7,6 +7,7 @@ A stage that did not run gives no chapter, and its absence is stated in the repo
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pandas as pd
@@ -20,18 +21,39 @@ def _figures(out_dir: Path, names: list[tuple[str, str]]) -> list[tuple[Path, st
 
 def gradient_section(summary: dict, out_dir: Path) -> Section:
     g = summary["gradient"]
-    section = Section("Road gradient: map-matching fused with barometric height")
-    section.kpis = [("sources", ", ".join(g["sources"])), ("mean map weight w_map", f"{g['mean_map_weight']:.2f}"),
+    smoother = g.get("smoother") or {}
+    method = g.get("method", "paper")
+    section = Section("Road gradient: barometer, IMU, map and GPS in one smoother" if method == "smoother"
+                      else "Road gradient: map-matching fused with barometric height")
+    section.kpis = [("sources", ", ".join(g["sources"])), ("gradient_pct from", method),
                     ("gradient range", f"{g['gradient_pct']['min']:+.1f} … {g['gradient_pct']['max']:+.1f} %"),
-                    ("climbed", f"{g['height_gain_m']:.0f} m")]
+                    ("climbed", f"{g['height_gain_m']:.0f} m"), ("paper's mean w_map", f"{g['mean_map_weight']:.2f}")]
+    if smoother.get("map_gated_km") is not None:
+        section.kpis.append(("map gated out", f"{smoother['map_gated_km']:.2f} km"))
+    if smoother.get("imu_bias_mps2") is not None:
+        section.kpis.append(("IMU bias (pitch + sensor)", f"{smoother['imu_bias_mps2']:+.3f} m/s²"))
     section.paragraphs.append(
-        "Heights from the elevation model along the driven distance and from the barometric formula (6) are fused "
-        "with equation (8): the barometer weighs 0.7, the map between 0 and 1 by GPS accuracy, so where GPS "
-        "degrades (tunnels, cuttings) the map's terrain height stops pulling the road profile. The IMU gradient (7) "
-        "is drawn but not fused, as in the paper.")
+        "The smoother (the default gradient_pct) estimates road height, gradient, barometric weather drift, the "
+        "accelerometer's bias and the elevation model's own error together, forward and backward over the driven "
+        "distance. Each source counts by the noise it shows in this drive; the elevation model is checked against "
+        "barometer and IMU and gated out where it disagrees beyond its error model — a bridge over a valley, a "
+        "tunnel, a cutting. The paper's fusion (8) (barometer 0.7, map by GPS accuracy alone) is kept beside it as "
+        "gradient_paper_pct; the figure shows both.")
+    weights = smoother.get("mean_weights")
+    if weights:
+        section.tables.append(("Each source's mean share of the information on the gradient (the figure shows it "
+                               "along the route)", [{"source": k, "mean weight": round(v, 3)} for k, v in weights.items()]))
+    noise = {k: v for k, v in smoother.items() if k.endswith(("_m", "_mps2", "_psd")) and k != "map_gated_km"
+             and v is not None}
+    if noise:
+        section.tables.append(("Noise levels and calibrations the smoother took from this drive",
+                               [{"quantity": k, "value": f"{v:.3g}"} for k, v in noise.items()]))
     section.notes.extend(g.get("notes", []))
-    section.figures = _figures(out_dir, [("gradient.png", "Heights of each source, the map weight, and the fused "
-                                                          "gradient over distance (cf. the paper's Fig. 2).")])
+    section.figures = _figures(out_dir, [("gradient.png", "Heights of each source; the smoother's source weights "
+                                                          "along the route with the stretches where the map was gated "
+                                                          "out (red) and the paper's w_map; the gradients of each "
+                                                          "source, the paper's fusion and the smoother (cf. the "
+                                                          "paper's Fig. 2).")])
     return section
 
 
@@ -41,6 +63,9 @@ def mass_section(summary: dict, out_dir: Path) -> Section:
     rows = []
     for s in m["segments"]:
         rows.append({"from [s]": round(s["start_s"]), "to [s]": round(s["end_s"]), "samples": s["n_samples"],
+                     "mass [kg]": s.get("mass_kg"), "± [kg] (1σ)": s.get("mass_uncertainty_kg"),
+                     "IMU-based [kg]": s.get("mass_imu_kg"), "± IMU": s.get("mass_imu_uncertainty_kg"),
+                     "gradient-based [kg]": s.get("mass_gradient_kg"), "± gradient": s.get("mass_gradient_uncertainty_kg"),
                      "LS [kg]": s.get("mass_ls_kg"), "± [kg]": s.get("uncertainty_kg"),
                      "RLS [kg]": s.get("mass_rls_kg"), "LM [kg]": s.get("mass_lm_kg"),
                      "truck's CAN [kg]": s.get("reported_mass_kg"),
@@ -50,8 +75,27 @@ def mass_section(summary: dict, out_dir: Path) -> Section:
         "from equation (10) with least squares (9), recursive least squares with forgetting (11)–(13) and the "
         "damped Levenberg–Marquardt form (14). The ± column is one standard uncertainty of the LS estimate. "
         "A segment without enough excitation gets no number, and the status says why.")
+    section.paragraphs.append(
+        "The mass column is the joint estimate: all segments together with the drive's own rolling-resistance "
+        "coefficient and drag area, from the accelerometer where there is one (it measures a + g sin α itself, "
+        "so the mass does not inherit the gradient estimate's errors), else from wheel speed and the gradient. "
+        "Samples whose force balance is broken (air compressor, fan, PTO, unflagged braking) get weight zero. "
+        "A gain error in the engine's torque report cannot be told apart from mass within one drive: unless a "
+        "weighed segment calibrates it (--known-mass), it is part of the ± column.")
+    road_load = m.get("road_load") or {}
     section.kpis = [("segments", str(len(m["segments"]))), ("samples used", f"{m['samples_used']:,}")]
+    if road_load:
+        section.kpis.append(("mass from", road_load.get("regressor", "")))
+        gain = road_load.get("torque_gain", {})
+        section.kpis.append(("torque gain", f"{gain.get('gain', 1.0):.4f} ± {100 * gain.get('relative_std', 0):.1f} %"
+                             + ("" if gain.get("calibrated_from") else " (not calibrated)")))
     section.tables.append(("Per-segment estimates", rows))
+    coefficients = [{"coefficient": name, "value": f"{entry['value']:.4g}",
+                     "± (1σ)": f"{entry['std']:.2g}" if entry.get("std") is not None else "-",
+                     "identified": "yes" if entry["identified"] else "no", "note": entry["reason"]}
+                    for name, entry in road_load.items() if isinstance(entry, dict) and "identified" in entry]
+    if coefficients:
+        section.tables.append(("Road load estimated with the masses (shared by all segments)", coefficients))
     if m.get("rejected_by"):
         section.tables.append(("Why samples were left out of the regression (a sample may fail several tests)",
                                [{"filter": k, "samples": v} for k, v in m["rejected_by"].items()]))
@@ -94,14 +138,18 @@ def loads_section(summary: dict, out_dir: Path) -> Section:
     rows = []
     measured, generated = loads.get("measured", {}), loads.get("generated", {})
     for k, value in measured.get("damage_equivalent_torque_range_nm", {}).items():
-        rows.append({"Wöhler exponent k": int(k), "measured [Nm]": value,
-                     "generated [Nm]": generated.get("damage_equivalent_torque_range_nm", {}).get(k)})
+        cycle = generated.get("damage_equivalent_torque_range_nm", {}).get(k)
+        rows.append({"Wöhler exponent k": int(k), "measured [kNm]": value / 1000,
+                     "generated [kNm]": None if cycle is None else cycle / 1000,
+                     "generated vs measured": _deviation(value, cycle)})
     if rows:
         section.tables.append(("Damage-equivalent wheel torque ranges (per second of operation)", rows))
     comparison = out_dir / "loads" / "comparison.csv"
     if comparison.is_file():
-        frame = pd.read_csv(comparison)
-        section.tables.append(("Measured against generated", frame.to_dict("records")))
+        levels, coverage = _comparison_rows(pd.read_csv(comparison))
+        section.tables.append(("Measured against generated", levels))
+        if coverage:
+            section.tables.append(("How the cycle covers the measured speed × torque residence", coverage))
     figures = sorted((out_dir / "loads").glob("*.png")) if (out_dir / "loads").is_dir() else []
     captions = {"time_at_level.png": "Time at level of wheel force, torque, speed and power.",
                 "matrices.png": "Speed × torque residence time and rainflow range/mean matrices.",
@@ -110,19 +158,71 @@ def loads_section(summary: dict, out_dir: Path) -> Section:
     return section
 
 
+def _deviation(measured, generated) -> str:
+    """Generated relative to measured, as a signed percentage ("–" where undefined)."""
+    if measured is None or generated is None or not math.isfinite(measured) or not math.isfinite(generated) \
+            or measured == 0:
+        return "–"
+    return f"{(generated / measured - 1) * 100:+.1f} %"
+
+
+def _comparison_rows(frame: pd.DataFrame) -> tuple[list[dict], list[dict]]:
+    """Rows of ``loads/comparison.csv`` for reading: levels in kN, kNm, kW with the deviation in
+    percent (the damage-equivalent ranges have their own table); the residence measures, one number
+    each, apart."""
+    levels, coverage = [], []
+    units = {"[N]": ("[kN]", 1e-3), "[Nm]": ("[kNm]", 1e-3), "[W]": ("[kW]", 1e-3)}
+    for row in frame.to_dict("records"):
+        name = str(row["criterion"])
+        if name.startswith("damage-equivalent"):
+            continue
+        if name.startswith("speed x torque residence"):
+            coverage.append({"measure": name.split(": ", 1)[-1].replace(" [-]", ""),
+                             "share": f"{row['generated']:.1%}"})
+            continue
+        measured, generated = float(row["measured"]), float(row["generated"])
+        for unit, (shown, scale) in units.items():
+            if unit in name:
+                name, measured, generated = name.replace(unit, shown), measured * scale, generated * scale
+                break
+        levels.append({"criterion": name, "measured": measured, "generated": generated,
+                       "generated vs measured": _deviation(measured, generated)})
+    return levels, coverage
+
+
+SIMULATION_TITLE = "The electric truck on this work"
+
+
+def simulation_skipped_section(reason: str) -> Section:
+    """The simulation chapter when the stage could not run: why, instead of empty numbers."""
+    section = Section(SIMULATION_TITLE)
+    section.notes.append(f"No simulation: {reason}.")
+    return section
+
+
 def simulation_section(summary: dict, out_dir: Path) -> Section:
     s = summary["simulation"]
-    section = Section("The electric truck on this work")
-    section.kpis = [("at the battery", f"{s['battery_kwh_per_km']:.3f} kWh/km"),
-                    ("positive at the wheels", f"{s['wheel_positive_kwh_per_km']:.3f} kWh/km"),
-                    ("recuperated at the wheels", f"{s['recuperated_at_wheel_kwh']:.1f} kWh"),
-                    ("state of charge", f"{s['initial_soc']:.0%} → {s['final_soc']:.0%}"),
-                    ("time below target speed", f"{s['missed_target_s']:.0f} s")]
+    section = Section(SIMULATION_TITLE)
+    measured = s.get("measured_drive")
+    per_km = [(f"at the battery, {s['cycle']}", f"{s['battery_kwh_per_km']:.3f} kWh/km")]
+    if measured:
+        per_km.append((f"at the battery, {measured['cycle']}", f"{measured['battery_kwh_per_km']:.3f} kWh/km"))
+    section.kpis = per_km + [
+        ("positive at the wheels", f"{s['wheel_positive_kwh_per_km']:.3f} kWh/km"),
+        ("recuperated at the wheels", f"{s['recuperated_at_wheel_kwh']:.1f} kWh"),
+        ("state of charge", f"{s['initial_soc']:.0%} → {s['final_soc']:.0%}"),
+        ("time below target speed", f"{s['missed_target_s']:.0f} s")]
     section.paragraphs.append(
         f"The target battery-electric powertrain of the vehicle file drove the {s['cycle']} "
         f"({s['distance_km']:.1f} km at {s['mean_mass_kg'] / 1000:.1f} t) in a forward simulation with a driver "
         "model, machine torque and power limits, recuperation up to its limit and a battery with internal "
         "resistance.")
+    if measured:
+        rows = [{"drive": run["cycle"], "distance [km]": run["distance_km"], "duration [min]": run["duration_s"] / 60,
+                 "mean mass [t]": run["mean_mass_kg"] / 1000, "battery [kWh/km]": run["battery_kwh_per_km"],
+                 "positive at the wheels [kWh/km]": run["wheel_positive_kwh_per_km"],
+                 "time below target [s]": run["missed_target_s"]} for run in (s, measured)]
+        section.tables.append(("Energy per km: the generated cycle against the measured drive it stands for", rows))
     if s.get("soc_below_minimum"):
         section.notes.append("The battery reached its minimum state of charge: the truck could not finish this work.")
     if s.get("missed_target_intervals"):

@@ -1,4 +1,5 @@
-"""A self-contained HTML report: figures embedded as base64 PNG, no external resource, opens offline."""
+"""A self-contained HTML report: figures embedded as base64 PNG, charts drawn by an embedded script;
+no external resource, opens offline."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ figcaption{color:#57606a;font-size:.9em}table{border-collapse:collapse;margin:1e
 th,td{border:1px solid #d0d7de;padding:.3em .6em;text-align:right}th{background:#f6f8fa}
 td:first-child,th:first-child{text-align:left}.ok{color:#1a7f37;font-weight:600}.bad{color:#cf222e;font-weight:600}
 .note{background:#fff8c5;border:1px solid #d4a72c;padding:.5em .8em;border-radius:4px}
-.kpi{display:inline-block;margin:.3em 1.2em .3em 0}.kpi b{font-size:1.4em;display:block}
+.zoom{border:1px solid #d0d7de;cursor:grab}.kpi{display:inline-block;margin:.3em 1.2em .3em 0}.kpi b{font-size:1.4em;display:block}
 """
 
 
@@ -31,6 +32,8 @@ class Section:
     figures: list[tuple[object, str]] = field(default_factory=list)
     """(matplotlib figure or path of a PNG, caption)."""
     notes: list[str] = field(default_factory=list)
+    blocks: list[tuple[str, str]] = field(default_factory=list)
+    """(HTML made by this package, e.g. an interactive chart; caption), after the figures."""
 
 
 def figure_png_base64(figure, dpi: int = 110) -> str:
@@ -85,6 +88,8 @@ def render(title: str, lead: str, sections: list[Section]) -> str:
         for figure, caption in section.figures:
             parts.append(f"<figure><img alt='{html.escape(caption)}' src='data:image/png;base64,"
                          f"{_png_base64(figure)}'><figcaption>{html.escape(caption)}</figcaption></figure>")
+        for block, caption in section.blocks:
+            parts.append(f"<figure>{block}<figcaption>{html.escape(caption)}</figcaption></figure>")
         parts.append("</section>")
     parts.append("</body></html>")
     return "".join(parts)

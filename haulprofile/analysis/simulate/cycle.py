@@ -85,7 +85,23 @@ def time_cycle(frame: pd.DataFrame, default_mass: float, name: str = "cycle") ->
 
 
 def read_cycle(path: str | Path, vehicle: Vehicle, payload_kg: float | None = None) -> SimCycle:
-    """A ``.vdri`` (distance-based), or a CSV/Parquet time-based trace or signals table."""
+    """A ``.vdri`` (distance-based), or a CSV/Parquet time-based trace or signals table.
+
+    Parameters
+    ----------
+    path : str or Path
+        VECTO ``.vdri`` (``<s>,<v>,<grad>,<stop>``), or a CSV/Parquet with ``time_s`` [s],
+        ``speed_mps`` [m/s] and optionally ``gradient_pct`` [%], ``mass_kg`` [kg].
+    vehicle : Vehicle
+        For the default mass.
+    payload_kg : float, optional
+        Payload [kg] where the cycle has no mass; default half the vehicle's maximum payload.
+
+    Returns
+    -------
+    SimCycle
+        The rows the simulation kernel reads, with the road forces of paper equations (2)-(3).
+    """
     path = Path(path)
     mass = default_mass_kg(vehicle, payload_kg)
     if not path.is_file():
@@ -95,7 +111,10 @@ def read_cycle(path: str | Path, vehicle: Vehicle, payload_kg: float | None = No
     if path.suffix.lower() not in SIGNALS_SUFFIXES:
         raise SimulationInputError(f"{path}: give a .vdri, or a .csv/.parquet with time_s and speed_mps")
     if path.suffix.lower() == ".csv":
-        header = pd.read_csv(path, nrows=0).columns
+        try:
+            header = pd.read_csv(path, nrows=0).columns
+        except (ValueError, UnicodeDecodeError) as exc:  # pandas' ParserError and EmptyDataError are ValueErrors
+            raise SimulationInputError(f"{path}: not a readable CSV table ({type(exc).__name__})") from None
         if all(h in header for h in ("<s>", "<v>", "<grad>", "<stop>")):
             return distance_cycle(read_vdri(path), mass, path.stem)
     frame = read_signals(path)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .. import road_load
+from .. import checks, road_load
 from ..vehicle import Vehicle
 from . import kernel as K
 from .cycle import SimCycle, SimulationInputError
@@ -122,16 +122,41 @@ def kernel_arguments(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, ept
     load_time, (aux, epto, obc) = _loads_on_one_grid(
         ep.auxiliary_power_w if aux_power_w is None else aux_power_w, epto_power_w, obc_power_w)
     f_roll, f_climb = cycle.road_forces_n(vehicle)
-    out = np.empty((_expected_steps(cycle, settings.time_step_s), K.N_COLUMNS))
+    steps = _expected_steps(cycle, settings.time_step_s)
+    checks.rows(steps, f"simulating {cycle.name} at {settings.time_step_s:g} s steps",
+                "is the cycle's time or distance in the right unit?")
+    out = np.empty((steps, K.N_COLUMNS))
     return (cycle.time_based, cycle.position, cycle.target_speed_mps, cycle.gradient_pct, f_roll, f_climb,
             cycle.mass_kg, cycle.stop_distance_m, cycle.stop_time_s, load_time, aux, epto, obc,
             p, ratios, map_speed, map_torque, map_eff, out)
 
 
-def simulate(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, epto_power_w=0.0, obc_power_w=0.0,
+def simulate_cycle(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, epto_power_w=0.0, obc_power_w=0.0,
              settings: DriverSettings = DriverSettings()) -> SimulationResult:
     """Drive ``vehicle``'s electric powertrain over ``cycle``. Powers [W] are constants or
-    (time_s, power_w) series; auxiliary power defaults to the vehicle file's."""
+    (time_s, power_w) series; auxiliary power defaults to the vehicle file's.
+
+    Parameters
+    ----------
+    cycle : SimCycle
+        Distance-based (`distance_cycle`, `read_cycle` of a ``.vdri``) or time-based (`time_cycle`).
+    vehicle : Vehicle
+        With an ``[electric_powertrain]`` table.
+    aux_power_w, epto_power_w, obc_power_w : float or (time_s, power_w), optional
+        Auxiliary, ePTO and on-board charger power [W]; the charger feeds the DC bus.
+    settings : DriverSettings
+        Integration step [s] and the driver model.
+
+    Returns
+    -------
+    SimulationResult
+        ``trace`` (per step: speed [m/s], wheel and machine torque [Nm], battery power [W], SOC),
+        ``summary`` (energy per km [kWh/km], SOC, missed targets), machine residence [s], ``misses``.
+
+    References
+    ----------
+    physics.md, simulation section: road forces from paper equations (2)-(3), acceleration (4).
+    """
     args = kernel_arguments(cycle, vehicle, aux_power_w=aux_power_w, epto_power_w=epto_power_w,
                             obc_power_w=obc_power_w, settings=settings)
     n = K.run_kernel(*args)

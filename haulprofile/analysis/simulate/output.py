@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import matplotlib
@@ -12,6 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from .. import jsonable  # noqa: E402
 from .model import SimulationResult  # noqa: E402
 
 KMH_PER_MPS = 3.6
@@ -31,7 +31,7 @@ def write_outputs(result: SimulationResult, out_dir: Path) -> list[Path]:
     written = [out_dir / "trace.parquet", out_dir / "summary.json", out_dir / "residence_s.csv",
                out_dir / "misses.csv"]
     result.trace.to_parquet(written[0], index=False)
-    written[1].write_text(json.dumps(result.summary, indent=2))
+    written[1].write_text(jsonable.dumps(result.summary, indent=2))
     residence_frame(result).to_csv(written[2])
     result.misses.to_csv(written[3], index=False)
     written += write_figures(result, out_dir)

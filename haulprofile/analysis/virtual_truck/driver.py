@@ -56,10 +56,11 @@ def _sync_rpm(speed_mps, ratio, wheel_radius_m):
 
 
 @numba.njit(cache=True)
-def simulate_kernel(dt_s, max_steps, allowed_speed_mps, gradient_pct, stop_distance_m, stop_duration_s,
+def simulate_kernel(dt_s, max_steps, allowed_speed_mps, gradient_pct, head_wind_mps, stop_distance_m, stop_duration_s,
                     mass_after_stop_kg, initial_stop_s, initial_mass_kg, vehicle_params, engine_params,
                     ratios, driver_params, out):
-    """Run the drive on a 1 m grid of allowed speed [m/s] and gradient [%]; fill ``out``
+    """Run the drive on a 1 m grid of allowed speed [m/s], gradient [%] and head wind [m/s] (the
+    wind's component against the direction of travel: air speed = v + head wind); fill ``out``
     (len(OUTPUTS) x max_steps) and return the number of steps, or -1 if ``max_steps`` was too small.
 
     vehicle_params = (c_r, c_d, A [m^2], r_dyn [m], eta_dl); engine_params = (reference torque [Nm],
@@ -87,8 +88,9 @@ def simulate_kernel(dt_s, max_steps, allowed_speed_mps, gradient_pct, stop_dista
         frac = min(s - i, 1.0)
         grad = gradient_pct[i] + frac * (gradient_pct[i + 1] - gradient_pct[i])
         alpha = math.atan(grad / 100.0)
+        air = v + head_wind_mps[i] + frac * (head_wind_mps[i + 1] - head_wind_mps[i])
         resistance = (mass * G_MPS2 * (c_r * math.cos(alpha) + math.sin(alpha))
-                      + 0.5 * AIR_DENSITY_KGPM3 * c_d * area * v * v)
+                      + 0.5 * AIR_DENSITY_KGPM3 * c_d * area * air * abs(air))
         torque, demand, brake, slip, shifting, gear_out = 0.0, 0.0, False, False, False, 0
         full = full_load_torque_nm(idle, t_ref, idle, n_max, p_max)
         arrive, finished = False, False

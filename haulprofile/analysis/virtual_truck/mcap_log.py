@@ -15,7 +15,7 @@ import numpy as np
 
 from haulprofile import contract
 from haulprofile.contract import j1939
-from haulprofile.logger.writer import LogWriter
+from haulprofile.contract.writer import TopicWriter
 
 from . import sensors as sensor_models
 
@@ -161,7 +161,7 @@ def write_mcap(drive, path: str | Path) -> Path:
     start_ns = drive.scenario.start_epoch_ns
     messages = sorted(_messages(drive), key=lambda m: (m[0], m[1]))
     with open(path, "wb") as stream:
-        writer = LogWriter(stream, channel_metadata=metadata)
+        writer = TopicWriter(stream, channel_metadata=metadata)
         writer.write_metadata("haulprofile.source", {
             "generator": "haulprofile.analysis.virtual_truck", "scenario": drive.scenario.name, "seed": str(drive.seed),
             "vehicle": drive.vehicle.name})

@@ -1,8 +1,9 @@
 """The virtual truck's world: route (target speed, stops), road height, horizontal path, terrain.
 
 Everything is a function of the driven distance s [m] on a 1 m grid, except the terrain, which is a
-field over (latitude, longitude) built so that along the route it lies exactly ``cut_fill`` above the
-road, and in a tunnel up to ``depth_m`` above it. Away from the road seeded Gaussian hills rise
+field over (latitude, longitude). In the ideal world (`ideal_road` here) it is built so that along
+the route it lies exactly ``cut_fill`` above the road, and in a tunnel up to ``depth_m`` above it;
+the realistic levels build the terrain first and the road into it (`engineered`). Away from the road seeded Gaussian hills rise
 smoothly, so a 3 arc-second DEM represents the field well. Horizontal positions use a local
 equirectangular projection around the start point (good to well under 1 m over 100 km).
 """
@@ -16,6 +17,7 @@ from scipy.spatial import cKDTree
 
 from .. import vecto
 from .scenario import Scenario, ScenarioFileError
+from .terrain import GridField
 
 EARTH_RADIUS_M = 6_371_000.0
 GRID_STEP_M = 1.0
@@ -56,6 +58,14 @@ class Road:
     tunnel_lateral_m: np.ndarray
     initial_stop_s: float
     base_altitude_m: float
+    structure: np.ndarray | None = None
+    """Structure code per grid point (`engineering.STRUCTURES`), None in the ideal world."""
+    natural_cover_m: np.ndarray | None = None
+    """Natural ground minus road before earthworks [m] (cutting depth > 0, fill height < 0)."""
+    terrain: GridField | None = None
+    """The terrain surface of a realistic world (with earthworks and tunnel hills)."""
+    forest: GridField | None = None
+    town: GridField | None = None
 
     @property
     def cover_m(self) -> np.ndarray:
@@ -86,6 +96,8 @@ class Road:
         """Terrain height [m] at any position: road + cover at the nearest route point, tunnel
         cover fading sideways, off-road hills rising with the distance from the road."""
         east, north = self.local(latitude_deg, longitude_deg)
+        if self.terrain is not None:
+            return self.terrain.at(east, north)
         shape = np.shape(east)
         east, north = np.ravel(east), np.ravel(north)
         s, d = self.nearest(east, north)
@@ -206,8 +218,24 @@ def _allowed_speed(distance: np.ndarray, breaks: np.ndarray, decel_mps2: float,
     return allowed
 
 
-def build_road(scenario: Scenario, seed: int = 0) -> Road:
-    """The world of a scenario for a seed (same seed, same world)."""
+def _path(scenario: Scenario, distance: np.ndarray, rng: np.random.Generator):
+    """East, north [m], heading [rad from east] and curvature [1/m] of the route's gently curving path."""
+    n_turns = 3
+    turn_wavelengths = rng.uniform(4000.0, 15000.0, n_turns)
+    turn_phases = rng.uniform(0, 2 * np.pi, n_turns)
+    amp = np.radians(scenario.terrain.curviness_deg) / n_turns
+    k = 2 * np.pi / turn_wavelengths
+    heading = np.radians(90.0 - scenario.start_heading_deg) + np.sum(
+        amp * np.sin(k[:, None] * distance + turn_phases[:, None]) - amp * np.sin(turn_phases)[:, None], axis=0)
+    curvature = np.sum((amp * k)[:, None] * np.cos(k[:, None] * distance + turn_phases[:, None]), axis=0)
+    east = np.concatenate([[0.0], np.cumsum(np.cos(0.5 * (heading[1:] + heading[:-1])) * np.diff(distance))])
+    north = np.concatenate([[0.0], np.cumsum(np.sin(0.5 * (heading[1:] + heading[:-1])) * np.diff(distance))])
+
+    return east, north, heading, curvature
+
+
+def ideal_road(scenario: Scenario, seed: int = 0) -> Road:
+    """The ideal world of a scenario for a seed (same seed, same world): terrain built around the road."""
     rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x70AD]))
     breaks, stops = _sections(scenario)
     length = breaks[-1, 0]
@@ -241,16 +269,7 @@ def build_road(scenario: Scenario, seed: int = 0) -> Road:
         outside = np.maximum(tunnel.start_m - distance, distance - tunnel.start_m - tunnel.length_m)
         cut *= 1.0 - np.exp(-(np.maximum(outside, 0.0) / 150.0) ** 2)
 
-    n_turns = 3
-    turn_wavelengths = rng.uniform(4000.0, 15000.0, n_turns)
-    turn_phases = rng.uniform(0, 2 * np.pi, n_turns)
-    amp = np.radians(scenario.terrain.curviness_deg) / n_turns
-    k = 2 * np.pi / turn_wavelengths
-    heading = np.radians(90.0 - scenario.start_heading_deg) + np.sum(
-        amp * np.sin(k[:, None] * distance + turn_phases[:, None]) - amp * np.sin(turn_phases)[:, None], axis=0)
-    curvature = np.sum((amp * k)[:, None] * np.cos(k[:, None] * distance + turn_phases[:, None]), axis=0)
-    east = np.concatenate([[0.0], np.cumsum(np.cos(0.5 * (heading[1:] + heading[:-1])) * np.diff(distance))])
-    north = np.concatenate([[0.0], np.cumsum(np.sin(0.5 * (heading[1:] + heading[:-1])) * np.diff(distance))])
+    east, north, heading, curvature = _path(scenario, distance, rng)
 
     pad = 8000.0
     area_km2 = (np.ptp(east) + 2 * pad) * (np.ptp(north) + 2 * pad) / 1e6

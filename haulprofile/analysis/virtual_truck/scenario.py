@@ -14,8 +14,9 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import UserError
-from ..toml_tables import check_number, check_text, is_number, table_kwargs
+from ...toml_tables import check_number, check_text, is_number, table_kwargs
 from ..vehicle import EXAMPLES as VEHICLE_EXAMPLES
+from .realism import IDEAL, Realism, realism_level
 
 
 class ScenarioFileError(UserError):
@@ -116,6 +117,8 @@ class Scenario:
     sensors: Sensors = field(default_factory=Sensors)
     start_heading_deg: float = 0.0
     description: str = ""
+    realism: Realism = IDEAL
+    """Default realism level of drives of this scenario (``[realism]`` table)."""
     base_dir: Path = Path(".")
     """Folder relative paths in the file (``route.vdri``) are resolved against."""
 
@@ -188,7 +191,19 @@ def _array(cls, data, where: str) -> tuple:
     return tuple(cls(**_table(cls, item, f"{where}[{i}]")) for i, item in enumerate(data))
 
 
-_TOP = {"scenario", "route", "terrain", "tunnel", "payload", "driver", "sensors"}
+_TOP = {"scenario", "route", "terrain", "tunnel", "payload", "driver", "sensors", "realism"}
+
+
+def _realism(data, where: str) -> Realism:
+    """``[realism]``: ``level`` plus any error sizes to override (`realism.Realism`)."""
+    if not isinstance(data, dict):
+        raise ScenarioFileError(f"{where}: expected a table, got {data!r}")
+    sizes = dict(data)
+    level = sizes.pop("level", "ideal")
+    try:
+        return realism_level(level, **sizes)
+    except UserError as exc:
+        raise ScenarioFileError(f"{where}: {exc}") from None
 
 
 def scenario_from_dict(data: dict, source: str = "<scenario>", base_dir: Path = Path(".")) -> Scenario:
@@ -202,7 +217,7 @@ def scenario_from_dict(data: dict, source: str = "<scenario>", base_dir: Path = 
     head = dict(data["scenario"]) if isinstance(data["scenario"], dict) else data["scenario"]
     start = head.pop("start_time", None) if isinstance(head, dict) else None
     kwargs = _table(Scenario, head, f"{source} [scenario]",
-                    skip=("route", "terrain", "tunnel", "payload", "driver", "sensors", "start_time"))
+                    skip=("route", "terrain", "tunnel", "payload", "driver", "sensors", "start_time", "realism"))
     if start is None:
         raise ScenarioFileError(f"{source} [scenario]: missing key 'start_time' (e.g. 2025-05-14T06:30:00Z)")
     if not isinstance(start, dt.datetime) or start.tzinfo is None:
@@ -228,6 +243,7 @@ def scenario_from_dict(data: dict, source: str = "<scenario>", base_dir: Path = 
         raise ScenarioFileError(f"{source} [driver]: comfort_decel_mps2 must be below max_decel_mps2")
     kwargs["driver"] = driver
     kwargs["sensors"] = Sensors(**_table(Sensors, data.get("sensors", {}), f"{source} [sensors]"))
+    kwargs["realism"] = _realism(data.get("realism", {}), f"{source} [realism]")
     if not kwargs["terrain"].hill_wavelengths_m:
         raise ScenarioFileError(f"{source} [terrain].hill_wavelengths_m: give at least one wavelength")
     return Scenario(start_time=start, base_dir=base_dir, **kwargs)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -11,8 +11,13 @@ from ..errors import UserError
 from ..vehicle import EXAMPLES, Vehicle, load_vehicle
 from . import sensors as sensor_models
 from .driver import OUTPUTS, simulate_kernel
-from .road import Road, build_road
+from .loads import engine_loads, head_wind_mps, trailer_change
+from .realism import IDEAL, Realism
+from .realism import realism_level as make_realism
+from .road import Road
+from .world import build_road
 from .scenario import Scenario, ScenarioFileError
+from .sensor_errors import apply_sensor_errors
 
 SIM_STEP_S = 0.01
 """Internal simulation step [s] (100 Hz)."""
@@ -37,6 +42,9 @@ class VirtualDrive:
     states: pd.DataFrame
     truth: pd.DataFrame
     sensors: dict
+    realism: Realism = IDEAL
+    injected: dict = field(default_factory=dict)
+    """The sizes of every error injected into this drive (for the truth files)."""
 
     @property
     def duration_s(self) -> float:
@@ -62,13 +70,18 @@ def _masses(scenario: Scenario, vehicle: Vehicle, n_stops: int) -> tuple[float, 
     return vehicle.curb_mass_kg + payload.initial_kg, vehicle.curb_mass_kg + np.asarray(after, float)
 
 
-def simulate(scenario: Scenario, vehicle: Vehicle, road: Road, kernel=simulate_kernel) -> pd.DataFrame:
-    """The 100 Hz states of the drive (columns `driver.OUTPUTS` plus ``time_s``)."""
+def simulate(scenario: Scenario, vehicle: Vehicle, road: Road, kernel=simulate_kernel,
+             head_wind_mps: np.ndarray | None = None, after_stop_kg: np.ndarray | None = None) -> pd.DataFrame:
+    """The 100 Hz states of the drive (columns `driver.OUTPUTS` plus ``time_s``); ``head_wind_mps``
+    on the road's grid (default calm), ``after_stop_kg`` total mass after each stop (default from
+    the scenario's payload)."""
     if vehicle.engine is None or vehicle.total_ratios is None or vehicle.engine_reference_torque_nm is None:
         raise UserError(f"vehicle {vehicle.name}: the virtual truck needs [engine], gear_ratios, axle_ratio "
                         f"and engine_reference_torque_nm in the vehicle file")
     engine, driver = vehicle.engine, scenario.driver
     initial_mass, after = _masses(scenario, vehicle, len(road.stop_distance_m))
+    after = after if after_stop_kg is None else np.asarray(after_stop_kg, float)
+    wind = np.zeros(road.distance_m.shape) if head_wind_mps is None else np.asarray(head_wind_mps, float)
     vehicle_params = np.array([vehicle.rolling_resistance_coefficient, vehicle.drag_coefficient,
                                vehicle.frontal_area_m2, vehicle.wheel_radius_m, vehicle.driveline_efficiency])
     engine_params = np.array([vehicle.engine_reference_torque_nm, engine.idle_speed_rpm, engine.max_speed_rpm,
@@ -82,7 +95,7 @@ def simulate(scenario: Scenario, vehicle: Vehicle, road: Road, kernel=simulate_k
     max_steps = int(1.5 * expected_s / SIM_STEP_S) + 60_000
     for _ in range(4):
         out = np.zeros((len(OUTPUTS), max_steps))
-        steps = kernel(SIM_STEP_S, max_steps, road.target_speed_mps, road.gradient_pct, road.stop_distance_m,
+        steps = kernel(SIM_STEP_S, max_steps, road.target_speed_mps, road.gradient_pct, wind, road.stop_distance_m,
                        road.stop_duration_s, after, road.initial_stop_s, initial_mass, vehicle_params,
                        engine_params, ratios, driver_params, out)
         if steps > 0:
@@ -100,11 +113,21 @@ def simulate(scenario: Scenario, vehicle: Vehicle, road: Road, kernel=simulate_k
     return states
 
 
-def drive(scenario: Scenario, vehicle: Vehicle | None = None, seed: int = 0) -> VirtualDrive:
-    """Drive a scenario: deterministic for a seed (same seed, byte-identical outputs)."""
+def drive(scenario: Scenario, vehicle: Vehicle | None = None, seed: int = 0,
+          realism: str | Realism | None = None) -> VirtualDrive:
+    """Drive a scenario: deterministic for a seed (same seed, byte-identical outputs).
+
+    ``realism``: a level name (``ideal``, ``typical``, ``harsh``) or a `Realism`; None takes the
+    scenario's ``[realism]`` (ideal unless the file says otherwise)."""
     vehicle = vehicle if vehicle is not None else scenario_vehicle(scenario)
-    road = build_road(scenario, seed)
-    states = simulate(scenario, vehicle, road)
+    level = scenario.realism if realism is None else make_realism(realism)
+    road = build_road(scenario, seed, level)
+    injected = {"realism": asdict(level), "seed": seed}
+    if level.is_ideal:
+        states = simulate(scenario, vehicle, road)
+    else:
+        states, more = _realistic_states(scenario, vehicle, road, level, seed)
+        injected.update(more)
     distance = states["distance_m"].to_numpy()
     east, north = road.at(road.east_m, distance), road.at(road.north_m, distance)
     states["latitude_deg"], states["longitude_deg"] = road.latlon(east, north)
@@ -117,5 +140,26 @@ def drive(scenario: Scenario, vehicle: Vehicle | None = None, seed: int = 0) -> 
     truth = states.iloc[::step][list(TRUTH_COLUMNS)].reset_index(drop=True)
     rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x5E45]))
     streams = sensor_models.make_sensors(states, road, scenario, vehicle, rng)
-    return VirtualDrive(scenario, vehicle, seed, road, states, truth, streams)
+    if not level.is_ideal:
+        sensor_rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x5E46]))
+        injected.update(apply_sensor_errors(streams, states, road, scenario.sensors, level, sensor_rng))
+    return VirtualDrive(scenario, vehicle, seed, road, states, truth, streams, level, injected)
+
+
+def _realistic_states(scenario: Scenario, vehicle: Vehicle, road: Road, level: Realism, seed: int):
+    """States with wind, a trailer change and the driveline's and auxiliaries' torque; and the sizes."""
+    rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x3EA1]))
+    wind, injected = head_wind_mps(road, level, rng)
+    after = None
+    if level.trailer_change:
+        _, after = _masses(scenario, vehicle, len(road.stop_distance_m))
+        after, more = trailer_change(after, road.stop_duration_s, vehicle.curb_mass_kg, vehicle.max_payload_kg, rng)
+        injected.update(more)
+    states = simulate(scenario, vehicle, road, head_wind_mps=wind, after_stop_kg=after)
+    states["head_wind_mps"] = road.at(wind, states["distance_m"].to_numpy())
+    columns, more = engine_loads(states, vehicle, level, rng)
+    for name, values in columns.items():
+        states[name] = values
+    injected.update(more)
+    return states, injected
 

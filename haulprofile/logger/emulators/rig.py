@@ -58,7 +58,16 @@ class EmulatedDevices(Devices):
         return self
 
     def run_emulators(self) -> None:
-        """Start the emulators' own threads (after the daemon opened its ends)."""
+        """Start the drive once the daemon opened its ends: signal time 0 is now.
+
+        A daemon slow to get ready (a loaded machine, a high time scale) would otherwise start
+        logging a truck that is already moving; before time 0 every device reports the drive's
+        first state, a truck standing still.
+        """
+        self.t0_ns = self.clock.monotonic_ns()
+        for model in self.board.models.values():
+            model.t0_ns = self.t0_ns
+        self.gps.t0_ns = self.t0_ns
         self.ecu.start(self.t0_ns)
         self.gps.start()
 
@@ -115,9 +124,13 @@ async def run_daemon_for(daemon, devices: EmulatedDevices, duration_s: float) ->
     return code
 
 
-def emulation_config(out_dir: str | Path, time_scale: float = 1.0, base: Config | None = None) -> Config:
-    """A configuration for logging from the emulators into ``out_dir``."""
+def emulation_config(out_dir: str | Path, time_scale: float = 1.0, base: Config | None = None,
+                     transmit: bool = True) -> Config:
+    """A configuration for logging from the emulators into ``out_dir``. On this bench the only
+    ECU is the emulator, so the logger polls it (``transmit=False``: listen-only, as on a truck
+    by default)."""
     config = copy.deepcopy(base) if base is not None else Config()
+    config.can.listen_only = not transmit
     config.logger.directory = str(out_dir)
     config.logger.time_scale = time_scale
     config.emulation.enabled = True

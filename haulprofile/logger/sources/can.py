@@ -57,6 +57,21 @@ def allowed_tx_ids(section: CanSection) -> frozenset[int]:
     return frozenset(ids)
 
 
+def transmit_warning(section: CanSection) -> str | None:
+    """The one line said at start when the configuration lets the logger transmit (None if not)."""
+    if not allowed_tx_ids(section):
+        return None
+    what = []
+    if section.obd.enabled:
+        what.append(f"OBD-II requests at {section.obd.rate_hz:g} Hz ({section.obd.addressing}) with ISO-TP flow control")
+    if section.j1939.enabled and section.j1939.request_pgns:
+        what.append(f"J1939 requests for PGN {', '.join(map(str, section.j1939.request_pgns))} every "
+                    f"{section.j1939.request_interval_s:g} s from SA {section.j1939.source_address:#04x}")
+    if section.j1939.enabled and section.j1939.answer_rts:
+        what.append("J1939 CTS/ACK answers to RTS")
+    return f"TRANSMITTING on {section.channel} (listen_only = false): {'; '.join(what)}"
+
+
 class TxGuard:
     """The only way the logger transmits: checks the allow-list, logs what it sent."""
 
@@ -97,9 +112,13 @@ class CanSource(Source):
 
     name = "can"
 
-    def __init__(self, queue, clock, section: CanSection, bus: can.BusABC | None = None, say=None):
+    def __init__(self, queue, clock, section: CanSection, bus: can.BusABC | None = None, say=None,
+                 drop_pgns: frozenset[int] = frozenset()):
+        """``drop_pgns``: J1939 PGNs (PDU2) never logged (`..config.PrivacySection.drop_can_pgns`)."""
         super().__init__(queue, clock, say)
         self.section = section
+        self.drop_pgns = frozenset(drop_pgns)
+        self.privacy_dropped = 0
         self.bus = bus if bus is not None else can.Bus(interface=section.interface, channel=section.channel,
                                                        bitrate=section.bitrate)
         self._hw_stamp = section.interface in HW_TIMESTAMP_INTERFACES
@@ -110,6 +129,8 @@ class CanSource(Source):
         self._offset_ns = clock.mono_offset_ns()
         self._thread: threading.Thread | None = None
         self.guard = TxGuard(self.bus, allowed_tx_ids(section), self._record_tx, self._say)
+        if (warning := transmit_warning(section)) is not None:
+            self.say(warning)
         sa = section.j1939.source_address
         self._tp_keys = {(j1939.PGN_TP_CM | sa), (j1939.PGN_TP_DT | sa)} if (
             section.j1939.enabled and section.j1939.answer_rts and not section.listen_only) else set()
@@ -167,6 +188,7 @@ class CanSource(Source):
         hw_flag = contract.CAN_FLAG_HW_TIMESTAMP if self._hw_stamp else 0
         extended_flag = contract.CAN_FLAG_EXTENDED
         obd_ids, tp_keys = self._obd_ids, self._tp_keys
+        drop_pgns = self.drop_pgns
         records: list[bytes] = []
         taken = 0
         now_ns = clock.monotonic_ns()
@@ -175,6 +197,9 @@ class CanSource(Source):
                 taken += 1
                 arb = msg.arbitration_id
                 extended = msg.is_extended_id
+                if drop_pgns and extended and ((arb >> 8) & 0x3FFFF) in drop_pgns:
+                    self.privacy_dropped += 1
+                    continue
                 flags = hw_flag | extended_flag if extended else hw_flag
                 if msg.is_remote_frame:
                     flags |= contract.CAN_FLAG_REMOTE
@@ -276,6 +301,8 @@ class CanSource(Source):
     def update_extra(self) -> None:
         extra = {"tx_sent": self.guard.sent, "tx_blocked": self.guard.blocked, "tx_errors": self.guard.errors,
                  "listen_only": self.section.listen_only}
+        if self.drop_pgns:
+            extra["privacy_dropped"] = self.privacy_dropped
         if self.obd is not None:
             extra.update(self.obd.stats())
         if self.j1939 is not None:

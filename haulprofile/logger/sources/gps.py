@@ -1,45 +1,29 @@
 """GPS source: NMEA 0183 from a u-blox receiver on a serial port (pyserial + pynmea2).
 
 The port is read without blocking (``loop.add_reader`` on its file descriptor). Every line is
-kept raw in ``/gps/nmea`` (checksum-valid or not); RMC, GGA, GSA, GST and VTG of one epoch (same
-UTC time of day) are merged into one ``foxglove.LocationFix``-compatible ``/gps/fix``, with the
-horizontal and vertical accuracy from GST. Bad checksums, proprietary sentences, binary UBX
+kept raw in ``/gps/nmea`` (checksum-valid or not); the sentences of one epoch become one
+``/gps/fix`` (`haulprofile.contract.nmea`). Bad checksums, proprietary sentences, binary UBX
 bytes and truncated lines are counted and skipped, never fatal.
+
+With privacy zones or coarsening (`..privacy.Privacy`) the raw lines of an epoch are held until
+the epoch is judged: inside a zone its fix, its NMEA (every line, checksum-valid or not) and its
+GPS time are dropped and ``/privacy/zone`` says where such a stretch begins and ends; outside,
+the fix is coarsened and the NMEA kept only if nothing is coarsened. Before the first fix, and
+while fixless epochs follow a fix inside a zone, epochs count as inside.
 """
 
 from __future__ import annotations
 
 import asyncio
-import datetime as dt
-import functools
-import math
-import operator
 import struct
 
-import pynmea2
-
 from haulprofile import contract
+from haulprofile.contract.nmea import EpochFixes
 from .base import Source
 
-KNOT_MPS = 1852.0 / 3600.0
 MAX_LINE_BYTES = 512
 REOPEN_S = 1.0
 """How often a lost serial port (receiver unplugged, tty gone) is tried again [s]."""
-FIX_TYPES = {"RMC", "GGA", "GSA", "GST", "VTG"}
-FALLBACK_TYPES = {"VTG", "GSA"}
-"""Sentences only needed when RMC (speed) or GGA (HDOP) left a field empty: parsed only then."""
-
-
-def nmea_checksum_ok(sentence: str) -> bool:
-    """True if ``$...*hh`` carries the XOR checksum of the characters between ``$`` and ``*``."""
-    star = sentence.rfind("*")
-    if not sentence.startswith(("$", "!")) or star < 0 or len(sentence) < star + 3:
-        return False
-    try:
-        expected = int(sentence[star + 1:star + 3], 16)
-    except ValueError:
-        return False
-    return functools.reduce(operator.xor, sentence[1:star].encode("ascii", "replace"), 0) == expected
 
 
 def ubx_message(msg_class: int, msg_id: int, payload: bytes) -> bytes:
@@ -57,111 +41,35 @@ def ubx_cfg_rate(rate_hz: float) -> bytes:
     return ubx_message(0x06, 0x08, struct.pack("<HHH", int(round(1000.0 / rate_hz)), 1, 1))
 
 
-@functools.lru_cache(maxsize=4)
-def _date(ddmmyy: str) -> dt.date | None:
-    """RMC's date field (one parse per day, not per sentence)."""
-    try:
-        return pynmea2.nmea_utils.datestamp(ddmmyy) if ddmmyy else None
-    except ValueError:
-        return None
-
-
-def _float(value) -> float | None:
-    try:
-        return float(value) if value not in (None, "") else None
-    except (TypeError, ValueError):
-        return None
-
-
-class Epoch:
-    """What the sentences of one receiver epoch said."""
-
-    def __init__(self, time_key: str, t_mono_ns: int):
-        self.time_key = time_key
-        self.t_mono_ns = t_mono_ns
-        self.fields: dict = {}
-        self.fallbacks: list[str] = []
-
-    def add(self, msg) -> None:
-        kind = msg.sentence_type
-        f = self.fields
-        if kind == "GGA":
-            f["fix_quality"] = int(msg.gps_qual or 0)
-            if msg.lat and msg.lon:
-                f["latitude"], f["longitude"] = msg.latitude, msg.longitude
-            f["altitude"] = _float(msg.altitude)
-            f["satellites"] = int(msg.num_sats or 0)
-            f["hdop"] = _float(msg.horizontal_dil)
-        elif kind == "RMC":
-            speed_knots = _float(msg.spd_over_grnd)
-            if speed_knots is not None:
-                f["speed_mps"] = speed_knots * KNOT_MPS
-            f["course_deg"] = _float(msg.true_course)
-            date_index = msg.name_to_idx["datestamp"]  # the raw field: pynmea2's property parses it anew
-            date = _date(msg.data[date_index] if len(msg.data) > date_index else "")
-            time_of_day = msg.timestamp
-            if date and time_of_day:
-                f["utc"] = dt.datetime.combine(date, time_of_day)
-        elif kind == "VTG":
-            speed_kmh = _float(msg.spd_over_grnd_kmph)
-            if "speed_mps" not in f and speed_kmh is not None:
-                f["speed_mps"] = speed_kmh / 3.6
-        elif kind == "GST":
-            lat_err, lon_err, alt_err = (_float(msg.std_dev_latitude), _float(msg.std_dev_longitude),
-                                         _float(msg.std_dev_altitude))
-            if lat_err is not None and lon_err is not None:
-                f["h_acc_m"] = math.hypot(lat_err, lon_err)
-            f["v_acc_m"] = alt_err
-        elif kind == "GSA":
-            f["hdop"] = f.get("hdop") or _float(msg.hdop)
-
-    def add_fallbacks(self) -> int:
-        """Parse the VTG/GSA kept aside if RMC or GGA left their field empty; returns parse errors."""
-        f, errors = self.fields, 0
-        for text in self.fallbacks:
-            if (text[3:6] == "VTG" and "speed_mps" not in f) or (text[3:6] == "GSA" and not f.get("hdop")):
-                try:
-                    self.add(pynmea2.parse(text))
-                except (pynmea2.ParseError, ValueError, TypeError, AttributeError):
-                    errors += 1
-        return errors
-
-    def fix(self, wall_time_ns: int) -> dict | None:
-        f = self.fields
-        if not f.get("fix_quality") or "latitude" not in f or f.get("altitude") is None:
-            return None
-        gps_ns = None
-        if "utc" in f:
-            gps_ns = int(f["utc"].replace(tzinfo=dt.timezone.utc).timestamp()) * 1_000_000_000 + \
-                f["utc"].microsecond * 1000
-        return contract.location_fix(
-            self.t_mono_ns, gps_ns if gps_ns is not None else wall_time_ns, f["latitude"], f["longitude"],
-            f["altitude"], f.get("h_acc_m"), f.get("v_acc_m"), gps_time_utc_ns=gps_ns,
-            speed_mps=f.get("speed_mps"), course_deg=f.get("course_deg"), fix_quality=f["fix_quality"],
-            satellites=f.get("satellites", 0), hdop=f.get("hdop"))
-
-
 class GpsSource(Source):
     """Reads NMEA lines from a serial port path; one fix per receiver epoch."""
 
     name = "gps"
 
     def __init__(self, queue, clock, port: str, baudrate: int = 9600, configure_rate_hz: float | None = None,
-                 say=None):
+                 say=None, privacy=None):
         super().__init__(queue, clock, say)
+        self.privacy = privacy if privacy is not None and privacy.active else None
+        self._pending: list[tuple[str, int]] = []
+        """Lines of the epoch being read, held until it is judged (privacy only)."""
+        self._inside: bool | None = None
+        """Last judgement: in a zone (True), outside (False), no fix yet (None)."""
+        self._carry = 0
+        """Held lines that begin the next epoch (1 while a sentence is being handled)."""
         self.port_path = port
         self.baudrate = baudrate
         self.configure_rate_hz = configure_rate_hz
         self.serial = None
         self._buffer = bytearray()
-        self._epoch: Epoch | None = None
         self._raw: list[str] = []
         self._raw_t: list[int] = []
         self.last_gps_time = None
         self._reading: int | None = None
         self._last_try_ns = 0
-        for key in ("lines", "fixes", "bad_checksum", "parse_errors", "skipped"):
+        for key in ("lines", "fixes", "bad_checksum", "parse_errors", "skipped", "zone_epochs"):
             self.stats.extra[key] = 0
+        self._nmea = EpochFixes(self._on_epoch, self.stats.extra, lambda: self.clock.mono_offset_ns(),
+                                fixless=True)
 
     def open(self) -> None:
         import serial
@@ -191,52 +99,53 @@ class GpsSource(Source):
             return
         text = line[start:].decode("ascii", errors="replace")
         self.stats.extra["lines"] += 1
-        self._raw.append(text)
-        self._raw_t.append(t_mono_ns)
-        if not nmea_checksum_ok(text):
-            last = text.rfind("$")
-            if last > 0 and nmea_checksum_ok(text[last:]):
-                text = text[last:]
-            else:
-                self.stats.extra["bad_checksum"] += 1
-                return
-        kind = text[3:6]
-        if kind not in FIX_TYPES or text.startswith("$P"):
-            return
-        if kind in FALLBACK_TYPES:
-            if self._epoch is not None:
-                self._epoch.fallbacks.append(text)
-            return
+        if self.privacy is None:
+            self._raw.append(text)
+            self._raw_t.append(t_mono_ns)
+        else:
+            self._pending.append((text, t_mono_ns))
+        self._carry = 1
         try:
-            msg = pynmea2.parse(text)
-        except (pynmea2.ParseError, ValueError, AttributeError, TypeError):
-            self.stats.extra["parse_errors"] += 1
-            return
-        timestamp = getattr(msg, "timestamp", None)
-        key = timestamp.isoformat() if timestamp else ""
-        if self._epoch is None or key != self._epoch.time_key:
-            self.flush_epoch()
-            self._epoch = Epoch(key, t_mono_ns)
-        try:
-            self._epoch.add(msg)
-        except (ValueError, TypeError, AttributeError):
-            self.stats.extra["parse_errors"] += 1
+            self._nmea.sentence(text, t_mono_ns)
+        finally:
+            self._carry = 0
 
     def flush_epoch(self) -> None:
-        if self._epoch is None:
+        self._nmea.flush()
+
+    def _on_epoch(self, epoch, fix: dict | None) -> None:
+        """A closed epoch (``fix`` None: it had none; ``epoch`` None: there was none): with privacy its held lines, except the one
+        that begins the next epoch, are judged with it; the fix that may be written is written."""
+        t_mono_ns = epoch.t_mono_ns if epoch is not None else None
+        if self.privacy is not None:
+            held = self._pending[:len(self._pending) - self._carry]
+            del self._pending[:len(held)]
+            fix = self._judge(fix, held, t_mono_ns)
+        if fix is None:
             return
-        epoch, self._epoch = self._epoch, None
-        self.stats.extra["parse_errors"] += epoch.add_fallbacks()
-        try:
-            fix = epoch.fix(epoch.t_mono_ns + self.clock.mono_offset_ns())
-        except (ValueError, TypeError, OverflowError):
-            self.stats.extra["parse_errors"] += 1
-            return
+        self.emit_json(contract.GPS_FIX, fix, t_mono_ns)
+        self.stats.extra["fixes"] += 1
+        if fix["gps_time_utc_ns"] is not None:
+            self.last_gps_time = (t_mono_ns, fix["gps_time_utc_ns"])
+
+    def _judge(self, fix: dict | None, held: list[tuple[str, int]], t_mono_ns: int | None) -> dict | None:
+        """Privacy: the fix to write (None inside a zone); the held lines go on or are dropped."""
+        was = self._inside
+        inside = self.privacy.inside(fix["latitude"], fix["longitude"]) if fix is not None else (was is not False)
+        if fix is not None and inside != bool(was) and t_mono_ns is not None:
+            self.emit_json(contract.PRIVACY_ZONE, {"t_mono_ns": t_mono_ns, "event": "entered" if inside else "left",
+                                                   "source": "logger"}, t_mono_ns)
         if fix is not None:
-            self.emit_json(contract.GPS_FIX, fix, epoch.t_mono_ns)
-            self.stats.extra["fixes"] += 1
-            if fix["gps_time_utc_ns"] is not None:
-                self.last_gps_time = (epoch.t_mono_ns, fix["gps_time_utc_ns"])
+            self._inside = inside
+        if inside:
+            self.stats.extra["zone_epochs"] += t_mono_ns is not None
+            self.last_gps_time = None
+            return None
+        if self.privacy.keep_nmea:
+            for text, t in held:
+                self._raw.append(text)
+                self._raw_t.append(t)
+        return self.privacy.coarsen_fix(fix) if fix is not None else None
 
     def flush_raw(self) -> None:
         if self._raw:

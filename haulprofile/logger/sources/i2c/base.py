@@ -203,8 +203,12 @@ class I2cBusSource(Source):
                 self.stats.state = "bus thread stopped"
                 raise RuntimeError("I2C bus thread stopped")
 
-    async def close(self) -> None:
+    def stop_thread(self) -> None:
+        """Ask the bus thread to stop after its current poll (`close` also waits for it)."""
         self._stop.set()
+
+    async def close(self) -> None:
+        self.stop_thread()
         if self._thread is not None:
             await asyncio.get_running_loop().run_in_executor(None, self._thread.join, 5.0)
         await asyncio.sleep(0)

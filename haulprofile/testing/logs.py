@@ -1,10 +1,10 @@
 """Contract-correct synthetic logs with a known truth, for ingest tests and the benchmark.
 
-Not a vehicle model (that is `analysis.virtual_truck`): the truth here is a random but smooth
+Not a vehicle model (that is `haulprofile.analysis.virtual_truck`): the truth here is a random but smooth
 signal per quantity, constant within each 100 ms bin, so an aligned 10 Hz table can be compared
 bin by bin. The frames are what a truck sends (J1939-71 layouts from `haulprofile.contract.j1939`, EC1 by
 BAM every 5 s, a second CCVS1 sender that reports "not available"), at bus rates, batched and
-written exactly as the logger does (`logger.writer.LogWriter`, packed topics, small zstd chunks).
+written as the logger writes them (the contract's `TopicWriter`, packed topics, small zstd chunks).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 from haulprofile import contract
 from haulprofile.contract import j1939
 from haulprofile.contract import CAN_FLAG_EXTENDED, CAN_FLAG_HW_TIMESTAMP
-from haulprofile.logger.writer import LogWriter
+from haulprofile.contract.writer import TopicWriter
 
 BIN_NS = 100_000_000
 ACCEL_SCALE_MPS2_PER_LSB = 0.061e-3 * 9.80665
@@ -177,7 +177,7 @@ def write_log(stream: BinaryIO, duration_s: float, seed: int = 0, filler_hz: flo
     rng = np.random.default_rng(seed)
     n_bins = int(round(duration_s * 1e9 / BIN_NS))
     truth = make_truth(n_bins, rng, t0_mono_ns)
-    writer = LogWriter(stream, chunk_size=chunk_size, channel_metadata={
+    writer = TopicWriter(stream, chunk_size=chunk_size, channel_metadata={
         contract.IMU.name: {"accel_scale_mps2_per_lsb": repr(ACCEL_SCALE_MPS2_PER_LSB),
                             "gyro_scale_radps_per_lsb": repr(8.75e-3 * np.pi / 180)}})
     per_segment = int(segment_s * 1e9 / BIN_NS)
@@ -189,7 +189,7 @@ def write_log(stream: BinaryIO, duration_s: float, seed: int = 0, filler_hz: flo
     return truth
 
 
-def _write_segment(writer: LogWriter, truth: Truth, filler_hz: float, rng, realtime_offset_ns: int) -> None:
+def _write_segment(writer: TopicWriter, truth: Truth, filler_hz: float, rng, realtime_offset_ns: int) -> None:
     events = []
     frames = can_frames(truth, filler_hz, rng)
     for start in range(0, len(frames), 512):

@@ -1,0 +1,269 @@
+"""Road height and gradient as a state-space smoother over distance: forward (extended) Kalman
+filter and backward Rauch-Tung-Striebel pass on the distance grid.
+
+State per grid point i (spacing Δ [m], time dt_i [s] spent since the previous point):
+
+    x = [h, γ, d, r, b, e]
+    h  road height [m]                 h' = h + Δ γ
+    γ  gradient dh/ds [-]              γ' = γ + w_γ        (integrated random walk, curvature PSD q_c)
+    d  barometric offset [m]           d' = d + dt r       (weather drift and the sensor's own height)
+    r  its rate [m/s]                  r' = r + w_r        (drift rate random walk, PSD q_r)
+    b  IMU bias [m/s²]                 b' = b + w_b        (mounting pitch g·sin δ plus accelerometer bias)
+    e  DEM error at the fixes [m]      e' = φ e + w_e      (Gauss-Markov, φ = exp(-Δ/L), var σ_e²)
+
+Measurements (columns of ``z``; NaN = none in that bin):
+
+    0 barometric height (6)            z = h + d
+    1 DEM height at the GPS fixes      z = h + e
+    2 IMU specific force minus dv/dt   z = g sin(atan γ) + b     (linearised at the prediction)
+    3 GPS altitude                     z = h
+
+``numba`` kernel `smooth` beside the NumPy reference `smooth_reference` (same contract, tested equal).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+N_STATES = 6
+N_MEASUREMENTS = 4
+H, GAMMA, DRIFT, RATE, BIAS, DEM_ERROR = range(N_STATES)
+BARO, DEM, IMU, GPS = range(N_MEASUREMENTS)
+PARAMETERS = ("spacing_m", "curvature_psd", "drift_rate_psd", "bias_psd", "dem_sigma_m", "dem_correlation_m", "g")
+
+
+def _transition(spacing, dt, phi):
+    f = np.eye(N_STATES)
+    f[H, GAMMA] = spacing
+    f[DRIFT, RATE] = dt
+    f[DEM_ERROR, DEM_ERROR] = phi
+    return f
+
+
+def _process_noise(spacing, dt, q_c, q_r, q_b, dem_var, phi):
+    q = np.zeros((N_STATES, N_STATES))
+    q[H, H], q[H, GAMMA], q[GAMMA, GAMMA] = q_c * spacing ** 3 / 3, q_c * spacing ** 2 / 2, q_c * spacing
+    q[GAMMA, H] = q[H, GAMMA]
+    q[DRIFT, DRIFT], q[DRIFT, RATE], q[RATE, RATE] = q_r * dt ** 3 / 3, q_r * dt ** 2 / 2, q_r * dt
+    q[RATE, DRIFT] = q[DRIFT, RATE]
+    q[BIAS, BIAS] = q_b * dt
+    q[DEM_ERROR, DEM_ERROR] = dem_var * (1 - phi * phi)
+    return q
+
+
+def smooth_reference(z, r, dt, params, x0, p0):
+    """Forward EKF + RTS smoother, matrix form. ``z``, ``r``: (n, 4) measurements and their
+    variances; ``dt``: (n,) seconds between grid points; ``params`` as `PARAMETERS`; ``x0``, ``p0``:
+    prior of the first point. Returns (smoothed states (n, 6), smoothed covariances (n, 6, 6),
+    innovations (n, 4), innovation variances (n, 4))."""
+    spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g = params
+    n = len(dt)
+    phi = np.exp(-spacing / dem_corr)
+    x_pred, p_pred = np.empty((n, N_STATES)), np.empty((n, N_STATES, N_STATES))
+    x_filt, p_filt = np.empty((n, N_STATES)), np.empty((n, N_STATES, N_STATES))
+    innovation, innovation_var = np.full((n, N_MEASUREMENTS), np.nan), np.full((n, N_MEASUREMENTS), np.nan)
+    x, p = np.array(x0, dtype=float), np.array(p0, dtype=float)
+    for i in range(n):
+        if i > 0:
+            f = _transition(spacing, dt[i], phi)
+            x = f @ x
+            p = f @ p @ f.T + _process_noise(spacing, dt[i], q_c, q_r, q_b, dem_sigma ** 2, phi)
+        x_pred[i], p_pred[i] = x, p
+        gamma = x[GAMMA]
+        rows = np.zeros((N_MEASUREMENTS, N_STATES))
+        rows[BARO, [H, DRIFT]] = 1.0
+        rows[DEM, [H, DEM_ERROR]] = 1.0
+        rows[IMU, GAMMA] = g / (1 + gamma * gamma) ** 1.5
+        rows[IMU, BIAS] = 1.0
+        rows[GPS, H] = 1.0
+        predicted = rows @ x
+        predicted[IMU] = g * gamma / np.sqrt(1 + gamma * gamma) + x[BIAS]
+        for m in range(N_MEASUREMENTS):
+            if not (np.isfinite(z[i, m]) and np.isfinite(r[i, m]) and r[i, m] > 0):
+                continue
+            row = rows[m]
+            s = row @ p @ row + r[i, m]
+            # linearised once at the prediction: the IMU row's predicted value moves with the state
+            nu = z[i, m] - predicted[m] - row @ (x - x_pred[i])
+            gain = p @ row / s
+            x = x + gain * nu
+            ikh = np.eye(N_STATES) - np.outer(gain, row)
+            p = ikh @ p @ ikh.T + r[i, m] * np.outer(gain, gain)
+            innovation[i, m], innovation_var[i, m] = nu, s
+        x_filt[i], p_filt[i] = x, p
+    x_s, p_s = x_filt.copy(), p_filt.copy()
+    for i in range(n - 2, -1, -1):
+        f = _transition(spacing, dt[i + 1], phi)
+        c = np.linalg.solve(p_pred[i + 1], f @ p_filt[i]).T
+        x_s[i] = x_filt[i] + c @ (x_s[i + 1] - x_pred[i + 1])
+        p_s[i] = p_filt[i] + c @ (p_s[i + 1] - p_pred[i + 1]) @ c.T
+    return x_s, p_s, innovation, innovation_var
+
+
+@numba.njit(cache=True)
+def _predict(x, p, spacing, dt, phi, q_c, q_r, q_b, dem_var):
+    """x, p <- F x, F p F^T + Q in place, using F's sparsity (three off-identity entries)."""
+    x[H] += spacing * x[GAMMA]
+    x[DRIFT] += dt * x[RATE]
+    x[DEM_ERROR] *= phi
+    for j in range(N_STATES):  # rows: P <- F P
+        p[H, j] += spacing * p[GAMMA, j]
+        p[DRIFT, j] += dt * p[RATE, j]
+        p[DEM_ERROR, j] *= phi
+    for i in range(N_STATES):  # columns: (F P) F^T
+        p[i, H] += spacing * p[i, GAMMA]
+        p[i, DRIFT] += dt * p[i, RATE]
+        p[i, DEM_ERROR] *= phi
+    p[H, H] += q_c * spacing ** 3 / 3
+    p[H, GAMMA] += q_c * spacing ** 2 / 2
+    p[GAMMA, H] += q_c * spacing ** 2 / 2
+    p[GAMMA, GAMMA] += q_c * spacing
+    p[DRIFT, DRIFT] += q_r * dt ** 3 / 3
+    p[DRIFT, RATE] += q_r * dt ** 2 / 2
+    p[RATE, DRIFT] += q_r * dt ** 2 / 2
+    p[RATE, RATE] += q_r * dt
+    p[BIAS, BIAS] += q_b * dt
+    p[DEM_ERROR, DEM_ERROR] += dem_var * (1 - phi * phi)
+
+
+@numba.njit(cache=True)
+def smooth(z, r, dt, params, x0, p0, backward=True):
+    """`smooth_reference` as a numba kernel (same arguments and results); ``backward=False``
+    stops after the forward filter (filtered states; innovations for a likelihood)."""
+    spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g = (params[0], params[1], params[2], params[3], params[4],
+                                                      params[5], params[6])
+    n = len(dt)
+    ns = N_STATES
+    phi = np.exp(-spacing / dem_corr)
+    dem_var = dem_sigma * dem_sigma
+    x_pred, p_pred = np.empty((n, ns)), np.empty((n, ns, ns))
+    x_filt, p_filt = np.empty((n, ns)), np.empty((n, ns, ns))
+    innovation = np.full((n, N_MEASUREMENTS), np.nan)
+    innovation_var = np.full((n, N_MEASUREMENTS), np.nan)
+    x, p = x0.copy(), p0.copy()
+    row = np.zeros(ns)
+    pr = np.zeros(ns)
+    for i in range(n):
+        if i > 0:
+            _predict(x, p, spacing, dt[i], phi, q_c, q_r, q_b, dem_var)
+        x_pred[i] = x
+        p_pred[i] = p
+        gamma = x[GAMMA]
+        for m in range(N_MEASUREMENTS):
+            if not (np.isfinite(z[i, m]) and np.isfinite(r[i, m]) and r[i, m] > 0):
+                continue
+            row[:] = 0.0
+            if m == BARO:
+                row[H] = 1.0
+                row[DRIFT] = 1.0
+                predicted = x_pred[i, H] + x_pred[i, DRIFT]
+            elif m == DEM:
+                row[H] = 1.0
+                row[DEM_ERROR] = 1.0
+                predicted = x_pred[i, H] + x_pred[i, DEM_ERROR]
+            elif m == IMU:
+                row[GAMMA] = g / (1 + gamma * gamma) ** 1.5
+                row[BIAS] = 1.0
+                predicted = g * gamma / np.sqrt(1 + gamma * gamma) + x_pred[i, BIAS]
+            else:
+                row[H] = 1.0
+                predicted = x_pred[i, H]
+            nu = z[i, m] - predicted
+            for a in range(ns):
+                nu -= row[a] * (x[a] - x_pred[i, a])
+            s = r[i, m]
+            for a in range(ns):
+                acc = 0.0
+                for b in range(ns):
+                    acc += p[a, b] * row[b]
+                pr[a] = acc
+                s += row[a] * acc
+            for a in range(ns):
+                x[a] += pr[a] / s * nu
+            # Joseph form with a scalar measurement reduces to P - pr pr^T / s (kept symmetric)
+            for a in range(ns):
+                for b in range(ns):
+                    p[a, b] -= pr[a] * pr[b] / s
+            innovation[i, m] = nu
+            innovation_var[i, m] = s
+        x_filt[i] = x
+        p_filt[i] = p
+    x_s = x_filt.copy()
+    p_s = p_filt.copy()
+    if not backward:
+        return x_s, p_s, innovation, innovation_var
+    fp = np.empty((ns, ns))
+    chol = np.empty((ns, ns))
+    c = np.empty((ns, ns))
+    cd = np.empty((ns, ns))
+    dx = np.empty(ns)
+    dp = np.empty((ns, ns))
+    for i in range(n - 2, -1, -1):
+        dti = dt[i + 1]
+        for a in range(ns):  # F P_filt (rows)
+            for b in range(ns):
+                fp[a, b] = p_filt[i, a, b]
+        for j in range(ns):
+            fp[H, j] += spacing * fp[GAMMA, j]
+            fp[DRIFT, j] += dti * fp[RATE, j]
+            fp[DEM_ERROR, j] *= phi
+        # C^T = P_pred^-1 F P_filt by Cholesky (P_pred is symmetric positive definite)
+        _cholesky(p_pred[i + 1], chol)
+        _cholesky_solve(chol, fp, c)
+        for a in range(ns):
+            dx[a] = x_s[i + 1, a] - x_pred[i + 1, a]
+            for b in range(ns):
+                dp[a, b] = p_s[i + 1, a, b] - p_pred[i + 1, a, b]
+        for a in range(ns):  # c holds C^T: C[a, k] = c[k, a]
+            acc = 0.0
+            for k in range(ns):
+                acc += c[k, a] * dx[k]
+            x_s[i, a] = x_filt[i, a] + acc
+            for b in range(ns):
+                acc = 0.0
+                for k in range(ns):
+                    acc += c[k, a] * dp[k, b]
+                cd[a, b] = acc
+        for a in range(ns):
+            for b in range(ns):
+                acc = 0.0
+                for k in range(ns):
+                    acc += cd[a, k] * c[k, b]
+                p_s[i, a, b] = p_filt[i, a, b] + acc
+    return x_s, p_s, innovation, innovation_var
+
+
+@numba.njit(cache=True)
+def _cholesky(a, out):
+    """Lower Cholesky factor of the symmetric positive definite ``a`` into ``out``."""
+    n = a.shape[0]
+    for i in range(n):
+        for j in range(i + 1):
+            acc = a[i, j]
+            for k in range(j):
+                acc -= out[i, k] * out[j, k]
+            if i == j:
+                out[i, i] = np.sqrt(max(acc, 1e-300))
+            else:
+                out[i, j] = acc / out[j, j]
+        for j in range(i + 1, n):
+            out[i, j] = 0.0
+
+
+@numba.njit(cache=True)
+def _cholesky_solve(chol, rhs, out):
+    """out = A^-1 rhs for A = chol chol^T, column by column."""
+    n = chol.shape[0]
+    y = np.empty(n)
+    for col in range(rhs.shape[1]):
+        for i in range(n):
+            acc = rhs[i, col]
+            for k in range(i):
+                acc -= chol[i, k] * y[k]
+            y[i] = acc / chol[i, i]
+        for i in range(n - 1, -1, -1):
+            acc = y[i]
+            for k in range(i + 1, n):
+                acc -= chol[k, i] * out[k, col]
+            out[i, col] = acc / chol[i, i]

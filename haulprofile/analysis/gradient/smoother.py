@@ -1,0 +1,336 @@
+"""The smoother's measurements, their noise levels, the map gate and the sources' weights.
+
+Every noise level that the data can tell is taken from the data: the barometer's and the IMU's
+from their own residuals, the DEM's error size and correlation length from its disagreement with
+the barometric/IMU profile. The DEM is gated out where that disagreement is consistently too large
+for its error model over a window (a chi-square test over the correlation length): a bridge over
+a valley, a tunnel under a mountain, a deep cutting, a canopy patch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import median_filter, uniform_filter1d
+from scipy.stats import chi2
+
+from ..road_load import G_MPS2
+from . import kalman
+
+CHI2_MEDIAN_1DOF = 0.454936
+SOURCE_NAMES = ("baro", "map", "imu", "gps")
+
+
+@dataclass(frozen=True)
+class SmootherSettings:
+    """Process noises of the state model (``kalman``) and the robust tests; defaults from the
+    physics of roads and sensors (``docs/estimation.md``)."""
+
+    curvature_psd: float | None = None
+    """Gradient random walk [1/m]; None: chosen per drive among ``curvature_candidates`` (how
+    hilly the road is, from the data): with an IMU, the one whose barometer/GPS-only gradient best
+    predicts the accelerometer (independent noise, so this is the gradient's own error); without,
+    by the likelihood of the barometer/GPS innovations."""
+    curvature_candidates: tuple[float, ...] = (3e-9, 1e-8, 3e-8, 1e-7, 3e-7, 1e-6, 3e-6)
+    """1e-6 is one sigma of a 1 %-point change per 100 m (a 10 km vertical curve)."""
+    drift_rate_psd: float = 1e-8
+    """Barometric drift-rate random walk [m²/s³]: a 1 hPa/h front building up over an hour."""
+    bias_psd: float = 1e-8
+    """IMU bias random walk [(m/s²)²/s]: temperature drift of a few mm/s² per hour."""
+    gps_sigma_factor: float = 3.0
+    """GPS altitude sigma = factor * v_acc: its errors are correlated over tens of seconds, so it is
+    taken weakly."""
+    terrain_cross_slope: float = 0.1
+    """DEM height error per metre of horizontal GPS error [-] (terrain slope next to the road)."""
+    dem_white_fraction: float = 0.2
+    """Floor of the DEM's uncorrelated error as a fraction of its correlated error."""
+    gate_probability: float = 1e-3
+    """False-alarm probability of the map gate's chi-square test per window."""
+    gate_detrend_m: float = 2000.0
+    """Running-median length [m] that takes the slow barometric drift out of the DEM residual."""
+
+
+@dataclass
+class Measurements:
+    z: np.ndarray
+    """(n_bins, 4) bin means: barometric height, DEM height, IMU (a_imu - dv/dt), GPS altitude."""
+    count: np.ndarray
+    """(n_bins, 4) samples behind each bin mean."""
+    h_acc_m: np.ndarray
+    v_acc_m: np.ndarray
+    dt_s: np.ndarray
+    spacing_m: float
+
+
+@dataclass
+class SmootherResult:
+    height_m: np.ndarray
+    gradient: np.ndarray
+    gradient_std: np.ndarray
+    drift_m: np.ndarray
+    imu_bias_mps2: np.ndarray
+    imu_bias_std_mps2: np.ndarray
+    dem_error_m: np.ndarray
+    map_gated: np.ndarray
+    weights: dict[str, np.ndarray]
+    noise: dict[str, float]
+    notes: list[str]
+
+
+def bin_times(index: np.ndarray, speed_mps: np.ndarray, n_bins: int, spacing_m: float) -> np.ndarray:
+    """Seconds of driving from each grid point to the next (spacing / mean moving speed in the
+    bin). Standstill does not count: the barometer is frozen there (`sources.freeze_at_standstill`)."""
+    speed = np.where(np.asarray(speed_mps, dtype=float) > 0.3, speed_mps, np.nan)
+    ok = (index >= 0) & np.isfinite(speed)
+    total = np.bincount(index[ok], weights=speed[ok], minlength=n_bins)[:n_bins]
+    count = np.bincount(index[ok], minlength=n_bins)[:n_bins]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(count > 0, total / count, np.nan)
+    typical = np.nanmedian(mean) if np.isfinite(mean).any() else 15.0
+    return np.clip(spacing_m / np.where(np.isfinite(mean), mean, typical), 0.05, 60.0)
+
+
+def _robust_var(values: np.ndarray) -> float:
+    values = values[np.isfinite(values)]
+    if len(values) < 10:
+        return np.nan
+    return float(np.median(values ** 2) / CHI2_MEDIAN_1DOF)
+
+
+def _residual_var(residual: np.ndarray) -> float:
+    """Variance [unit²] a white-noise model must give a residual sequence so that it carries no
+    more information than it has: the mean square (gross outliers beyond 5 robust sigma clipped),
+    inflated by (1 + rho)/(1 - rho) for its lag-1 autocorrelation rho between neighbouring bins."""
+    robust = _robust_var(residual)
+    if not np.isfinite(robust):
+        return np.nan
+    clipped = np.clip(residual, -5 * np.sqrt(robust), 5 * np.sqrt(robust))
+    var = float(np.nanmean(clipped ** 2))
+    rho = _autocorrelation(clipped, 1)
+    rho = float(np.clip(rho, 0.0, 0.9)) if np.isfinite(rho) else 0.0
+    return var * (1 + rho) / (1 - rho)
+
+
+def _count_scale(count: np.ndarray) -> np.ndarray:
+    """Variance factor of a bin mean relative to a typical bin: fewer samples, more noise; never
+    more than 10x less (neighbouring samples share their noise)."""
+    typical = np.median(count[count > 0]) if np.any(count > 0) else 1.0
+    with np.errstate(divide="ignore"):
+        return np.clip(typical / count, 0.1, 10.0)
+
+
+def baro_bin_variance(height_bins: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """Per-bin barometric variance [m²] from the second differences of the bin heights (a road
+    has no curvature a barometer could see over 20 m)."""
+    scale = _count_scale(count)
+    second = height_bins[2:] - 2 * height_bins[1:-1] + height_bins[:-2]
+    weight = scale[2:] + 4 * scale[1:-1] + scale[:-2]
+    var = _robust_var(second / np.sqrt(weight))
+    var = max(var if np.isfinite(var) else 0.25, 1e-4)
+    return var * scale
+
+
+class GradientSmoother:
+    """Runs the Kalman smoother over one drive's measurements with data-estimated noise levels."""
+
+    def __init__(self, measurements: Measurements, settings: SmootherSettings = SmootherSettings()):
+        self.m = measurements
+        self.s = settings
+        self.notes: list[str] = []
+        n = len(measurements.dt_s)
+        self.r = np.full((n, kalman.N_MEASUREMENTS), np.nan)
+        self.dem_sigma_m = 5.0
+        self.dem_correlation_m = 300.0
+        self.gated = np.zeros(n, bool)
+        self.curvature_psd = settings.curvature_psd or 3e-7
+
+    def _params(self):
+        return np.array([self.m.spacing_m, self.curvature_psd, self.s.drift_rate_psd, self.s.bias_psd,
+                         self.dem_sigma_m, self.dem_correlation_m, G_MPS2])
+
+    def _prior(self, z):
+        def first(column):
+            finite = np.flatnonzero(np.isfinite(z[:, column]))
+            return z[finite[0], column] if len(finite) else np.nan
+
+        baro, dem, gps = first(kalman.BARO), first(kalman.DEM), first(kalman.GPS)
+        height = dem if np.isfinite(dem) else gps if np.isfinite(gps) else baro if np.isfinite(baro) else 0.0
+        x0 = np.zeros(kalman.N_STATES)
+        x0[kalman.H] = height
+        x0[kalman.DRIFT] = baro - height if np.isfinite(baro) else 0.0
+        p0 = np.diag([100.0 ** 2, 0.1 ** 2, 100.0 ** 2, 0.01 ** 2, 0.5 ** 2, self.dem_sigma_m ** 2])
+        return x0, p0
+
+    def run(self, r: np.ndarray, use=(True, True, True, True), backward=True):
+        z = self.m.z.copy()
+        for column, on in enumerate(use):
+            if not on:
+                z[:, column] = np.nan
+        x0, p0 = self._prior(z)
+        return kalman.smooth(z, r, self.m.dt_s, self._params(), x0, p0, backward)
+
+    def estimate(self) -> SmootherResult:
+        m, s = self.m, self.s
+        z, count = m.z, m.count
+        have = np.isfinite(z).any(axis=0)
+        r = self.r
+        if have[kalman.BARO]:
+            r[:, kalman.BARO] = baro_bin_variance(z[:, kalman.BARO], count[:, kalman.BARO])
+        imu_scale = _count_scale(count[:, kalman.IMU])
+        if have[kalman.IMU]:
+            r[:, kalman.IMU] = 0.5 ** 2 * imu_scale
+        if have[kalman.GPS]:
+            r[:, kalman.GPS] = (s.gps_sigma_factor * np.fmax(m.v_acc_m, 1.0)) ** 2
+        # the road's curvature PSD first (needs no IMU noise level), then pass 1 without the map:
+        # the reference the map is checked against, and the IMU's noise from its residual
+        reference = None
+        if have[kalman.BARO] or have[kalman.IMU]:
+            if s.curvature_psd is None:
+                self.curvature_psd = (self._curvature_by_imu(r, imu_scale) if have[kalman.IMU] and
+                                      (have[kalman.BARO] or have[kalman.GPS]) else self._most_likely_curvature(r))
+            x, _, _, _ = self.run(r, use=(True, False, True, True))
+            if have[kalman.IMU]:
+                gamma = x[:, kalman.GAMMA]
+                residual = z[:, kalman.IMU] - G_MPS2 * gamma / np.sqrt(1 + gamma ** 2) - x[:, kalman.BIAS]
+                var = _residual_var(residual / np.sqrt(imu_scale))
+                if np.isfinite(var):
+                    r[:, kalman.IMU] = max(var, 1e-6) * imu_scale
+            reference = x[:, kalman.H] if (have[kalman.BARO] or have[kalman.GPS]) else None
+        if have[kalman.DEM]:
+            self._dem_model(reference)
+            white = max(s.dem_white_fraction * self.dem_sigma_m, 0.5)
+            h_acc = np.nan_to_num(m.h_acc_m, nan=10.0)
+            r[:, kalman.DEM] = np.where(self.gated, np.nan, white ** 2 + (s.terrain_cross_slope * h_acc) ** 2)
+        x, p, _, _ = self.run(r)
+        weights = self._weights(r, p, have)
+        return SmootherResult(
+            height_m=x[:, kalman.H], gradient=x[:, kalman.GAMMA], gradient_std=np.sqrt(p[:, kalman.GAMMA, kalman.GAMMA]),
+            drift_m=x[:, kalman.DRIFT], imu_bias_mps2=x[:, kalman.BIAS],
+            imu_bias_std_mps2=np.sqrt(p[:, kalman.BIAS, kalman.BIAS]), dem_error_m=x[:, kalman.DEM_ERROR],
+            map_gated=self.gated.copy(), weights=weights,
+            noise={"curvature_psd": self.curvature_psd, "baro_sigma_m": float(np.sqrt(np.nanmedian(r[:, kalman.BARO]))) if have[kalman.BARO] else None,
+                   "imu_sigma_mps2": float(np.sqrt(np.nanmedian(r[:, kalman.IMU]))) if have[kalman.IMU] else None,
+                   "dem_sigma_m": self.dem_sigma_m if have[kalman.DEM] else None,
+                   "dem_correlation_m": self.dem_correlation_m if have[kalman.DEM] else None},
+            notes=self.notes)
+
+    def _curvature_by_imu(self, r, imu_scale):
+        """The curvature PSD whose barometer/GPS-only gradient best predicts the accelerometer:
+        the mean square of a_imu - dv/dt - g sin(gamma), high-passed over 2 km (the slow bias),
+        is the IMU's noise plus g² times the gradient's mean square error, since the two are
+        independent; searched upwards from the smallest candidate until it grows again."""
+        z = self.m.z[:, kalman.IMU]
+        ok = np.isfinite(z)
+        grid = np.arange(len(z))
+        window = max(3, int(self.s.gate_detrend_m / self.m.spacing_m) | 1)
+        best, best_score = self.curvature_psd, np.inf
+        for candidate in self.s.curvature_candidates:
+            self.curvature_psd = candidate
+            x, _, _, _ = self.run(r, use=(True, False, False, True))
+            gamma = x[:, kalman.GAMMA]
+            residual = z - G_MPS2 * gamma / np.sqrt(1 + gamma ** 2)
+            filled = np.interp(grid, grid[ok], residual[ok])
+            high = residual - uniform_filter1d(filled, window, mode="nearest")
+            score = float(np.sum((high[ok] ** 2) / imu_scale[ok]) / np.sum(1 / imu_scale[ok]))
+            if score >= best_score:
+                break
+            best, best_score = candidate, score
+        return best
+
+    def _most_likely_curvature(self, r):
+        """The curvature PSD among the candidates with the largest likelihood of the map-free
+        innovations (Gaussian: -1/2 sum(log S + nu²/S))."""
+        best, best_ll = self.curvature_psd, -np.inf
+        for candidate in self.s.curvature_candidates:
+            self.curvature_psd = candidate
+            _, _, nu, var = self.run(r, use=(True, False, True, True), backward=False)
+            ll = -0.5 * np.nansum(np.log(var) + nu ** 2 / var)
+            if ll > best_ll:
+                best, best_ll = candidate, ll
+        return best
+
+    def _dem_model(self, reference):
+        """DEM error size and correlation length from its residual against the map-free profile,
+        and the gate: windows where the residual is too large for that error model."""
+        m, s = self.m, self.s
+        dem = m.z[:, kalman.DEM]
+        if reference is None:
+            self.notes.append("map not checked against barometer/IMU (neither present): taken as it is")
+            return
+        residual = dem - reference
+        ok = np.isfinite(residual)
+        if ok.sum() < 50:
+            return
+        grid = np.arange(len(residual))
+        filled = np.interp(grid, grid[ok], residual[ok])
+        window = max(3, int(s.gate_detrend_m / m.spacing_m) | 1)
+        high = np.where(ok, filled - median_filter(filled, size=window, mode="nearest"), np.nan)
+        sigma = np.sqrt(_robust_var(high - np.nanmedian(high)))
+        standardised = high / sigma
+        inlier = np.where(np.abs(standardised) < 3, high, np.nan)
+        length = _correlation_length_bins(inlier, max_lag=int(3000 / m.spacing_m))
+        if np.isfinite(length):
+            self.dem_correlation_m = float(np.clip(length * m.spacing_m, 50.0, 3000.0))
+        self.dem_sigma_m = float(np.clip(sigma, 0.5, 50.0))
+        bins = max(3, int(round(2 * self.dem_correlation_m / m.spacing_m)))
+        phi = np.exp(-m.spacing_m / self.dem_correlation_m)
+        dof = max(1.0, bins * (1 - phi ** 2) / (1 + phi ** 2))
+        limit = chi2.ppf(1 - s.gate_probability, dof) / dof
+        square = np.where(ok, np.minimum(standardised ** 2, 100.0), 0.0)
+        support = uniform_filter1d(ok.astype(float), bins, mode="constant")
+        with np.errstate(invalid="ignore", divide="ignore"):
+            statistic = uniform_filter1d(square, bins, mode="constant") / support
+        flagged = np.nan_to_num(statistic) > limit
+        self.gated = uniform_filter1d(flagged.astype(float), bins, mode="constant") > 0
+        if self.gated.any():
+            runs = int(np.sum(np.diff(np.concatenate([[0], self.gated.astype(int)])) == 1))
+            self.notes.append(f"map gated out on {self.gated.sum() * m.spacing_m / 1000:.2f} km in {runs} stretch(es) "
+                              f"where it disagrees with barometer/IMU beyond its error model "
+                              f"(sigma {self.dem_sigma_m:.1f} m, correlation {self.dem_correlation_m:.0f} m)")
+
+    def _weights(self, r, p_full, have):
+        """Each source's share of the information on the gradient per grid point: how much the
+        gradient's variance grows without it, normalised over the sources."""
+        information = {}
+        base = 1.0 / p_full[:, kalman.GAMMA, kalman.GAMMA]
+        for column, name in enumerate(SOURCE_NAMES):
+            if not have[column] or np.all(np.isnan(r[:, column])):
+                information[name] = np.zeros(len(base))
+                continue
+            use = tuple(c != column for c in range(kalman.N_MEASUREMENTS))
+            _, p, _, _ = self.run(r, use=use)
+            information[name] = np.clip(base - 1.0 / p[:, kalman.GAMMA, kalman.GAMMA], 0, None)
+        total = sum(information.values())
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return {name: np.where(total > 0, info / total, 0.0) for name, info in information.items()}
+
+
+def _autocorrelation(values: np.ndarray, lag: int) -> float:
+    a, b = values[:-lag], values[lag:]
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 20:
+        return np.nan
+    a, b = a[ok] - np.mean(a[ok]), b[ok] - np.mean(b[ok])
+    return float(np.sum(a * b) / np.sqrt(np.sum(a * a) * np.sum(b * b)))
+
+
+def _correlation_length_bins(values: np.ndarray, max_lag: int) -> float:
+    """First lag [bins] where the autocorrelation of a gappy series falls below 1/e (linearly
+    interpolated); NaN if it never does within ``max_lag``."""
+    ok = np.isfinite(values)
+    if ok.sum() < 50:
+        return np.nan
+    x = np.where(ok, values - np.mean(values[ok]), 0.0)
+    mask = ok.astype(float)
+    size = 1 << int(np.ceil(np.log2(2 * len(x))))
+    fx, fm = np.fft.rfft(x, size), np.fft.rfft(mask, size)
+    product = np.fft.irfft(fx * np.conj(fx), size)[:max_lag + 1]
+    pairs = np.fft.irfft(fm * np.conj(fm), size)[:max_lag + 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        acf = (product / np.maximum(pairs, 1.0)) / (product[0] / max(pairs[0], 1.0))
+    below = np.flatnonzero(acf < np.exp(-1))
+    if len(below) == 0:
+        return np.nan
+    k = below[0]
+    return float(k - 1 + (acf[k - 1] - np.exp(-1)) / (acf[k - 1] - acf[k])) if k > 0 else 0.5

@@ -1,0 +1,95 @@
+"""The gradient stage: `estimate_gradient` on the signals table, its columns added in memory;
+`write_gradient` is its part of the output step (``gradient.csv``, ``gradient.png``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..dem import MissingTileError, open_dem
+from ..dem.plausible import ImplausibleDemError
+from ..errors import UserError
+from .estimate import GradientResult, GradientSettings, estimate_gradient
+from .figure import draw_sources
+
+
+@dataclass(frozen=True)
+class GradientOptions:
+    """Options of the gradient stage."""
+
+    settings: GradientSettings = field(default_factory=GradientSettings)
+    """Grid spacing [m], smoothing lengths and ``gradient_method`` ("smoother", the default, or
+    the paper's fusion "paper") of the estimate."""
+    barometer_off_map: bool = False
+    """Where the route leaves the DEM, say so and fall back to the barometer alone (``analyze
+    gradient``); otherwise that is an error naming the missing tile (``analyze run``)."""
+    keep_existing: bool = False
+    """Keep a ``gradient_pct`` column the input already has instead of estimating it again."""
+
+
+def gradient_stage(ctx) -> None:
+    """Add ``height_m``, ``gradient_pct`` (the smoother's or the paper's fusion (8), by
+    ``options.settings.gradient_method``), both methods' and each source's columns to ``ctx.signals``; the result
+    goes to ``ctx.results.gradient`` and its figures to ``ctx.summary["gradient"]``.
+
+    Parameters
+    ----------
+    ctx : pipeline.RunContext
+        Reads ``signals`` (time_s [s], speed_mps [m/s]; latitude_deg/longitude_deg [deg] with a DEM,
+        pressure_pa [Pa] for the barometer), ``dem_dir`` and ``options.gradient`` (`GradientOptions`).
+
+    References
+    ----------
+    Paper §2.2.1, equations (5)-(8).
+    """
+    options: GradientOptions = ctx.options.gradient
+    frame = ctx.signals
+    if options.keep_existing and "gradient_pct" in frame.columns and frame["gradient_pct"].notna().any():
+        return
+    if ctx.dem_dir is None:
+        ctx.say("gradient: no --dem DIR given: barometric height only (no map-matching)")
+    dem = open_dem(ctx.dem_dir) if ctx.dem_dir is not None else None
+    try:
+        try:
+            result = estimate_gradient(frame, dem, options.settings)
+        except (MissingTileError, ImplausibleDemError) as exc:
+            if not options.barometer_off_map:
+                raise type(exc)(f"{exc}; or run without --dem for barometric height only") from None
+            ctx.say(f"gradient: {exc}; using the barometer alone")
+            result = estimate_gradient(frame, None, options.settings)
+    except (MissingTileError, ImplausibleDemError):
+        raise
+    except UserError as exc:
+        ctx.skip("gradient", str(exc))
+        return
+    for note in result.notes:
+        ctx.say(f"gradient: {note}")
+    for name, values in result.samples.items():
+        frame[name] = values
+    ctx.results.gradient = result
+    grid = result.grid
+    gradient = grid["gradient_pct"].to_numpy()
+    ctx.summary["gradient"] = {
+        "grid_spacing_m": options.settings.spacing_m,
+        "sources": [s for s, c in (("map", "gradient_map_pct"), ("baro", "gradient_baro_pct"),
+                                   ("imu", "gradient_imu_pct")) if c in grid.columns],
+        "method": options.settings.gradient_method,
+        "mean_map_weight": float(np.mean(grid["weight_map"])),
+        "smoother": result.smoother,
+        "map_sigma_m": result.map_sigma_m,
+        "gradient_pct": {"mean": float(np.nanmean(gradient)), "min": float(np.nanmin(gradient)),
+                         "max": float(np.nanmax(gradient))},
+        "height_gain_m": float(np.sum(np.clip(np.diff(grid["height_m"].to_numpy()), 0, None))),
+        "notes": result.notes,
+    }
+
+
+def write_gradient(result: GradientResult, directory: Path, figures: bool = True) -> list[str]:
+    """``gradient.csv`` (the distance grid) and, with ``figures``, ``gradient.png``; returns the names."""
+    result.grid.to_csv(directory / "gradient.csv", index=False)
+    files = ["gradient.csv"]
+    if figures:
+        files.append(draw_sources(result.grid, directory / "gradient.png").name)
+    return files

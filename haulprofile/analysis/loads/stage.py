@@ -1,0 +1,95 @@
+"""The loads stage: wheel load collectives of the measured drive and of the selected cycle (in
+memory, `LoadsResult`); `write_loads` is its part of the output step (CSVs and figures)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..errors import UserError
+from ..signals import missing_for, read_signals
+from . import NEEDED, collectives_of
+from .output import write_csvs, write_figures
+from .summary import Collectives, compare, summary
+
+
+@dataclass(frozen=True)
+class LoadsOptions:
+    """Options of the loads stage."""
+
+    common_rate: bool = True
+    """Average every drive onto the coarsest drive's sample interval before counting."""
+    generated_file: Path | None = None
+    """A generated cycle table (CSV/Parquet with the `NEEDED` columns) to compare with, instead of
+    the cycle stage's (``analyze loads --cycle``)."""
+
+
+@dataclass
+class LoadsResult:
+    collectives: dict[str, Collectives]
+    """Per drive ("measured", "generated"): time at level, residence, rainflow, damage-equivalent torques."""
+    comparison: pd.DataFrame | None
+    """Measured against generated, one row per criterion (both drives only)."""
+
+
+def loads_stage(ctx) -> None:
+    """Load collectives of the measured drive and, if there is one, the selected cycle, into
+    ``ctx.results.loads`` and ``ctx.summary["loads"]``.
+
+    Parameters
+    ----------
+    ctx : pipeline.RunContext
+        Reads ``signals`` (time_s [s], speed_mps [m/s], accel_mps2 [m/s²], gradient_pct [%],
+        mass_kg [kg]), ``results.cycle``, ``vehicle`` and ``options.loads`` (`LoadsOptions`).
+
+    References
+    ----------
+    Wheel force, torque, speed and power from equations (1)-(4); rainflow counting per ASTM E1049.
+    """
+    options: LoadsOptions = ctx.options.loads
+    missing = missing_for(ctx.signals, NEEDED) if ctx.signals is not None else NEEDED
+    if missing:
+        ctx.skip("loads", f"the signals lack {', '.join(missing)}")
+        return
+    if ctx.vehicle is None:
+        ctx.skip("loads", "no vehicle file")
+        return
+    drives = {"measured": ctx.signals}
+    if options.generated_file is not None:
+        generated = read_signals(options.generated_file)
+        lacking = missing_for(generated, NEEDED)
+        if lacking:
+            raise UserError(f"{options.generated_file}: the generated cycle lacks {', '.join(lacking)}; run "
+                            f"'analyze run' first to estimate them")
+        drives["generated"] = generated
+    elif ctx.results.cycle is not None:
+        drives["generated"] = ctx.results.cycle.frame
+    collectives = collectives_of(drives, ctx.vehicle, options.common_rate)
+    comparison = (compare(collectives["measured"], collectives["generated"])
+                  if {"measured", "generated"} <= set(collectives) else None)
+    ctx.results.loads = LoadsResult(collectives, comparison)
+    result = {name: summary(c) for name, c in collectives.items()}
+    if comparison is not None:
+        result["comparison"] = {row.criterion: (float(row.relative_deviation) if np.isfinite(row.relative_deviation)
+                                                else None) for row in comparison.itertuples()}
+    ctx.summary["loads"] = result
+    for name, s in result.items():
+        if name != "comparison":
+            ctx.say(f"loads: {name}: {s['rainflow_cycles']:.0f} rainflow cycles, damage-equivalent torque range "
+                    f"(k=5) {s['damage_equivalent_torque_range_nm']['5']:.0f} Nm")
+
+
+def write_loads(result: LoadsResult, directory: Path) -> list[str]:
+    """Each drive's collectives as CSV files, ``comparison.csv`` and the figures; returns the names."""
+    directory.mkdir(parents=True, exist_ok=True)
+    written = []
+    for c in result.collectives.values():
+        written += write_csvs(c, directory)
+    if result.comparison is not None:
+        result.comparison.to_csv(directory / "comparison.csv", index=False)
+        written.append(directory / "comparison.csv")
+    written += write_figures(list(result.collectives.values()), result.comparison, directory)
+    return [path.name for path in written]

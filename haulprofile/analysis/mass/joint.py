@@ -1,0 +1,263 @@
+"""Joint mass and road load over one drive: a mass per segment plus the rolling-resistance
+coefficient c_r and the drag area c_d·A shared by all segments, by robust Gauss-Newton least
+squares over the stacked segments, with a block-robust covariance.
+
+Per used sample k of segment j (F_wheel from engine torque, ψ = a + g sin α from the IMU or from
+wheel speed and the estimated gradient):
+
+    F_wheel,k = m_j (ψ_k + g c_r cos α_k) + c_d A · ½ ρ v_k²
+
+A torque-report (or driveline-efficiency) gain error k scales F_wheel: it turns every mass into
+k·m and c_d A into k·c_d A and cannot be seen within the data. Without a known mass it is part of
+each mass's uncertainty; one weighed segment calibrates it for all others.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+
+from ..road_load import G_MPS2
+
+COEFFICIENTS = ("rolling_resistance_coefficient", "drag_area_m2")
+
+
+@dataclass(frozen=True)
+class JointSettings:
+    """Robust weighting, covariance blocks, identifiability and the gain uncertainty."""
+
+    robust_tuning: float = 4.685
+    """Tukey biweight constant in robust sigmas (95 % efficiency under Gaussian noise): samples
+    where an unmodelled force (air compressor, fan, PTO, unflagged braking) breaks the balance
+    get weight 0."""
+    iterations: int = 40
+    tolerance: float = 1e-7
+    """Largest relative parameter step at which the iteration stops (1e-7 of a mass is a gram)."""
+    block_s: float = 30.0
+    """Length of the residual blocks of the covariance [s]: residuals of 10 Hz data are
+    correlated over seconds (smoothing, gusts, gradient error), not over blocks."""
+    max_relative_std: float = 0.25
+    """c_r or c_d·A counts as identified when its relative standard deviation is below this ..."""
+    max_prior_fraction: float = 0.5
+    """... and the drive has at least halved the datasheet's standard deviation."""
+    torque_gain_uncertainty: float = 0.03
+    """Relative 1-sigma of the engine's actual-torque report (J1939 SPN 513: a few % of reference)."""
+    driveline_efficiency_uncertainty: float = 0.02
+    rolling_resistance_uncertainty: float = 0.15
+    """Relative 1-sigma of a datasheet c_r, used when the drive cannot identify it."""
+    drag_area_uncertainty: float = 0.10
+    max_relative_uncertainty: float = 0.05
+    min_samples: int = 150
+
+
+@dataclass
+class JointFit:
+    masses_kg: np.ndarray
+    """One per segment (NaN where the segment had too few samples)."""
+    mass_std_kg: np.ndarray
+    """Statistical 1-sigma (block-robust), without gain or fixed-coefficient terms."""
+    coefficients: dict[str, float]
+    coefficient_std: dict[str, float | None]
+    identified: dict[str, bool]
+    reasons: dict[str, str]
+    sensitivity_kg: np.ndarray
+    """Further systematic 1-sigma per segment [kg] (zero: the coefficients' uncertainty is in the covariance)."""
+    weights: np.ndarray
+    """Robust weight of every sample (0 for samples not used)."""
+    regressor_values: np.ndarray
+    """The mass regressor psi + g c_r cos(alpha) of every sample [m/s²] (0 for samples not used)."""
+    samples: np.ndarray
+    outliers: int
+    regressor: str = ""
+    condition: float = np.nan
+    notes: list[str] = field(default_factory=list)
+
+
+@numba.njit(cache=True)
+def _residual(force, excess, cos_angle, aero, seg, theta, n_seg):
+    """F - m_j (psi + g c_r cos) - c_d A q per sample [N]."""
+    c_r, cda = theta[n_seg], theta[n_seg + 1]
+    out = np.empty(len(force))
+    for k in range(len(force)):
+        out[k] = force[k] - theta[seg[k]] * (excess[k] + G_MPS2 * c_r * cos_angle[k]) - cda * aero[k]
+    return out
+
+
+@numba.njit(cache=True)
+def _biweight(residual, limit):
+    """Tukey biweight (1 - (r/limit)²)² inside the limit, 0 outside."""
+    out = np.empty(len(residual))
+    for k in range(len(residual)):
+        u = residual[k] / limit
+        out[k] = (1 - u * u) ** 2 if abs(u) < 1 else 0.0
+    return out
+
+
+@numba.njit(cache=True)
+def _normal_equations(excess, instrument, cos_angle, aero, seg, theta, n_seg, weights, residual):
+    """Gauss-Newton normal matrix sum w z_k j_k^T (instrument rows z, Jacobian columns j) and
+    right-hand side sum w z_k r_k over all samples, parameters (m_1..m_J, c_r, c_d A)."""
+    n_p = n_seg + 2
+    full = np.zeros((n_p, n_p))
+    rhs = np.zeros(n_p)
+    c_r = theta[n_seg]
+    for k in range(len(excess)):
+        w = weights[k]
+        if w == 0.0:
+            continue
+        j = seg[k]
+        rolling = G_MPS2 * c_r * cos_angle[k]
+        column = (excess[k] + rolling, theta[j] * G_MPS2 * cos_angle[k], aero[k])
+        row = (instrument[k] + rolling, column[1], column[2])
+        index = (j, n_seg, n_seg + 1)
+        for a in range(3):
+            wa = w * row[a]
+            rhs[index[a]] += wa * residual[k]
+            for b in range(3):
+                full[index[a], index[b]] += wa * column[b]
+    return full, rhs
+
+
+def _solve(force, excess, cos_angle, aero, seg, n_seg, theta, free, settings, weights=None, prior=None,
+           instrument=None):
+    """Robust Gauss-Newton (iteratively reweighted, Tukey biweight on the residual scale); with
+    ``weights`` given they stay fixed. With an ``instrument`` for ``excess`` (a regressor whose
+    errors are independent of its noise) the normal equations are the instrumental-variable ones
+    Z^T W r = 0, so the noise of ``excess`` does not bias the masses low. Returns theta, weights,
+    the normal matrix of the free parameters, residuals, the mass regressor and its instrument."""
+    theta = theta.copy()
+    fixed_weights = weights is not None
+    weights = np.ones(len(force)) if weights is None else weights
+    instrument = excess if instrument is None else instrument
+    free_idx = np.flatnonzero(free)
+    normal = np.eye(len(free_idx))
+    for _ in range(settings.iterations):
+        residual = _residual(force, excess, cos_angle, aero, seg, theta, n_seg)
+        if not fixed_weights:
+            sample = residual[::max(1, len(residual) // 50_000)]  # a robust scale needs no more
+            scale = 1.4826 * np.median(np.abs(sample - np.median(sample)))
+            weights = _biweight(residual, settings.robust_tuning * max(scale, 1e-9))
+        full, rhs = _normal_equations(excess, instrument, cos_angle, aero, seg, theta, n_seg, weights, residual)
+        if prior is not None:
+            centre, precision = prior
+            full += np.diag(precision)
+            rhs += precision * (centre - theta)
+        normal = full[np.ix_(free_idx, free_idx)]
+        step = np.linalg.solve(normal, rhs[free_idx])
+        theta[free_idx] += step
+        if np.max(np.abs(step) / np.maximum(np.abs(theta[free_idx]), 1e-9)) < settings.tolerance:
+            break
+    c_r = theta[n_seg]
+    residual = _residual(force, excess, cos_angle, aero, seg, theta, n_seg)
+    return theta, weights, normal, residual, excess + G_MPS2 * c_r * cos_angle, instrument + G_MPS2 * c_r * cos_angle
+
+
+def _block_covariance(normal, free_idx, n_seg, seg, block, weights, residual, instrument_row, theta, cos_angle,
+                      aero, extra_meat=None):
+    """Sandwich covariance N^-1 (sum_b s_b s_b^T) N^-T with s_b the score (instrument rows times
+    residual) of residual block b: honest under correlation within blocks."""
+    d_cr = theta[:n_seg][seg] * G_MPS2 * cos_angle
+    n_blocks = int(block.max()) + 1
+    scores = np.zeros((n_blocks, n_seg + 2))
+    block_segment = np.zeros(n_blocks, dtype=np.int64)
+    block_segment[block] = seg
+    scores[np.arange(n_blocks), block_segment] = np.bincount(block, weights=weights * instrument_row * residual,
+                                                             minlength=n_blocks)
+    scores[:, n_seg] = np.bincount(block, weights=weights * d_cr * residual, minlength=n_blocks)
+    scores[:, n_seg + 1] = np.bincount(block, weights=weights * aero * residual, minlength=n_blocks)
+    scores = scores[:, free_idx]
+    p = len(free_idx)
+    meat = scores.T @ scores * n_blocks / max(n_blocks - p, 1)
+    if extra_meat is not None:
+        meat = meat + extra_meat[np.ix_(free_idx, free_idx)]
+    inverse = np.linalg.inv(normal)
+    cov = np.full((n_seg + 2, n_seg + 2), np.nan)
+    cov[np.ix_(free_idx, free_idx)] = inverse @ meat @ inverse.T
+    return cov
+
+
+def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, settings: JointSettings = JointSettings(),
+              regressor_name: str = "", instrument=None) -> JointFit:
+    """Masses of the segments ``bounds`` ([start, end) index pairs) and the shared c_r, c_d·A from
+    the samples in ``usable`` (see the module docstring). Coefficients the drive cannot identify
+    (relative std above ``max_relative_std``, a non-physical value, or a singular system) are fixed
+    at the vehicle file's value; their datasheet uncertainty then enters each mass."""
+    n_seg = len(bounds)
+    seg_of = np.full(len(force), -1)
+    for j, (start, end) in enumerate(bounds):
+        seg_of[start:end] = j
+    ok = usable & (seg_of >= 0) & np.isfinite(force) & np.isfinite(excess) & np.isfinite(cos_angle) & np.isfinite(aero)
+    if instrument is not None:
+        ok &= np.isfinite(instrument)
+    counts = np.bincount(seg_of[ok], minlength=n_seg)
+    enough = counts >= settings.min_samples
+    ok &= enough[np.clip(seg_of, 0, None)]
+    kept = np.flatnonzero(enough)
+    remap = np.full(n_seg, -1)
+    remap[kept] = np.arange(len(kept))
+    result = JointFit(masses_kg=np.full(n_seg, np.nan), mass_std_kg=np.full(n_seg, np.nan),
+                      coefficients={"rolling_resistance_coefficient": vehicle.rolling_resistance_coefficient,
+                                    "drag_area_m2": vehicle.drag_coefficient * vehicle.frontal_area_m2},
+                      coefficient_std={c: None for c in COEFFICIENTS}, identified={c: False for c in COEFFICIENTS},
+                      reasons={c: "no segment with enough samples" for c in COEFFICIENTS},
+                      sensitivity_kg=np.zeros(n_seg), weights=np.zeros(len(force)),
+                      regressor_values=np.zeros(len(force)), samples=counts, outliers=0,
+                      regressor=regressor_name)
+    if len(kept) == 0:
+        return result
+    f, x, c, q = force[ok], excess[ok], cos_angle[ok], aero[ok]
+    seg = remap[seg_of[ok]]
+    t = time_s[ok]
+    block_start = np.array([t[seg == j].min() for j in range(len(kept))])
+    block_local = np.floor((t - block_start[seg]) / settings.block_s).astype(np.int64)
+    _, block = np.unique(seg * 1_000_000 + block_local, return_inverse=True)
+    m = len(kept)
+    theta0 = np.concatenate([np.zeros(m), [result.coefficients["rolling_resistance_coefficient"],
+                                           result.coefficients["drag_area_m2"]]])
+    regressor0 = x + G_MPS2 * theta0[m] * c
+    theta0[:m] = (np.bincount(seg, weights=regressor0 * (f - theta0[m + 1] * q), minlength=m)
+                  / np.bincount(seg, weights=regressor0 ** 2, minlength=m))
+    free = np.ones(m + 2, bool)
+    centre = theta0.copy()
+    prior_std = np.concatenate([np.full(m, np.inf), [settings.rolling_resistance_uncertainty * theta0[m],
+                                                     settings.drag_area_uncertainty * theta0[m + 1]]])
+    z = None if instrument is None else instrument[ok]
+    try:
+        # the data alone: the noise level per unit of the normal matrix, from the block-robust covariance
+        theta, weights, normal, residual, regressor, row = _solve(f, x, c, q, seg, m, theta0, free, settings,
+                                                                  instrument=z)
+        sandwich = _block_covariance(normal, np.flatnonzero(free), m, seg, block, weights, residual, row, theta, c, q)
+        noise_var = float(np.median(np.diag(sandwich)[:m] / np.abs(np.diag(np.linalg.inv(normal))[:m])))
+    except np.linalg.LinAlgError:
+        noise_var = float(np.var(f - theta0[:m][seg] * (x + G_MPS2 * theta0[m] * c) - theta0[m + 1] * q))
+    # the vehicle file's values as a prior of datasheet width: a coefficient the drive cannot tell
+    # stays near the datasheet value and its datasheet uncertainty goes into every mass
+    precision = np.where(np.isfinite(prior_std), noise_var / prior_std ** 2, 0.0)
+    theta, weights, normal, residual, regressor, row = _solve(f, x, c, q, seg, m, theta0, free, settings,
+                                                              prior=(centre, precision), instrument=z)
+    cov = _block_covariance(normal, np.flatnonzero(free), m, seg, block, weights, residual, row, theta, c, q,
+                            extra_meat=noise_var * np.diag(precision))
+    scale = np.sqrt(np.abs(np.diag(normal)))
+    condition = float(np.linalg.cond(normal / np.outer(scale, scale)))
+    reasons = {}
+    for index, name in ((m, COEFFICIENTS[0]), (m + 1, COEFFICIENTS[1])):
+        std = float(np.sqrt(cov[index, index]))
+        relative = std / abs(theta[index])
+        if std > settings.max_prior_fraction * prior_std[index] or relative > settings.max_relative_std:
+            free[index] = False
+            reasons[name] = (f"not identifiable on this drive (std {100 * relative:.1f} %, "
+                             f"{100 * std / prior_std[index]:.0f} % of the datasheet's): stays near the vehicle file")
+    result.condition = condition
+    result.masses_kg[kept] = theta[:m]
+    result.mass_std_kg[kept] = np.sqrt(np.diag(cov)[:m])
+    for index, name in ((m, COEFFICIENTS[0]), (m + 1, COEFFICIENTS[1])):
+        result.coefficients[name] = float(theta[index])
+        result.identified[name] = bool(free[index])
+        result.coefficient_std[name] = float(np.sqrt(cov[index, index]))
+        result.reasons[name] = reasons.get(name, "identified")
+    result.weights[ok] = weights
+    result.regressor_values[ok] = regressor
+    result.outliers = int(np.sum(weights == 0))
+    return result

@@ -1,0 +1,90 @@
+"""The mass stage: `estimate_mass` per segment between stops, ``mass_kg`` and each method's
+column added in memory; `write_mass` is its part of the output step (``mass.png``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import UserError
+from . import MassResult, estimate_mass
+from .figure import draw_estimates
+from .joint import JointSettings
+from .regression import FilterSettings
+from .segments import SegmentSettings
+
+
+@dataclass(frozen=True)
+class MassOptions:
+    """Options of the mass stage."""
+
+    filter: FilterSettings = field(default_factory=FilterSettings)
+    """Thresholds of the data filter [SI units]."""
+    segments: SegmentSettings = field(default_factory=SegmentSettings)
+    """Segmentation at stops and the estimators' parameters (forgetting factor, damping)."""
+    joint: JointSettings = field(default_factory=JointSettings)
+    """The joint fit of all segments' masses with c_r and c_d·A, and its uncertainty terms."""
+    weighed_masses_kg: tuple[tuple[int, float], ...] = ()
+    """Weighed total masses [kg] as (segment index from 0, kg) pairs (``--known-mass``): they
+    calibrate the engine torque gain for every segment."""
+    known_mass_kg: float | None = None
+    """A known constant total mass [kg]: written as ``mass_kg`` instead of estimating one."""
+    keep_existing: bool = False
+    """Keep a ``mass_kg`` column the input already has instead of estimating it again."""
+    true_mass_kg: tuple[float, ...] | None = None
+    """The weighed total mass [kg], one value or one per segment, drawn in the figure."""
+
+
+def mass_stage(ctx) -> None:
+    """Add ``mass_kg`` (the joint estimate where confident, else LS; and ``mass_ls_kg``,
+    ``mass_rls_kg``, ``mass_lm_kg``) to ``ctx.signals``;
+    the result goes to ``ctx.results.mass`` and the segments to ``ctx.summary["mass"]``.
+
+    Parameters
+    ----------
+    ctx : pipeline.RunContext
+        Reads ``signals`` (time_s [s], speed_mps [m/s], accel_mps2 [m/s²], gradient_pct [%],
+        engine_torque_nm [Nm], engine_speed_rpm [rpm]), ``vehicle`` and ``options.mass`` (`MassOptions`).
+
+    References
+    ----------
+    Paper §2.2.2, equations (9)-(14).
+    """
+    options: MassOptions = ctx.options.mass
+    frame = ctx.signals
+    if options.known_mass_kg is not None:
+        if not options.known_mass_kg > 0:
+            raise UserError(f"--mass-kg must be a positive mass in kg, got {options.known_mass_kg}")
+        frame["mass_kg"] = float(options.known_mass_kg)
+        return
+    if options.keep_existing and "mass_kg" in frame.columns and frame["mass_kg"].notna().any():
+        return
+    if ctx.vehicle is None:
+        ctx.skip("mass", "needs a vehicle file (--vehicle)")
+        return
+    try:
+        result = estimate_mass(frame, ctx.vehicle, options.filter, options.segments, options.joint,
+                               dict(options.weighed_masses_kg))
+    except UserError as exc:
+        ctx.skip("mass", str(exc))
+        return
+    for note in result.notes:
+        ctx.say(f"mass: {note}")
+    for name, values in result.columns.items():
+        frame[name] = values
+    for segment in result.segments:
+        if segment["status"] != "ok":
+            ctx.say(f"mass: segment {segment['start_s']:.0f}-{segment['end_s']:.0f} s: no confident mass "
+                    f"({segment['reason']})")
+    ctx.results.mass = result
+    ctx.summary["mass"] = {"segments": result.segments, "samples_used": int(result.regression.usable.sum()),
+                           "road_load": result.road_load, "rejected_by": result.regression.rejected, "notes": result.notes}
+
+
+def write_mass(result: MassResult, signals, directory: Path, figures: bool = True,
+               true_mass_kg=None) -> list[str]:
+    """With ``figures``, ``mass.png`` (each method over time beside the CAN estimate); returns the names."""
+    if not figures:
+        return []
+    return [draw_estimates(signals, result, directory / "mass.png",
+                           list(true_mass_kg) if true_mass_kg is not None else None).name]

@@ -1,0 +1,251 @@
+"""``analyze redact``: new, complete logs without what was recorded inside privacy zones.
+
+For logs written before zones were configured (the logger's own zones act before writing). Per
+input log, in two linear passes (``mcap.stream_reader``):
+
+1. the ``/gps/fix`` positions give the stretches spent in a zone: from the first fix inside to the
+   first fix outside again, on the monotonic clock (to the start of the file when its first fix
+   is inside, or the file before ended inside; to the end when its last one is);
+2. a new file is written with the ``mcap`` library's writer: fixes inside are dropped, NMEA
+   sentences received inside are cut out of their ``/gps/nmea`` batches (a batch left empty is
+   dropped), ``/time/sync`` inside loses its GPS time, and ``/privacy/zone`` records (``source =
+   "redact"``) mark each stretch. Every other message, schema, channel, metadata and attachment
+   is copied as it was (data byte for byte, times, sequence numbers); chunk indexes, statistics
+   and the summary are those of the new file.
+
+Inputs are never opened for writing, and an output that would replace an input is refused.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from mcap.writer import CompressionType, Writer
+
+from haulprofile import contract
+from haulprofile.contract.privacy import Zone, in_any, zones_from_tables
+from haulprofile.private_files import make_dirs, open_new
+
+from .errors import UserError
+
+INF = float("inf")
+
+
+def load_zones(path: str | Path) -> list[Zone]:
+    """Zones from a TOML file: ``[[zones]]`` tables, or a logger configuration's ``[[privacy.zones]]``."""
+    import tomllib
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except OSError as exc:
+        raise UserError(f"--zones {path}: cannot read: {exc.strerror}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise UserError(f"--zones {path}: not valid TOML: {exc}") from None
+    tables, where = data.get("zones"), "zones"
+    if tables is None:
+        tables, where = data.get("privacy", {}).get("zones"), "privacy.zones"
+    if not tables:
+        raise UserError(f"--zones {path}: no [[zones]] (or [[privacy.zones]]) tables")
+    try:
+        return zones_from_tables(tables, where)
+    except ValueError as exc:
+        raise UserError(f"--zones {path}: {exc}") from None
+
+
+@dataclass
+class RedactReport:
+    source: Path
+    target: Path
+    messages_in: int = 0
+    messages_out: int = 0
+    fixes_removed: int = 0
+    sentences_removed: int = 0
+    gps_times_removed: int = 0
+    stretches: list[tuple[float, float]] = field(default_factory=list)
+    ends_inside: bool = False
+
+    def line(self) -> str:
+        return (f"{self.source.name} -> {self.target}: {len(self.stretches)} stretch(es) in zones; removed "
+                f"{self.fixes_removed} fixes, {self.sentences_removed} NMEA sentences, "
+                f"{self.gps_times_removed} GPS times; {self.messages_out} of {self.messages_in} messages kept")
+
+
+def _records(data: bytes):
+    return StreamReader(io.BytesIO(data), validate_crcs=True).records
+
+
+def _stretches(fixes: list[tuple[int, bool]], inside_at_start: bool) -> list[tuple[float, float]]:
+    """[start, end) monotonic intervals [ns] spent in a zone, from (t_mono_ns, inside) of each fix."""
+    stretches, start = [], None
+    first = True
+    for t, inside in sorted(fixes):
+        if inside and start is None:
+            start = -INF if first and inside_at_start else t
+        elif not inside and start is not None:
+            stretches.append((start, t))
+            start = None
+        first = False
+    if start is not None:
+        stretches.append((start, INF))
+    if not fixes and inside_at_start:
+        stretches.append((-INF, INF))
+    return stretches
+
+
+def _in(stretches, t: int) -> bool:
+    return any(a <= t < b for a, b in stretches)
+
+
+def redact_bytes(data: bytes, zones: list[Zone], target_stream, inside_at_start: bool = False,
+                 report: RedactReport | None = None) -> RedactReport:
+    """Write the redacted copy of the MCAP log ``data`` into ``target_stream``."""
+    report = report or RedactReport(Path("-"), Path("-"))
+    channels: dict[int, Channel] = {}
+    fixes: list[tuple[int, bool]] = []
+    fix_messages: dict[int, tuple[int, bool]] = {}
+    try:
+        for record in _records(data):
+            if isinstance(record, Channel):
+                channels[record.id] = record
+            elif isinstance(record, Message) and channels[record.channel_id].topic == contract.GPS_FIX.name:
+                fix = json.loads(record.data)
+                inside = in_any(zones, fix["latitude"], fix["longitude"])
+                fixes.append((int(fix["t_mono_ns"]), inside))
+    except Exception as exc:  # the mcap reader raises several kinds for a cut or damaged file
+        raise UserError(f"{report.source}: cannot be read to the end ({type(exc).__name__}: {exc}); "
+                        f"run 'analyze recover' on it first") from None
+    stretches = _stretches(fixes, inside_at_start)
+    report.stretches = stretches
+    report.ends_inside = bool(stretches) and stretches[-1][1] == INF
+    starts = {a for a, _ in stretches if a != -INF}
+    ends = {b for _, b in stretches if b != INF}
+
+    writer = None
+    schema_ids: dict[int, int] = {}
+    channel_ids: dict[int, int] = {}
+    schemas: dict[int, Schema] = {}
+    marker_channel = None
+    seen_metadata: set[tuple] = set()
+    seen_attachments: set[tuple] = set()
+    in_summary = False
+
+    def out_channel(channel_id: int) -> int:
+        if channel_id not in channel_ids:
+            channel = channels[channel_id]
+            if channel.schema_id and channel.schema_id not in schema_ids:
+                schema = schemas[channel.schema_id]
+                schema_ids[channel.schema_id] = writer.register_schema(schema.name, schema.encoding, schema.data)
+            channel_ids[channel_id] = writer.register_channel(
+                channel.topic, channel.message_encoding, schema_ids.get(channel.schema_id, 0), dict(channel.metadata))
+        return channel_ids[channel_id]
+
+    def marker(event: str, message: Message, t_mono: int) -> None:
+        nonlocal marker_channel
+        if marker_channel is None:
+            existing = [cid for cid, c in channels.items() if c.topic == contract.PRIVACY_ZONE.name]
+            if existing:
+                marker_channel = out_channel(existing[0])
+            else:
+                topic = contract.PRIVACY_ZONE
+                schema_id = writer.register_schema(topic.schema_name, topic.schema_encoding, topic.schema_data())
+                marker_channel = writer.register_channel(topic.name, topic.encoding, schema_id)
+        payload = contract.encode_json({"t_mono_ns": t_mono, "event": event, "source": "redact"})
+        writer.add_message(marker_channel, log_time=message.log_time, data=payload,
+                           publish_time=message.publish_time)
+        report.messages_out += 1
+
+    for record in _records(data):
+        if isinstance(record, Header):
+            writer = Writer(target_stream, chunk_size=1024 * 1024, compression=CompressionType.ZSTD)
+            writer.start(profile=record.profile, library=record.library)
+        elif isinstance(record, Schema):
+            schemas[record.id] = record
+        elif isinstance(record, Channel):
+            channels[record.id] = record
+        elif isinstance(record, Message):
+            report.messages_in += 1
+            topic = channels[record.channel_id].topic
+            payload = record.data
+            if topic == contract.GPS_FIX.name:
+                t = int(json.loads(payload)["t_mono_ns"])
+                if t in starts:
+                    marker("entered", record, t)
+                if t in ends:
+                    marker("left", record, t)
+                if _in(stretches, t):
+                    report.fixes_removed += 1
+                    continue
+            elif topic == contract.GPS_NMEA.name and stretches:
+                batch = json.loads(payload)
+                keep = [(s, t) for s, t in zip(batch["sentences"], batch["t_mono_ns_each"]) if not _in(stretches, t)]
+                if len(keep) != len(batch["sentences"]):
+                    report.sentences_removed += len(batch["sentences"]) - len(keep)
+                    if not keep:
+                        continue
+                    payload = contract.encode_json({"t_mono_ns": keep[0][1], "sentences": [s for s, _ in keep],
+                                                    "t_mono_ns_each": [t for _, t in keep]})
+            elif topic == contract.TIME_SYNC.name and stretches:
+                sync = json.loads(payload)
+                if sync.get("gps_time_utc_ns") is not None and _in(stretches, int(sync["t_mono_ns"])):
+                    sync["gps_time_utc_ns"] = None
+                    payload = contract.encode_json(sync)
+                    report.gps_times_removed += 1
+            writer.add_message(out_channel(record.channel_id), log_time=record.log_time, data=payload,
+                               publish_time=record.publish_time, sequence=record.sequence)
+            report.messages_out += 1
+        elif isinstance(record, Metadata):
+            key = (record.name, tuple(sorted(record.metadata.items())))
+            if key not in seen_metadata and not in_summary:
+                seen_metadata.add(key)
+                writer.add_metadata(record.name, dict(record.metadata))
+        elif isinstance(record, Attachment):
+            key = (record.name, record.log_time, record.data)
+            if key not in seen_attachments:
+                seen_attachments.add(key)
+                writer.add_attachment(record.create_time, record.log_time, record.name, record.media_type,
+                                      record.data)
+        elif type(record).__name__ == "DataEnd":
+            in_summary = True
+    if writer is None:
+        raise UserError(f"{report.source}: not an MCAP log (no header)")
+    writer.finish()
+    return report
+
+
+def redact_files(inputs: list[Path], zones: list[Zone], out_dir: Path, read=None) -> list[RedactReport]:
+    """Redact each log into ``out_dir`` under its own name (``.age`` dropped: the copy is plain);
+    ``read(path) -> bytes`` opens a log (decrypting it where needed). A stretch that reaches the
+    end of one file is carried into the next (inputs in the order given)."""
+    read = read or (lambda p: Path(p).read_bytes())
+    make_dirs(out_dir)
+    resolved_inputs = {p.resolve() for p in inputs}
+    targets: dict[Path, Path] = {}
+    for path in inputs:
+        name = path.name[:-len(".age")] if path.name.endswith(".age") else path.name
+        target = out_dir / name
+        if target.resolve() in resolved_inputs or (target.exists() and os.path.samefile(target, path)):
+            raise UserError(f"--out {out_dir}: {target} would replace an input log; choose another directory")
+        if target in targets:
+            raise UserError(f"{path} and {targets[target]} would both be written to {target}; redact them apart")
+        targets[target] = path
+    reports, inside = [], False
+    for target, path in targets.items():
+        report = RedactReport(path, target)
+        partial = target.with_name(target.name + ".partial")
+        try:
+            with open_new(partial, exclusive=False) as stream:
+                redact_bytes(read(path), zones, stream, inside, report)
+                stream.flush()
+                os.fsync(stream.fileno())
+            os.replace(partial, target)
+        finally:
+            partial.unlink(missing_ok=True)
+        inside = report.ends_inside
+        reports.append(report)
+    return reports

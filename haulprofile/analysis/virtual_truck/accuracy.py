@@ -1,0 +1,190 @@
+"""The accuracy matrix's unit of work: one seeded virtual drive through the real analysis
+(MCAP log -> ingest -> kinematics -> gradient, then mass with each gradient), scored against the
+drive's truth (``tools/bench.py accuracy``, ``docs/estimation.md``).
+
+Gradient errors are taken at the log's samples against the true gradient at the same time, then
+averaged per 10 m bin of true distance, so a wrong distance scale (wheel speed) counts as the
+error it causes. Bins are grouped by what the road is there: ``outside`` (at grade or on an
+embankment), ``cutting``, ``bridge``, ``tunnel``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .truth import GRID_SPACING_M, truth_grid
+
+METHODS = {"fusion": "gradient_pct", "baro": "gradient_baro_pct", "map": "gradient_map_pct",
+           "smoother": "gradient_smooth_pct"}
+"""Method name -> gradient column. ``fusion`` is the paper's (8): the default run's
+``gradient_pct``, or the run with ``gradient_method="paper"`` where that exists; ``smoother`` is
+used when the gradient stage writes it (by default or with ``gradient_method="smoother"``)."""
+CATEGORIES = {"outside": ("at grade", "embankment"), "cutting": ("cutting",), "bridge": ("bridge",),
+              "tunnel": ("tunnel",)}
+MIN_BINS = 5
+MIN_SEGMENT_S = 120.0
+MASS_KEYS = ("mass_ls_kg", "mass_rls_kg", "mass_kg")
+MISMATCH = {"rolling_resistance_coefficient": 0.15, "drag_coefficient": 0.10}
+MISMATCH_ETA = 0.02
+
+
+@dataclass(frozen=True)
+class Case:
+    """One drive of the matrix: a shipped scenario cut to about ``length_m`` (0 = whole),
+    optionally with a ``stop_s`` stop added halfway along the first section of 3 km or more (a
+    trailer change place), at a realism level, with a DEM format (``hgt3``, ``hgt1``, ``geotiff``)."""
+
+    scenario: str
+    level: str
+    seed: int
+    length_m: float = 0.0
+    stop_s: float = 0.0
+    dem: str = "hgt3"
+
+    @property
+    def name(self) -> str:
+        return f"{self.scenario}/{self.level}/seed{self.seed}/{self.dem}"
+
+
+def case_scenario(case: Case):
+    """The shipped scenario, cut and with the added stop."""
+    from .scenario import load_scenario
+    scenario = load_scenario(case.scenario)
+    sections, total, added = [], 0.0, case.stop_s <= 0
+    for section in scenario.route.section:
+        if case.length_m and total >= case.length_m:
+            break
+        if case.length_m and total + section.length_m > case.length_m + 1000.0:
+            section = dataclasses.replace(section, length_m=max(case.length_m - total, 1000.0))
+        total += section.length_m
+        if not added and section.length_m >= 3000 and section.stop_s == 0:
+            half = section.length_m / 2
+            sections.append(dataclasses.replace(section, length_m=half, stop_s=case.stop_s))
+            section, added = dataclasses.replace(section, length_m=section.length_m - half), True
+        sections.append(section)
+    tunnels = tuple(t for t in scenario.tunnel if t.start_m + t.length_m <= total)
+    route = dataclasses.replace(scenario.route, section=tuple(sections))
+    return dataclasses.replace(scenario, route=route, tunnel=tunnels)
+
+
+def mismatched_vehicle(vehicle, rng: np.random.Generator):
+    """The vehicle as a datasheet would give it: c_r +-15 %, c_d +-10 %, eta +-0.02 (random signs)."""
+    changes = {name: getattr(vehicle, name) * (1 + rng.choice([-1, 1]) * share) for name, share in MISMATCH.items()}
+    changes["driveline_efficiency"] = vehicle.driveline_efficiency + rng.choice([-1, 1]) * MISMATCH_ETA
+    return dataclasses.replace(vehicle, **changes)
+
+
+def gradient_errors(signals, virtual, column: str) -> dict:
+    """RMSE [%-pt] of a gradient column per bin category (None where too few bins)."""
+    truth = virtual.truth
+    grid = truth_grid(virtual)
+    time_s = signals["time_s"].to_numpy(float)
+    distance = np.interp(time_s, truth["time_s"], truth["distance_m"])
+    speed = np.interp(time_s, truth["time_s"], truth["speed_mps"])
+    estimate = signals[column].to_numpy(float)
+    ok = np.isfinite(estimate) & (speed > 1.0)
+    index = np.floor(distance[ok] / GRID_SPACING_M).astype(int)
+    inside = index < len(grid)
+    index, values = index[inside], estimate[ok][inside]
+    count = np.bincount(index, minlength=len(grid))
+    total = np.bincount(index, weights=values, minlength=len(grid))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = total / count
+    error = mean - grid["gradient_pct"].to_numpy()
+    out = {}
+    for name, kinds in CATEGORIES.items():
+        pick = (count > 0) & np.isin(grid["structure"], kinds)
+        out[name] = float(np.sqrt(np.mean(error[pick] ** 2))) if pick.sum() >= MIN_BINS else None
+    return out
+
+
+def mass_errors(signals, truth, vehicle, column: str) -> dict:
+    """Relative errors of each confident segment's mass when the gradient is ``column``: LS and
+    RLS where the LS is ``ok``; ``mass_kg`` (the joint estimate, else LS) wherever it is given,
+    and in ``mass_kg_within_2_sigma`` whether the truth lies inside its stated ±2σ."""
+    from ..mass import estimate_mass
+    frame = signals.assign(gradient_pct=signals[column])
+    result = estimate_mass(frame, vehicle)
+    time_s, mass = truth["time_s"].to_numpy(), truth["mass_kg"].to_numpy()
+    out = {key: [] for key in MASS_KEYS} | {"mass_kg_within_2_sigma": []}
+    for segment in result.segments:
+        if segment["end_s"] - segment["start_s"] < MIN_SEGMENT_S:
+            continue
+        inside = (time_s >= segment["start_s"]) & (time_s <= segment["end_s"])
+        if not inside.any() or np.ptp(mass[inside]) > 0:
+            continue
+        true = mass[inside][0]
+        for key in MASS_KEYS:
+            confident = segment["status"] == "ok" if key != "mass_kg" else True
+            if confident and segment.get(key) is not None:
+                out[key].append(float(segment[key] / true - 1))
+        sigma = segment.get("mass_uncertainty_kg")
+        if segment.get("mass_kg") is not None and sigma is not None and np.isfinite(sigma):
+            out["mass_kg_within_2_sigma"].append(bool(abs(segment["mass_kg"] - true) <= 2 * sigma))
+    return out
+
+
+def _method_samples(signals, dem_dir: Path, method: str) -> dict | None:
+    """The gradient columns with ``GradientSettings(gradient_method=method)``, if the settings
+    offer that choice (the estimator of the issue "Estimation that holds on real terrain")."""
+    from ..dem import open_dem
+    from ..errors import UserError
+    from ..gradient import GradientSettings, estimate_gradient
+    if "gradient_method" not in {f.name for f in dataclasses.fields(GradientSettings)}:
+        return None
+    try:
+        settings = GradientSettings(gradient_method=method)
+        return estimate_gradient(signals, open_dem(dem_dir), settings).samples
+    except (TypeError, ValueError, UserError):
+        return None
+
+
+def _gradient_columns(signals, dem_dir: Path):
+    """The default run's columns, with the paper's fusion (8) as ``gradient_pct`` and the smoother's
+    ``gradient_smooth_pct`` added when the gradient stage can be asked for them by name."""
+    paper = _method_samples(signals, dem_dir, "paper")
+    if paper is not None and METHODS["fusion"] in paper:
+        signals = signals.assign(**{METHODS["fusion"]: paper[METHODS["fusion"]]})
+    if METHODS["smoother"] not in signals.columns:
+        smooth = _method_samples(signals, dem_dir, "smoother")
+        if smooth is not None and METHODS["smoother"] in smooth:
+            signals = signals.assign(**{METHODS["smoother"]: smooth[METHODS["smoother"]]})
+    return signals
+
+
+def run_case(case: Case) -> dict:
+    """Drive, log, analyse and score one case; a dict of plain values (for a process pool)."""
+    from ..pipeline import RunContext, run
+    from .dem import write_dem
+    from .mcap_log import write_mcap
+    from .truck import drive
+    scenario = case_scenario(case)
+    virtual = drive(scenario, seed=case.seed, realism=case.level)
+    with tempfile.TemporaryDirectory(prefix="haulprofile-accuracy-") as tmp:
+        root = Path(tmp)
+        fmt = "geotiff" if case.dem == "geotiff" else "hgt"
+        write_dem(virtual, root / "dem", arc_seconds=1 if case.dem == "hgt1" else 3, fmt=fmt)
+        write_mcap(virtual, root / "logs" / f"{scenario.name}.mcap")
+        ctx = RunContext(inputs=[root / "logs"], out_dir=root / "out", vehicle=virtual.vehicle,
+                         dem_dir=root / "dem", say=lambda _msg: None, figures=False)
+        run(ctx, until="gradient")
+        signals = _gradient_columns(ctx.signals, root / "dem")
+    methods = {name: column for name, column in METHODS.items() if column in signals.columns}
+    rng = np.random.default_rng(case.seed)
+    vehicles = {"exact": virtual.vehicle, "datasheet": mismatched_vehicle(virtual.vehicle, rng)}
+    grid = truth_grid(virtual)
+    return {
+        "case": dataclasses.asdict(case), "name": case.name,
+        "km": float(virtual.road.length_m / 1000), "minutes": float(virtual.duration_s / 60),
+        "structures_m": {kind: float((grid["structure"] == kind).sum() * GRID_SPACING_M)
+                         for kind in ("cutting", "embankment", "bridge", "tunnel")},
+        "gradient": {name: gradient_errors(signals, virtual, column) for name, column in methods.items()},
+        "mass": {kind: {name: mass_errors(signals, virtual.truth, vehicle, column) for name, column in methods.items()}
+                 for kind, vehicle in vehicles.items()},
+        "injected": {k: v for k, v in virtual.injected.items() if k != "realism"},
+    }

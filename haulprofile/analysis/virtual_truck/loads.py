@@ -1,0 +1,95 @@
+"""What the realistic levels add to the truck's physics: wind with gusts, a trailer change at a
+stop, a driveline whose efficiency depends on gear and load, and auxiliary loads (air compressor,
+cooling fan, PTO) that take engine torque without moving the truck."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .realism import Realism
+from .road import Road
+
+GUST_LENGTH_M = 150.0
+"""Gusts change over about this distance of travel."""
+
+
+def head_wind_mps(road: Road, level: Realism, rng: np.random.Generator) -> tuple[np.ndarray, dict]:
+    """Wind component against the direction of travel [m/s] on the road's 1 m grid: a mean wind
+    of random direction seen along the curving road, plus gusts (Gauss-Markov over distance)."""
+    if level.wind_mps <= 0 and level.wind_gust_mps <= 0:
+        return np.zeros(road.distance_m.shape), {}
+    speed = level.wind_mps * rng.uniform(0.5, 1.5)
+    towards = rng.uniform(0, 2 * np.pi)
+    heading = np.arctan2(np.gradient(road.north_m), np.gradient(road.east_m))
+    head = -speed * np.cos(towards - heading)
+    phi = np.exp(-(road.distance_m[1] - road.distance_m[0]) / GUST_LENGTH_M)
+    noise = rng.standard_normal(road.distance_m.size) * np.sqrt(1 - phi * phi)
+    gust = np.empty_like(noise)
+    state = rng.standard_normal()
+    for k in range(noise.size):  # ~1e5 steps, once per drive
+        state = phi * state + noise[k]
+        gust[k] = state
+    return head + level.wind_gust_mps * gust, {"wind_speed_mps": speed, "wind_towards_deg": float(np.degrees(towards)),
+                                               "wind_gust_sigma_mps": level.wind_gust_mps}
+
+
+def trailer_change(after_kg: np.ndarray, stop_duration_s: np.ndarray, curb_kg: float, max_payload_kg: float | None,
+                   rng: np.random.Generator) -> tuple[np.ndarray, dict]:
+    """Total mass after each stop with the trailer (or load) swapped at the longest stop before
+    the final one: the payload from there on changes by the difference to the new one."""
+    if len(after_kg) < 2:
+        return after_kg, {}
+    j = int(np.argmax(stop_duration_s[:-1]))
+    payload = after_kg[j] - curb_kg
+    limit = max_payload_kg if max_payload_kg is not None else max(2 * payload, 10_000.0)
+    new = rng.uniform(0.2, 0.95) * limit
+    out = after_kg.copy()
+    out[j:] = np.clip(out[j:] + new - payload, curb_kg, curb_kg + limit)
+    return out, {"trailer_change_stop": j + 1, "trailer_change_payload_kg": [float(payload), float(new)]}
+
+
+def _on_periods(rng, time_s: np.ndarray, per_hour: float, low_s: float, high_s: float) -> np.ndarray:
+    on = np.zeros(time_s.shape, bool)
+    duration = time_s[-1] - time_s[0]
+    for start in rng.uniform(time_s[0], time_s[-1], rng.poisson(per_hour * duration / 3600.0)):
+        on |= (time_s >= start) & (time_s < start + rng.uniform(low_s, high_s))
+    return on
+
+
+def engine_loads(states: pd.DataFrame, vehicle, level: Realism, rng: np.random.Generator) -> tuple[dict, dict]:
+    """Engine torque [Nm] the driveline and the auxiliaries really take, from the torque the
+    simulation needed at the gearbox input with the nominal efficiency: columns for the states
+    and the injected sizes."""
+    torque = states["engine_torque_nm"].to_numpy()
+    gear = states["gear"].to_numpy()
+    rpm = states["engine_speed_rpm"].to_numpy()
+    time_s = states["time_s"].to_numpy()
+    eta = vehicle.driveline_efficiency
+    top = len(vehicle.total_ratios)
+    ref = vehicle.engine_reference_torque_nm
+    engaged = gear > 0
+    eta_gear = np.where(engaged, eta + level.driveline_gear_spread * ((gear - 1) / max(top - 1, 1) - 0.5), eta)
+    factor = np.where(torque >= 0, eta / eta_gear, eta_gear / eta)
+    spin = np.where(engaged, level.driveline_spin_loss_pct / 100.0 * ref, 0.0)
+    driveline = np.where(engaged, torque * factor + spin, torque)
+    omega = np.maximum(rpm, 1.0) * np.pi / 30.0
+    compressor = _on_periods(rng, time_s, 12.0, 15.0, 60.0) * level.aux_compressor_kw * 1000.0
+    hot = pd.Series(torque > 0.6 * ref).rolling(6000, min_periods=1).mean().to_numpy() > 0.5
+    fan = (hot | _on_periods(rng, time_s, 2.0, 60.0, 180.0)) * level.aux_fan_kw * 1000.0 * (rpm / 1800.0) ** 3
+    standing = states["stop"].to_numpy()
+    pto = np.zeros(time_s.shape)
+    if level.aux_pto_kw > 0:
+        edges = np.diff(np.concatenate([[0], standing.astype(np.int8), [0]]))
+        for start, end in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+            if time_s[end - 1] - time_s[start] >= 120.0 and start > 0:
+                middle = slice(start + (end - start) // 4, start + 3 * (end - start) // 4)
+                pto[middle] = level.aux_pto_kw * 1000.0
+    aux = (compressor + fan + pto) / omega
+    columns = {"engine_torque_nm": driveline + aux, "wheel_engine_torque_nm": torque, "aux_torque_nm": aux,
+               "driveline_efficiency": eta_gear}
+    sizes = {"aux_compressor_on_share": float(np.mean(compressor > 0)), "aux_fan_on_share": float(np.mean(fan > 0)),
+             "aux_pto_on_s": float(np.sum(pto > 0) * (time_s[1] - time_s[0])),
+             "driveline_gear_spread": level.driveline_gear_spread,
+             "driveline_spin_loss_nm": level.driveline_spin_loss_pct / 100.0 * ref}
+    return columns, sizes

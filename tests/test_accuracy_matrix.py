@@ -1,0 +1,69 @@
+"""The accuracy matrix's drives through the real analysis, with loose floors so that a broken
+estimator or a broken virtual world shows (the full matrix: ``python tools/bench.py accuracy``)."""
+
+import numpy as np
+import pytest
+
+from haulprofile.analysis.virtual_truck.accuracy import Case, case_scenario, run_case
+
+
+@pytest.fixture(scope="module")
+def ideal():
+    return run_case(Case("urban-delivery", "ideal", 0, 5000.0))
+
+
+@pytest.fixture(scope="module")
+def typical():
+    return run_case(Case("long-haul", "typical", 0, 12000.0, 300.0))
+
+
+def test_a_case_is_the_shipped_scenario_cut_with_a_stop_added():
+    scenario = case_scenario(Case("long-haul", "typical", 0, 8000.0, 300.0))
+    lengths = [s.length_m for s in scenario.route.section]
+    assert 7000.0 <= sum(lengths) <= 9000.0
+    assert [s.stop_s for s in scenario.route.section].count(300.0) == 1
+
+
+def test_ideal_drive_meets_the_old_worlds_figures(ideal):
+    gradient = ideal["gradient"]
+    assert gradient["fusion"]["outside"] < 0.3 and gradient["baro"]["outside"] < 0.15
+    assert gradient["map"]["outside"] < 0.5
+    errors = np.abs(ideal["mass"]["exact"]["fusion"]["mass_ls_kg"])
+    assert len(errors) >= 1 and np.median(errors) < 0.03
+
+
+def test_typical_drive_is_harder_but_not_broken(ideal, typical):
+    gradient = typical["gradient"]
+    assert typical["injected"]["trailer_change_stop"] == 1
+    assert gradient["baro"]["outside"] < 0.8 and gradient["fusion"]["outside"] < 2.0
+    assert gradient["map"]["outside"] < 3.0
+    assert gradient["map"]["outside"] > ideal["gradient"]["map"]["outside"], "the DEM is terrain, not road"
+    found = [abs(e) for e in typical["mass"]["exact"]["baro"]["mass_ls_kg"]]
+    assert found and np.median(found) < 0.2
+    assert "smoother" not in gradient or gradient["smoother"]["outside"] < 2.0
+
+
+def test_the_new_estimator_is_used_when_the_gradient_stage_offers_it(monkeypatch, tmp_path):
+    import dataclasses
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from haulprofile.analysis import dem, gradient
+    from haulprofile.analysis.virtual_truck import accuracy
+
+    @dataclasses.dataclass(frozen=True)
+    class Settings:
+        gradient_method: str = "smoother"
+
+    def estimate(signals, _dem, settings):
+        column = {"paper": "gradient_pct", "smoother": "gradient_smooth_pct"}[settings.gradient_method]
+        return SimpleNamespace(samples={column: np.full(len(signals), 1.0 if column == "gradient_pct" else 2.0)})
+
+    signals = pd.DataFrame({"time_s": [0.0, 0.1], "gradient_pct": [5.0, 5.0]})
+    assert list(accuracy._gradient_columns(signals, tmp_path).columns) == ["time_s", "gradient_pct"]
+    monkeypatch.setattr(gradient, "GradientSettings", Settings)
+    monkeypatch.setattr(gradient, "estimate_gradient", estimate)
+    monkeypatch.setattr(dem, "open_dem", lambda _directory: None)
+    out = accuracy._gradient_columns(signals, tmp_path)
+    assert list(out["gradient_pct"]) == [1.0, 1.0] and list(out["gradient_smooth_pct"]) == [2.0, 2.0]

@@ -1,0 +1,119 @@
+"""The Kalman smoother over distance: kernel equal to its reference, and on an imperfect world
+(DEM with correlated error and a bridge, barometric drift, IMU pitch and bias) better than the
+barometer alone and the paper's fusion (8); graceful without each source."""
+
+import numpy as np
+import pytest
+
+from imperfect_world import ErroneousDem, Imperfections, imperfect_signals, on_grid
+from test_gradient_virtual_truck import virtual_drive_data
+
+from haulprofile.analysis.errors import UserError
+from haulprofile.analysis.gradient import GradientSettings, estimate_gradient, kalman
+
+virtual_truck = pytest.importorskip("haulprofile.analysis.virtual_truck")
+
+IMPERFECTIONS = Imperfections()
+
+
+def _random_problem(n=400, seed=0):
+    rng = np.random.default_rng(seed)
+    s = np.arange(n) * 10.0
+    h = 300 + 20 * np.sin(s / 700)
+    gamma = 20 / 700 * np.cos(s / 700)
+    z = np.column_stack([h + 4 + rng.normal(0, 0.1, n), h + rng.normal(0, 3, n),
+                         9.81 * gamma / np.sqrt(1 + gamma ** 2) + 0.2 + rng.normal(0, 0.05, n), h + rng.normal(0, 5, n)])
+    z[rng.random((n, 4)) < 0.2] = np.nan
+    r = np.column_stack([np.full(n, 0.01), np.full(n, 9.0), np.full(n, 0.0025), np.full(n, 25.0)])
+    dt = rng.uniform(0.4, 2.0, n)
+    params = np.array([10.0, 1e-7, 1e-8, 1e-8, 5.0, 300.0, 9.81])
+    x0 = np.array([z[np.isfinite(z[:, 1]), 1][0], 0, 0, 0, 0, 0])
+    p0 = np.diag([1e4, 0.01, 1e4, 1e-4, 0.25, 25.0])
+    return (z, r, dt, params, x0, p0), gamma
+
+
+def test_kernel_equals_reference_and_recovers_the_gradient():
+    args, gamma = _random_problem()
+    fast = kalman.smooth(*args)
+    slow = kalman.smooth_reference(*args)
+    for a, b in zip(fast, slow):
+        np.testing.assert_allclose(a, b, rtol=1e-7, atol=1e-9)
+    forward = kalman.smooth(*args, False)
+    np.testing.assert_allclose(forward[0][-1], fast[0][-1], rtol=1e-9)  # RTS starts at the last filtered state
+    np.testing.assert_array_equal(forward[2], fast[2])
+    x, p = fast[0], fast[1]
+    assert np.sqrt(np.mean((x[:, kalman.GAMMA] - gamma) ** 2)) < 0.002
+    assert abs(np.median(x[:, kalman.BIAS]) - 0.2) < 0.02
+    assert np.all(p[:, kalman.GAMMA, kalman.GAMMA] > 0)
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory):
+    signals, truth, dem = virtual_drive_data("regional-tunnel", tmp_path_factory)
+    return imperfect_signals(signals, IMPERFECTIONS), truth, ErroneousDem(dem, truth, IMPERFECTIONS)
+
+
+def _rmse(grid, truth, column, mask):
+    error = grid[column].to_numpy() - on_grid(grid, truth, "gradient_pct")
+    return float(np.sqrt(np.nanmean(error[mask] ** 2)))
+
+
+def test_smoother_beats_barometer_and_paper_fusion_on_an_imperfect_world(world):
+    signals, truth, dem = world
+    result = estimate_gradient(signals, dem)
+    grid = result.grid
+    s = grid["distance_m"].to_numpy()
+    bridge = np.abs(s - IMPERFECTIONS.bridge_at_m) < IMPERFECTIONS.bridge_length_m / 2
+    tunnel = on_grid(grid, truth, "in_tunnel") > 0.5
+    rmse = {where: {c: _rmse(grid, truth, c, mask) for c in ("gradient_smooth_pct", "gradient_baro_pct",
+                                                             "gradient_paper_pct")}
+            for where, mask in (("outside", ~bridge & ~tunnel), ("bridge", bridge), ("tunnel", tunnel))}
+    print(rmse, result.smoother)
+    np.testing.assert_array_equal(grid["gradient_pct"], grid["gradient_smooth_pct"])
+    for where, scores in rmse.items():
+        assert scores["gradient_smooth_pct"] < scores["gradient_baro_pct"], (where, scores)
+        assert scores["gradient_smooth_pct"] < scores["gradient_paper_pct"], (where, scores)
+        assert scores["gradient_smooth_pct"] <= 0.12, (where, scores)
+    assert grid["map_gated"].to_numpy()[bridge].all()
+    assert grid["map_gated"].mean() < 0.15
+    injected_bias = 9.81 * np.sin(np.radians(IMPERFECTIONS.imu_pitch_deg)) + IMPERFECTIONS.imu_bias_mps2
+    clean = estimate_gradient(virtual_drive_data("regional-tunnel", None)[0], None).smoother["imu_bias_mps2"]
+    assert abs(result.smoother["imu_bias_mps2"] - clean - injected_bias) < 0.02
+    weights = grid[[f"weight_smooth_{n}" for n in ("baro", "map", "imu", "gps")]].to_numpy()
+    np.testing.assert_allclose(weights.sum(axis=1), 1.0, atol=1e-9)
+    assert np.all(grid["weight_smooth_map"].to_numpy()[bridge] < 0.02)  # only from beyond the gated stretch
+
+
+@pytest.mark.parametrize("drop, note", [
+    (["accel_x_mps2"], "no IMU"),
+    (["pressure_pa"], "no pressure_pa"),
+    (["gps_altitude_m"], "no GPS altitude"),
+])
+def test_each_missing_source_degrades_gracefully_and_says_so(world, drop, note):
+    signals, truth, dem = world
+    result = estimate_gradient(signals.drop(columns=drop), dem)
+    assert any(note in n for n in result.notes), result.notes
+    grid = result.grid
+    assert np.isfinite(grid["gradient_pct"]).all()
+    tunnel = on_grid(grid, truth, "in_tunnel") > 0.5
+    assert _rmse(grid, truth, "gradient_pct", ~tunnel) < (0.3 if drop == ["pressure_pa"] else 0.08)
+
+
+def test_without_dem_and_with_gps_outages(world):
+    signals, truth, _ = world
+    broken = signals.copy()
+    n = len(broken)
+    broken.loc[n // 3: n // 3 + 3000, ["latitude_deg", "longitude_deg", "gps_altitude_m", "gps_v_acc_m"]] = np.nan
+    result = estimate_gradient(broken, None)
+    assert any("no DEM" in note for note in result.notes)
+    assert any("outages" in note for note in result.notes)
+    assert _rmse(result.grid, truth, "gradient_pct", np.ones(len(result.grid), bool)) < 0.12
+
+
+def test_paper_method_is_selectable_and_a_bad_method_is_a_user_error(world):
+    signals, _, dem = world
+    grid = estimate_gradient(signals, dem, GradientSettings(gradient_method="paper")).grid
+    np.testing.assert_array_equal(grid["gradient_pct"], grid["gradient_paper_pct"])
+    assert "gradient_smooth_pct" in grid
+    with pytest.raises(UserError, match="unknown method"):
+        estimate_gradient(signals, dem, GradientSettings(gradient_method="kalman"))

@@ -1,0 +1,144 @@
+"""Joint mass and road load: per-segment masses with shared c_r and c_d·A, robust to samples whose
+force balance is broken, 'not identifiable' without excitation, torque-gain calibration from one
+weighing; and on the imperfect world of a virtual-truck drive, the accelerometer-based mass."""
+
+import numpy as np
+import pytest
+
+from haulprofile.analysis.errors import UserError
+from haulprofile.analysis.mass.calibration import calibrate, parse_known_masses
+from haulprofile.analysis.mass.joint import JointSettings, fit_joint
+from haulprofile.analysis.road_load import G_MPS2
+from haulprofile.analysis.vehicle import load_vehicle
+
+VEHICLE = load_vehicle("rigid-18t")
+C_R, CDA = 0.0072, 5.6
+MASSES = (16_000.0, 11_000.0, 18_500.0)
+
+
+def _drive(seed=0, n_per=6000, dynamic=True, gain=1.0, aux_fraction=0.1):
+    """10 Hz samples of three segments: speed and gradient varying (or not), force from (1) with
+    noise, and auxiliary-load blocks that take force without moving the truck."""
+    rng = np.random.default_rng(seed)
+    n = n_per * len(MASSES)
+    time_s = np.arange(n) * 0.1
+    if dynamic:
+        speed = 15 + 7 * np.sin(time_s / 60) + 3 * np.sin(time_s / 17)
+        accel = np.gradient(speed, time_s)
+        angle = np.arctan(0.03 * np.sin(time_s / 45) + 0.01 * np.sin(time_s / 11))
+    else:
+        speed, accel, angle = np.full(n, 22.0), np.zeros(n), np.full(n, 0.01)
+    mass = np.repeat(MASSES, n_per)
+    excess = accel + G_MPS2 * np.sin(angle)
+    aero = 0.6 * speed ** 2
+    force = mass * (excess + G_MPS2 * C_R * np.cos(angle)) + CDA * aero
+    aux = np.zeros(n)
+    starts = rng.choice(n - 200, int(aux_fraction * n / 200), replace=False)
+    for start in starts:
+        aux[start:start + 200] = 5000.0  # a compressor's ~8 kW through a low gear
+    force = gain * (force + aux) + rng.normal(0, 600, n)
+    bounds = [(j * n_per, (j + 1) * n_per) for j in range(len(MASSES))]
+    usable = excess + G_MPS2 * C_R > 0.05
+    return force, excess + rng.normal(0, 0.01, n), np.cos(angle), aero, time_s, bounds, usable
+
+
+def test_joint_fit_recovers_masses_and_road_load_despite_auxiliary_loads():
+    force, excess, cos_angle, aero, time_s, bounds, usable = _drive()
+    fit = fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE)
+    errors = np.abs(fit.masses_kg / np.array(MASSES) - 1)
+    print(errors, fit.coefficients, fit.coefficient_std, fit.outliers)
+    assert errors.max() < 0.015
+    assert fit.identified == {"rolling_resistance_coefficient": True, "drag_area_m2": True}
+    for name, true in (("rolling_resistance_coefficient", C_R), ("drag_area_m2", CDA)):
+        assert abs(fit.coefficients[name] / true - 1) < 0.06, name
+    assert fit.outliers > 0.5 * 0.1 * len(force) * usable.mean()
+    plain = fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE, JointSettings(robust_tuning=1e9))
+    assert np.abs(plain.masses_kg / np.array(MASSES) - 1).max() > 2 * errors.max()
+
+
+def test_steady_flat_drive_cannot_identify_road_load_and_says_so():
+    force, excess, cos_angle, aero, time_s, bounds, usable = _drive(dynamic=False, aux_fraction=0.0)
+    fit = fit_joint(force, excess + 0.3, cos_angle, aero, time_s, bounds, np.ones(len(force), bool), VEHICLE)
+    assert not fit.identified["rolling_resistance_coefficient"] or not fit.identified["drag_area_m2"]
+    assert any("not identifiable" in reason for reason in fit.reasons.values())
+
+
+def test_one_weighing_calibrates_the_torque_gain_for_every_segment():
+    force, excess, cos_angle, aero, time_s, bounds, usable = _drive(gain=1.03, aux_fraction=0.0)
+    fit = fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE)
+    raw = fit.masses_kg / np.array(MASSES) - 1
+    assert np.all(raw > 0.02)
+    uncalibrated, sigma, gain = calibrate(fit.masses_kg, fit.mass_std_kg, fit.sensitivity_kg, {}, 0.036)
+    assert gain["calibrated_from"] is None and np.all(np.abs(uncalibrated - MASSES) < 2 * sigma)
+    corrected, sigma, gain = calibrate(fit.masses_kg, fit.mass_std_kg, fit.sensitivity_kg, {0: MASSES[0]}, 0.036)
+    assert abs(gain["gain"] - 1.03) < 0.01
+    assert corrected[0] == MASSES[0] and sigma[0] == 0
+    assert np.all(np.abs(corrected[1:] / np.array(MASSES[1:]) - 1) < 0.01)
+
+
+
+@pytest.mark.parametrize("items, expected", [(["2=18400"], {1: 18400.0}), (["15000"], {0: 15000.0}),
+                                             (None, {})])
+def test_known_mass_arguments(items, expected):
+    assert parse_known_masses(items) == expected
+
+
+@pytest.mark.parametrize("item", ["x=1", "0=15000", "1=-3", "heavy"])
+def test_bad_known_mass_is_a_user_error(item):
+    with pytest.raises(UserError, match="--known-mass"):
+        parse_known_masses([item])
+
+
+@pytest.fixture(scope="module")
+def imperfect_drive(tmp_path_factory):
+    pytest.importorskip("haulprofile.analysis.virtual_truck")
+    from imperfect_world import ErroneousDem, Imperfections, imperfect_signals, mismatched_vehicle
+    from test_gradient_virtual_truck import virtual_drive_data
+
+    from haulprofile.analysis import virtual_truck
+    from haulprofile.analysis.gradient import estimate_gradient
+    signals, truth, dem = virtual_drive_data("regional-tunnel", tmp_path_factory)
+    imperfections = Imperfections()
+    signals = imperfect_signals(signals, imperfections)
+    signals = signals.assign(**estimate_gradient(signals, ErroneousDem(dem, truth, imperfections)).samples)
+    vehicle = mismatched_vehicle(virtual_truck.scenario_vehicle(virtual_truck.load_scenario("regional-tunnel")),
+                                 imperfections)
+    return signals, truth, vehicle
+
+
+def _true_masses(result, truth):
+    time_s, mass = truth["time_s"].to_numpy(), truth["mass_kg"].to_numpy()
+    return np.array([mass[(time_s >= s["start_s"]) & (time_s <= s["end_s"])][0] for s in result.segments])
+
+
+def test_accelerometer_mass_on_an_imperfect_world_with_and_without_a_weighing(imperfect_drive):
+    from haulprofile.analysis.mass import estimate_mass
+    signals, truth, vehicle = imperfect_drive
+    result = estimate_mass(signals, vehicle)
+    true = _true_masses(result, truth)
+    masses = np.array([s["mass_kg"] for s in result.segments])
+    sigma = np.array([s["mass_uncertainty_kg"] for s in result.segments])
+    print("uncalibrated", masses / true - 1, sigma / true, result.road_load)
+    assert all(s["mass_regressor"] == "imu" and s["mass_joint_status"] == "ok" for s in result.segments)
+    assert np.all(np.abs(masses - true) < 2 * sigma)  # the torque-gain ambiguity is in the uncertainty
+    assert result.road_load["rolling_resistance_coefficient"]["identified"]
+    assert any("--known-mass" in note for note in result.notes)
+    calibrated = estimate_mass(signals, vehicle, known_masses={0: float(true[0])})
+    masses = np.array([s["mass_kg"] for s in calibrated.segments])
+    print("calibrated", masses / true - 1, calibrated.road_load["torque_gain"])
+    assert abs(calibrated.road_load["torque_gain"]["gain"] - 1.03) < 0.015
+    assert np.all(np.abs(masses / true - 1) <= 0.01)
+    # the old regressor with the datasheet c_r and the raw torque is off by more
+    ls = np.array([s["mass_ls_kg"] for s in result.segments])
+    assert np.max(np.abs(ls / true - 1)) > 2 * np.max(np.abs(masses / true - 1))
+
+
+def test_without_an_imu_the_gradient_regressor_is_the_fallback(imperfect_drive):
+    from haulprofile.analysis.mass import estimate_mass
+    signals, truth, vehicle = imperfect_drive
+    result = estimate_mass(signals.drop(columns=["accel_x_mps2"]), vehicle)
+    assert any("gradient-based regressor" in note for note in result.notes)
+    assert all(s["mass_regressor"] == "gradient" and s.get("mass_imu_kg") is None for s in result.segments)
+    true = _true_masses(result, truth)
+    masses = np.array([s["mass_kg"] for s in result.segments])
+    assert np.all(np.abs(masses / true - 1) < 0.06)
