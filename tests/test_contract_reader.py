@@ -168,3 +168,31 @@ def test_record_struct_is_the_dtype():
     assert len(contract.unpack(contract.CAN_FRAMES, packed[:-1], whole_only=True)) == 2
     imu = contract.record_struct(contract.IMU)
     assert imu.size == contract.IMU_SAMPLE_DTYPE.itemsize and imu.format == "<Q3h3h"
+
+
+def test_metadata_and_attachments_are_read_and_a_damaged_attachment_is_not_believed():
+    from mcap.writer import CompressionType, Writer
+
+    from haulprofile.contract.reader import ReadReport, read_messages
+
+    stream = io.BytesIO()
+    writer = Writer(stream, chunk_size=1024, compression=CompressionType.ZSTD)
+    writer.start(profile="haulprofile", library="test-writer")
+    channel = writer.register_channel("/diagnostics", "json", 0)
+    writer.add_message(channel, log_time=1, data=b"{}", publish_time=1)
+    writer.add_metadata("haulprofile.logger", {"boot_id": "b1"})
+    writer.add_attachment(create_time=5, log_time=6, name="note.txt", media_type="text/plain", data=b"payload")
+    writer.finish()
+    data = stream.getvalue()
+    report = ReadReport("<buffer>")
+    assert len(list(read_messages(data, report))) == 1
+    assert (report.profile, report.library) == ("haulprofile", "test-writer")
+    assert report.metadata == [("haulprofile.logger", {"boot_id": "b1"})]
+    assert [(a.name, a.media_type, a.create_time_ns, a.log_time_ns, a.data) for a in report.attachments] == [
+        ("note.txt", "text/plain", 5, 6, b"payload")]
+    flipped = bytearray(data)
+    at = data.index(b"payload")
+    flipped[at] ^= 0xFF
+    damaged = ReadReport("<buffer>")
+    assert len(list(read_messages(bytes(flipped), damaged))) == 1
+    assert damaged.attachments == [] and damaged.skipped_bytes > 0 and damaged.warning()

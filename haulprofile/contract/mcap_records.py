@@ -17,7 +17,7 @@ except ImportError:
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
-OP_CHUNK_INDEX, OP_METADATA, OP_DATA_END = 0x08, 0x0C, 0x0F
+OP_CHUNK_INDEX, OP_ATTACHMENT, OP_METADATA, OP_DATA_END = 0x08, 0x09, 0x0C, 0x0F
 _VALID_OPS = set(range(0x01, 0x10))
 _U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
 _RECORD_HEAD = struct.Struct("<BQ")
@@ -46,6 +46,14 @@ class Channel:
     metadata: dict
 
 
+class Attachment(NamedTuple):
+    log_time_ns: int
+    create_time_ns: int
+    name: str
+    media_type: str
+    data: bytes
+
+
 @dataclass
 class ReadReport:
     """What a read found in one file [bytes, counts]."""
@@ -66,6 +74,8 @@ class ReadReport:
     library: str = ""
     metadata: list[tuple[str, dict[str, str]]] = field(default_factory=list)
     """The metadata records read (name, map), in file order."""
+    attachments: list[Attachment] = field(default_factory=list)
+    """The attachments whose CRC holds, in file order."""
     problems: list[str] = field(default_factory=list)
 
     def warning(self) -> str | None:
@@ -128,6 +138,21 @@ def _string_map(body, pos: int) -> tuple[dict[str, str], int]:
 def parse_metadata(body) -> tuple[str, dict[str, str]]:
     name, pos = _string(body, 0)
     return name, _string_map(body, pos)[0]
+
+
+def parse_attachment(body) -> Attachment:
+    """An attachment record's fields; `DamagedRecord` when its CRC (if set) does not hold."""
+    log_time, create_time = struct.unpack_from("<QQ", body, 0)
+    name, pos = _string(body, 16)
+    media_type, pos = _string(body, pos)
+    (n,) = _U64.unpack_from(body, pos)
+    end = pos + 8 + n
+    if end + 4 > len(body):
+        raise DamagedRecord("attachment data beyond record")
+    (crc,) = _U32.unpack_from(body, end)
+    if crc and crc32(bytes(body[:end])) != crc:
+        raise DamagedRecord("attachment CRC")
+    return Attachment(log_time, create_time, name, media_type, bytes(body[pos + 8:end]))
 
 
 def parse_header(body) -> tuple[str, str]:

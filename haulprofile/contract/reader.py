@@ -37,9 +37,10 @@ import numpy as np
 from . import Topic
 from . import chunk_walk
 from .mcap_records import (_LZ4_MARK, _MARK_AT, _RECORD_HEAD, _U64, _VALID_OPS, _ZSTD_MARK, MAGIC, OP_CHANNEL,
-                           OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER, OP_HEADER, OP_MESSAGE, OP_METADATA, OP_SCHEMA, Channel,
+                           OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER, OP_HEADER, OP_MESSAGE, OP_METADATA, OP_SCHEMA,
+                           OP_ATTACHMENT, Channel,
                            DamagedRecord, RawMessage, ReadReport, _decompress, _parse_channel, _parse_schema,
-                           _summary_crc_ok, _tiles, header_profile, parse_header, parse_metadata)
+                           _summary_crc_ok, _tiles, header_profile, parse_attachment, parse_header, parse_metadata)
 from .window import PACKED_TOPICS, Window, _Part
 
 RELEASE_BYTES = 64 << 20
@@ -360,9 +361,12 @@ def _walk(buf, scanner: _Scanner, report: ReadReport, channels: _Channels, use_n
                 report.profile, report.library = parse_header(buf[pos + 9:end])
             except (DamagedRecord, struct.error, UnicodeDecodeError):
                 pass
-        elif opcode == OP_METADATA:
+        elif opcode in (OP_METADATA, OP_ATTACHMENT):
             try:
-                report.metadata.append(parse_metadata(buf[pos + 9:end]))
+                if opcode == OP_METADATA:
+                    report.metadata.append(parse_metadata(buf[pos + 9:end]))
+                else:
+                    report.attachments.append(parse_attachment(buf[pos + 9:end]))
             except (DamagedRecord, struct.error, UnicodeDecodeError):
                 report.skipped_bytes += end - pos
         elif opcode == OP_DATA_END:
