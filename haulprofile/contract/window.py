@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Iterator, NamedTuple
+from typing import Iterator, NamedTuple
 
 import numpy as np
 
 from . import CAN_FRAMES, IMU, Topic, unpack
 from . import chunk_walk
 from .mcap_records import Channel, RawMessage
-
-if TYPE_CHECKING:
-    from .reader import _Records
 
 PACKED_TOPICS: dict[str, Topic] = {CAN_FRAMES.name: CAN_FRAMES, IMU.name: IMU}
 """Topics whose records are scattered into arrays (by topic name, whatever the channel says)."""
@@ -20,7 +17,8 @@ PACKED_TOPICS: dict[str, Topic] = {CAN_FRAMES.name: CAN_FRAMES, IMU.name: IMU}
 class _Part(NamedTuple):
     """Messages of one `_Records` (rows, in order) that belong to one batch."""
 
-    records: _Records
+    records: object
+    """The reader's `_Records` (not imported here: the reader imports this module)."""
     rows: np.ndarray
 
 
