@@ -9,7 +9,7 @@ from mcap.reader import make_reader
 from haulprofile.analysis.errors import UserError
 from haulprofile.analysis.ingest import ingest_logs, iter_log_messages, read_frames, read_logs
 from haulprofile.testing import logs as synthetic
-from haulprofile.analysis.ingest.mcap_read import ReadReport, read_file
+from haulprofile.contract.reader import ReadReport, read_messages
 from haulprofile.analysis.ingest.recover import recover
 from haulprofile import contract
 from haulprofile.contract import j1939
@@ -161,7 +161,7 @@ def test_cut_log_is_read_to_its_last_chunk_and_recovered(log, tmp_path):
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(data[: len(data) * 2 // 3])
     report = ReadReport(str(cut))
-    recovered = list(read_file(cut, report))
+    recovered = list(read_messages(cut, report))
     with open(cut, "rb") as stream:
         try:
             seeking = list(make_reader(stream).iter_messages())
@@ -257,3 +257,27 @@ def test_a_short_silence_is_bridged_a_long_one_stays_a_gap():
     recorded = acc.recorded(first, n)
     assert recorded[20:25].all()
     assert not recorded[40:60].any()
+
+
+def test_blocks_end_where_message_by_message_pending_would_flush():
+    """`table._blocks` cuts a window's records exactly where appending message after message and
+    flushing at `block` records did (so block sums, hence the table, stay bit-identical)."""
+    from haulprofile.analysis.ingest.table import _blocks
+
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        counts = rng.integers(0, 40, int(rng.integers(1, 60)))
+        records = np.arange(int(counts.sum()))
+        held, block = int(rng.integers(0, 100)), int(rng.integers(1, 100))
+        expected, pending, position = [], held, 0  # the old rule, message by message
+        for n in counts.tolist():
+            pending += n
+            position += n
+            if pending >= block:
+                expected.append(position)
+                pending = 0
+        pieces = list(_blocks(counts, records, held, block))
+        ends = np.cumsum([len(piece) for piece in pieces]).tolist()
+        assert np.array_equal(np.concatenate(pieces) if pieces else records[:0], records)
+        assert ends[:len(expected)] == expected and len(ends) - len(expected) in (0, 1)
+        assert len(ends) == len(expected) or ends[-1] not in expected

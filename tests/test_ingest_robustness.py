@@ -15,7 +15,7 @@ from mcap.data_stream import ReadDataStream
 from haulprofile.analysis.errors import UserError
 from haulprofile.analysis.ingest import ingest_logs
 from haulprofile.testing import logs as synthetic
-from haulprofile.analysis.ingest.mcap_read import ReadReport, read_buffer
+from haulprofile.contract.reader import ReadReport, read_messages
 
 ITERATIONS = 1000
 
@@ -82,7 +82,7 @@ def test_random_cuts_and_flips(original):
         damaged, cut, flips = _damage(data, rng)
         report = ReadReport(f"damaged-{iteration}")
         recovered = {}
-        for message in read_buffer(damaged, report):
+        for message in read_messages(damaged, report):
             key = (message.channel.topic, message.sequence)
             assert messages.get(key) == message.data, "a recovered message must be byte-identical"
             recovered[key] = message.data
@@ -120,7 +120,7 @@ def test_a_chunk_whose_size_field_is_damaged_is_skipped(original, top_byte):
     damaged = bytearray(data)
     damaged[size_msb] ^= top_byte
     report = ReadReport("size-flip")
-    recovered = {(m.channel.topic, m.sequence) for m in read_buffer(bytes(damaged), report)}
+    recovered = {(m.channel.topic, m.sequence) for m in read_messages(bytes(damaged), report)}
     assert recovered == set(messages) - set(keys)
     assert report.warning() is not None
 
@@ -141,7 +141,7 @@ def test_a_damaged_summary_never_names_the_messages(original):
     start, end, first_keys = chunks[0]
     damaged[(start + end) // 2] ^= 0xFF
     report = ReadReport("summary-damaged")
-    recovered = list(read_buffer(bytes(damaged), report))
+    recovered = list(read_messages(bytes(damaged), report))
     topics = {topic for topic, _ in messages}
     assert {m.channel.topic for m in recovered} <= topics
     assert all(messages[(m.channel.topic, m.sequence)] == m.data for m in recovered)
@@ -156,7 +156,7 @@ def test_a_chunk_whose_opcode_was_flipped_is_still_the_chunk(original, opcode):
     damaged = bytearray(data)
     damaged[start] = opcode
     report = ReadReport("opcode-flip")
-    recovered = {(m.channel.topic, m.sequence): m.data for m in read_buffer(bytes(damaged), report)}
+    recovered = {(m.channel.topic, m.sequence): m.data for m in read_messages(bytes(damaged), report)}
     assert recovered == messages
 
 
@@ -171,5 +171,5 @@ def test_a_message_index_flipped_into_a_message_or_footer_is_not_believed(origin
     for offset in index.message_index_offsets.values():
         damaged[offset] = opcode
     report = ReadReport("index-flip")
-    recovered = {(m.channel.topic, m.sequence): m.data for m in read_buffer(bytes(damaged), report)}
+    recovered = {(m.channel.topic, m.sequence): m.data for m in read_messages(bytes(damaged), report)}
     assert recovered == messages

@@ -6,7 +6,7 @@ from haulprofile.logger import cli
 from haulprofile.logger.config import Config
 from haulprofile.logger.emulators.rig import record_drive
 from haulprofile.logger.emulators.signals import synthetic_drive
-from haulprofile.logger.readback import last_diagnostics
+from haulprofile.logger.status import last_diagnostics
 
 
 def test_status_of_a_log_directory(tmp_path, capsys):

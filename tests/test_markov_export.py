@@ -2,6 +2,7 @@
 and ``analyze cycle``."""
 
 import json
+import re
 
 import numpy as np
 import pandas as pd
@@ -126,7 +127,7 @@ def test_stage_writes_the_cycle_and_its_summary(drive, tmp_path):
     assert set(summary) >= {"score", "valid", "criteria", "failed", "n_valid"}
     assert all({"deviation", "allowance"} <= set(c) for c in summary["criteria"].values())
     json.dumps(summary)
-    assert "cycle:" in messages[-1]
+    assert "cycle:" in messages[-2] and re.fullmatch(r"\[cycle\] \d+\.\d s", messages[-1])  # then its time
 
 
 def test_stage_without_mass_says_so_and_writes_nothing(drive, tmp_path):

@@ -152,3 +152,18 @@ def test_bad_zone_files_are_one_line_errors(recorded, tmp_path, capsys, text, me
     assert main(["redact", str(path), "--zones", str(zones), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+def test_a_cut_log_is_refused_with_one_line(recorded, tmp_path, capsys):
+    """Redaction reads with the contract's reader; a log cut by a power loss is refused (a copy
+    missing its end could pass for a whole redacted log), pointing at ``analyze recover``."""
+    path, _, _ = recorded
+    cut = tmp_path / path.name
+    whole = path.read_bytes()
+    cut.write_bytes(whole[:len(whole) * 2 // 3])
+    zones = tmp_path / "zones.toml"
+    zones.write_text("[[zones]]\nlat = 48.137\nlon = 11.575\nradius_m = 50.0\n")
+    assert main(["redact", str(cut), "--zones", str(zones), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "cut short" in err and "analyze recover" in err and err.count("\n") == 1
+    assert not list((tmp_path / "out").glob("*.mcap"))

@@ -16,7 +16,7 @@ from haulprofile.logger.config import Config
 from haulprofile.logger.daemon import Daemon
 from haulprofile.logger.emulators.rig import record_drive
 from haulprofile.logger.emulators.signals import synthetic_drive
-from haulprofile.logger.readback import can_frames
+from haulprofile.contract.reader import packed_records
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
 import replay  # noqa: E402
@@ -31,7 +31,7 @@ def recorded(tmp_path_factory) -> Path:
 
 
 def frames(path: Path) -> np.ndarray:
-    return np.concatenate(list(can_frames(path)))
+    return np.concatenate(list(packed_records(path, contract.CAN_FRAMES)))
 
 
 def received(records: np.ndarray) -> np.ndarray:

@@ -26,7 +26,7 @@ if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
 from haulprofile import contract  # noqa: E402
-from haulprofile.logger.readback import can_frames  # noqa: E402
+from haulprofile.contract.reader import packed_records  # noqa: E402
 
 SEND_RETRY_S = 0.001
 """Wait before re-sending a frame the interface refused (its transmit queue is full) [s]."""
@@ -51,7 +51,7 @@ def frames_of(paths: list[Path], include_tx: bool = False, stats: ReplayStats | 
     import can
     stats = stats if stats is not None else ReplayStats()
     for path in paths:
-        for records in can_frames(path):
+        for records in packed_records(path, contract.CAN_FRAMES):
             for record in records:
                 flags = int(record["flags"])
                 if flags & contract.CAN_FLAG_ERROR:

@@ -11,6 +11,7 @@ run's outputs as they were. A stage whose inputs are missing is skipped with a l
 
 from __future__ import annotations
 
+import time
 import typing
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -217,7 +218,9 @@ def run(ctx: RunContext, until: str | None = None, start: str | None = None, cac
             ctx.say(f"[{stage.name}]")
         if stage.needs_signals and ctx.signals is None:
             raise UserError("no signals: give logs or a signals table")
+        started = time.perf_counter()
         stage.run(ctx)
+        ctx.say(f"[{stage.name}] {time.perf_counter() - started:.1f} s")
         ctx.summary["stages"].append(stage.name)
         if store:
             store.save(stage.name)

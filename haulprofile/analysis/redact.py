@@ -1,7 +1,8 @@
 """``analyze redact``: new, complete logs without what was recorded inside privacy zones.
 
 For logs written before zones were configured (the logger's own zones act before writing). Per
-input log, in two linear passes (``mcap.stream_reader``):
+input log, in two passes of the contract's reader (`haulprofile.contract.reader`; a cut or
+damaged log is refused: ``analyze recover`` first):
 
 1. the ``/gps/fix`` positions give the stretches spent in a zone: from the first fix inside to the
    first fix outside again, on the monotonic clock (to the start of the file when its first fix
@@ -18,18 +19,16 @@ Inputs are never opened for writing, and an output that would replace an input i
 
 from __future__ import annotations
 
-import io
 import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from haulprofile import contract
 from haulprofile.contract.privacy import Zone, in_any, zones_from_tables
+from haulprofile.contract.reader import Channel, RawMessage, ReadReport, read_messages, read_windows
 from haulprofile.private_files import make_dirs, open_new
 
 from .errors import UserError
@@ -76,10 +75,6 @@ class RedactReport:
                 f"{self.gps_times_removed} GPS times; {self.messages_out} of {self.messages_in} messages kept")
 
 
-def _records(data: bytes):
-    return StreamReader(io.BytesIO(data), validate_crcs=True).records
-
-
 def _stretches(fixes: list[tuple[int, bool]], inside_at_start: bool) -> list[tuple[float, float]]:
     """[start, end) monotonic intervals [ns] spent in a zone, from (t_mono_ns, inside) of each fix."""
     stretches, start = [], None
@@ -102,53 +97,55 @@ def _in(stretches, t: int) -> bool:
     return any(a <= t < b for a, b in stretches)
 
 
+def _read_fixes(data: bytes, zones: list[Zone], source: Path) -> tuple[list[tuple[int, bool]], ReadReport]:
+    """(t_mono_ns, inside) of every ``/gps/fix``; a log that is cut or damaged is refused."""
+    read = ReadReport(str(source))
+    fixes = []
+    for message in read_messages(data, read):
+        if message.channel.topic == contract.GPS_FIX.name:
+            fix = json.loads(message.data)
+            fixes.append((int(fix["t_mono_ns"]), in_any(zones, fix["latitude"], fix["longitude"])))
+    if not read.header_ok:
+        raise UserError(f"{source}: not an MCAP log (no header)")
+    if read.warning():
+        raise UserError(f"{read.warning()}; run 'analyze recover' on it first")
+    return fixes, read
+
+
 def redact_bytes(data: bytes, zones: list[Zone], target_stream, inside_at_start: bool = False,
                  report: RedactReport | None = None) -> RedactReport:
     """Write the redacted copy of the MCAP log ``data`` into ``target_stream``."""
     report = report or RedactReport(Path("-"), Path("-"))
-    channels: dict[int, Channel] = {}
-    fixes: list[tuple[int, bool]] = []
-    fix_messages: dict[int, tuple[int, bool]] = {}
-    try:
-        for record in _records(data):
-            if isinstance(record, Channel):
-                channels[record.id] = record
-            elif isinstance(record, Message) and channels[record.channel_id].topic == contract.GPS_FIX.name:
-                fix = json.loads(record.data)
-                inside = in_any(zones, fix["latitude"], fix["longitude"])
-                fixes.append((int(fix["t_mono_ns"]), inside))
-    except Exception as exc:  # the mcap reader raises several kinds for a cut or damaged file
-        raise UserError(f"{report.source}: cannot be read to the end ({type(exc).__name__}: {exc}); "
-                        f"run 'analyze recover' on it first") from None
+    fixes, first_read = _read_fixes(data, zones, report.source)
     stretches = _stretches(fixes, inside_at_start)
     report.stretches = stretches
     report.ends_inside = bool(stretches) and stretches[-1][1] == INF
     starts = {a for a, _ in stretches if a != -INF}
     ends = {b for _, b in stretches if b != INF}
 
-    writer = None
-    schema_ids: dict[int, int] = {}
+    writer = Writer(target_stream, chunk_size=1024 * 1024, compression=CompressionType.ZSTD)
+    writer.start(profile=first_read.profile, library=first_read.library)
+    schema_ids: dict[tuple, int] = {}
     channel_ids: dict[int, int] = {}
-    schemas: dict[int, Schema] = {}
     marker_channel = None
     seen_metadata: set[tuple] = set()
     seen_attachments: set[tuple] = set()
-    in_summary = False
+    read = ReadReport(str(report.source))
+    channels: dict[int, Channel] = {}
 
-    def out_channel(channel_id: int) -> int:
-        if channel_id not in channel_ids:
-            channel = channels[channel_id]
-            if channel.schema_id and channel.schema_id not in schema_ids:
-                schema = schemas[channel.schema_id]
-                schema_ids[channel.schema_id] = writer.register_schema(schema.name, schema.encoding, schema.data)
-            channel_ids[channel_id] = writer.register_channel(
-                channel.topic, channel.message_encoding, schema_ids.get(channel.schema_id, 0), dict(channel.metadata))
-        return channel_ids[channel_id]
+    def out_channel(channel: Channel) -> int:
+        if channel.id not in channel_ids:
+            key = (channel.schema_name, channel.schema_encoding, channel.schema_data)
+            if key not in schema_ids:
+                schema_ids[key] = 0 if key == ("", "", b"") else writer.register_schema(*key)
+            channel_ids[channel.id] = writer.register_channel(
+                channel.topic, channel.message_encoding, schema_ids[key], dict(channel.metadata))
+        return channel_ids[channel.id]
 
-    def marker(event: str, message: Message, t_mono: int) -> None:
+    def marker(event: str, message: RawMessage, t_mono: int) -> None:
         nonlocal marker_channel
         if marker_channel is None:
-            existing = [cid for cid, c in channels.items() if c.topic == contract.PRIVACY_ZONE.name]
+            existing = [c for c in channels.values() if c.topic == contract.PRIVACY_ZONE.name]
             if existing:
                 marker_channel = out_channel(existing[0])
             else:
@@ -156,28 +153,36 @@ def redact_bytes(data: bytes, zones: list[Zone], target_stream, inside_at_start:
                 schema_id = writer.register_schema(topic.schema_name, topic.schema_encoding, topic.schema_data())
                 marker_channel = writer.register_channel(topic.name, topic.encoding, schema_id)
         payload = contract.encode_json({"t_mono_ns": t_mono, "event": event, "source": "redact"})
-        writer.add_message(marker_channel, log_time=message.log_time, data=payload,
-                           publish_time=message.publish_time)
+        writer.add_message(marker_channel, log_time=message.log_time_ns, data=payload,
+                           publish_time=message.publish_time_ns)
         report.messages_out += 1
 
-    for record in _records(data):
-        if isinstance(record, Header):
-            writer = Writer(target_stream, chunk_size=1024 * 1024, compression=CompressionType.ZSTD)
-            writer.start(profile=record.profile, library=record.library)
-        elif isinstance(record, Schema):
-            schemas[record.id] = record
-        elif isinstance(record, Channel):
-            channels[record.id] = record
-        elif isinstance(record, Message):
+    def copy_metadata_and_attachments() -> None:
+        for name, entries in read.metadata:
+            key = (name, tuple(sorted(entries.items())))
+            if key not in seen_metadata:
+                seen_metadata.add(key)
+                writer.add_metadata(name, dict(entries))
+        for attachment in read.attachments:
+            key = (attachment.name, attachment.log_time_ns, attachment.data)
+            if key not in seen_attachments:
+                seen_attachments.add(key)
+                writer.add_attachment(attachment.create_time_ns, attachment.log_time_ns, attachment.name,
+                                      attachment.media_type, attachment.data)
+
+    for window in read_windows(data, read):
+        copy_metadata_and_attachments()
+        channels.update(window.channels)
+        for message in window.messages():
             report.messages_in += 1
-            topic = channels[record.channel_id].topic
-            payload = record.data
+            topic = message.channel.topic
+            payload = message.data
             if topic == contract.GPS_FIX.name:
                 t = int(json.loads(payload)["t_mono_ns"])
                 if t in starts:
-                    marker("entered", record, t)
+                    marker("entered", message, t)
                 if t in ends:
-                    marker("left", record, t)
+                    marker("left", message, t)
                 if _in(stretches, t):
                     report.fixes_removed += 1
                     continue
@@ -196,24 +201,10 @@ def redact_bytes(data: bytes, zones: list[Zone], target_stream, inside_at_start:
                     sync["gps_time_utc_ns"] = None
                     payload = contract.encode_json(sync)
                     report.gps_times_removed += 1
-            writer.add_message(out_channel(record.channel_id), log_time=record.log_time, data=payload,
-                               publish_time=record.publish_time, sequence=record.sequence)
+            writer.add_message(out_channel(message.channel), log_time=message.log_time_ns, data=payload,
+                               publish_time=message.publish_time_ns, sequence=message.sequence)
             report.messages_out += 1
-        elif isinstance(record, Metadata):
-            key = (record.name, tuple(sorted(record.metadata.items())))
-            if key not in seen_metadata and not in_summary:
-                seen_metadata.add(key)
-                writer.add_metadata(record.name, dict(record.metadata))
-        elif isinstance(record, Attachment):
-            key = (record.name, record.log_time, record.data)
-            if key not in seen_attachments:
-                seen_attachments.add(key)
-                writer.add_attachment(record.create_time, record.log_time, record.name, record.media_type,
-                                      record.data)
-        elif type(record).__name__ == "DataEnd":
-            in_summary = True
-    if writer is None:
-        raise UserError(f"{report.source}: not an MCAP log (no header)")
+    copy_metadata_and_attachments()
     writer.finish()
     return report
 

@@ -10,7 +10,9 @@ Both the logger and the analysis import this module; nobody re-types a topic nam
   second, so analysis maps monotonic time to wall-clock and GPS time, across clock jumps.
 * High-rate topics (CAN frames, IMU) are *packed*: a message is a little-endian array of
   fixed-size records described by a NumPy dtype (``encoding = "haulprofile.packed"``), a few
-  hundred records per message. Decoding is one ``np.frombuffer`` per message.
+  hundred records per message, each starting with its ``t_mono_ns``. This module is their only
+  codec: `Topic.record_struct` packs one record (the logger), `unpack` and `shift_times` read
+  and shift them (everyone else); `haulprofile.contract.reader` reads whole logs into them.
 * Low-rate topics are JSON with a JSON Schema (``jsonschema``), readable in Foxglove as is.
   GPS fixes use the field names of ``foxglove.LocationFix`` and open on Foxglove's map.
 """
@@ -18,7 +20,9 @@ Both the logger and the analysis import this module; nobody re-types a topic nam
 from __future__ import annotations
 
 import json
+import struct
 from dataclasses import dataclass, field
+from functools import cache
 
 import numpy as np
 
@@ -307,6 +311,50 @@ PROFILE = "haulprofile"
 """MCAP header profile of files written by haulprofile."""
 
 
+TIME_STRUCT = struct.Struct("<Q")
+"""The ``t_mono_ns`` that opens every packed record (a prefix packer for records whose rest is raw
+little-endian sensor words, and the reader of a payload's first time)."""
+
+
+def _struct_format(dtype: np.dtype) -> str:
+    """`struct` format of a packed dtype (byte arrays as ``Ns``, other sub-arrays repeated)."""
+    codes = {"u1": "B", "i1": "b", "u2": "H", "i2": "h", "u4": "I", "i4": "i", "u8": "Q", "i8": "q",
+             "f4": "f", "f8": "d"}
+    out = "<"
+    for name in dtype.names:
+        base, shape = dtype.fields[name][0].base, dtype.fields[name][0].shape
+        count = int(np.prod(shape)) if shape else 1
+        code = codes[base.str.lstrip("<>|=")]
+        out += f"{count}s" if shape and code == "B" else f"{count if count > 1 else ''}{code}"
+    return out
+
+
+@cache
+def _record_struct(dtype: np.dtype) -> struct.Struct:
+    packer = struct.Struct(_struct_format(dtype))
+    if packer.size != dtype.itemsize:
+        raise ValueError(f"dtype {dtype} has padding; a packed record must not")
+    return packer
+
+
+def _check_packed(topic: Topic) -> None:
+    if topic.dtype.names[0] != "t_mono_ns" or topic.dtype.fields["t_mono_ns"][0] != np.dtype("<u8") or \
+            topic.dtype.fields["t_mono_ns"][1] != 0:
+        raise ValueError(f"{topic.name}: a packed record starts with its t_mono_ns (<u8)")
+    _record_struct(topic.dtype)
+
+
+for _topic in TOPICS.values():
+    if _topic.encoding == PACKED_ENCODING:
+        _check_packed(_topic)
+
+
+def record_struct(topic: Topic) -> struct.Struct:
+    """`struct.Struct` of one record of a packed topic, derived from its dtype (the one layout):
+    ``record_struct(CAN_FRAMES).pack(t_mono_ns, arbitration_id, flags, dlc, channel, 0, data)``."""
+    return _record_struct(topic.dtype)
+
+
 def pack(topic: Topic, records: np.ndarray) -> bytes:
     """Serialise a record array for a packed topic."""
     if records.dtype != topic.dtype:
@@ -314,12 +362,32 @@ def pack(topic: Topic, records: np.ndarray) -> bytes:
     return np.ascontiguousarray(records).tobytes()
 
 
-def unpack(topic: Topic, payload: bytes) -> np.ndarray:
-    """Record array of a packed message (read-only view on ``payload``)."""
-    if len(payload) % topic.dtype.itemsize:
+def first_time_ns(payload) -> int:
+    """``t_mono_ns`` of the first record of a packed payload."""
+    return TIME_STRUCT.unpack_from(payload, 0)[0]
+
+
+def unpack(topic: Topic, payload, shift_ns: int = 0, whole_only: bool = False) -> np.ndarray:
+    """Record array of a packed message, times shifted by ``shift_ns`` (then a copy; else a
+    read-only view on ``payload``). A payload that is not a whole number of records is an error,
+    or with ``whole_only`` (a damaged message) keeps its whole records."""
+    size = topic.dtype.itemsize
+    if len(payload) % size and not whole_only:
         raise ValueError(f"{topic.name}: message of {len(payload)} bytes is not a whole number of "
-                         f"{topic.dtype.itemsize}-byte records")
-    return np.frombuffer(payload, dtype=topic.dtype)
+                         f"{size}-byte records")
+    records = np.frombuffer(payload, dtype=topic.dtype, count=len(payload) // size)
+    if shift_ns:
+        records = records.copy()
+        shift_times(records, shift_ns)
+    return records
+
+
+def shift_times(records: np.ndarray, shift_ns: int) -> np.ndarray:
+    """Move the ``t_mono_ns`` of packed records (writable array, in place) by ``shift_ns`` [ns];
+    the one place a packed topic's time shift (onto a continuous time line) happens."""
+    if shift_ns and len(records):
+        records["t_mono_ns"] += np.uint64(shift_ns % (1 << 64))
+    return records
 
 
 def encode_json(record: dict) -> bytes:

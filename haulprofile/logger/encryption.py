@@ -5,7 +5,8 @@ key(s) in the age format (age-encryption.org/v1, X25519) by ``pyrage``, a bindin
 Order of a file's way to ciphertext, so that a power cut at any moment loses nothing:
 
 1. a file not closed cleanly (no MCAP footer: a power cut, a failed write) is first repaired
-   (`readback.repair`: every complete chunk into a new, indexed file, replacing the cut one);
+   (`haulprofile.contract.repair.repair`: every message the contract reader recovers into a new,
+   indexed file, replacing the cut one);
 2. the ciphertext is written to ``<name>.mcap.age.partial`` (mode 0640), flushed and fsynced,
    renamed to ``<name>.mcap.age`` and the directory fsynced;
 3. only then is the plaintext removed (and the directory fsynced again).
@@ -25,9 +26,8 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 from haulprofile.contract.naming import log_files
+from haulprofile.contract.repair import is_complete, repair
 from haulprofile.private_files import open_new
-
-from .readback import is_complete, repair
 
 SUFFIX = ".age"
 

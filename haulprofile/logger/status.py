@@ -1,17 +1,25 @@
 """``haulprofile-logger --status``: the health of the running logger from its newest file.
 
-Reads the newest log in the configured directory linearly (it is being written; its chunks are
-closed every ``chunk_interval_s``) and prints the last `/diagnostics` record: per source state,
+Reads the newest log in the configured directory with the contract's reader (it is being written;
+its chunks are closed every ``chunk_interval_s``) and prints the last `/diagnostics` record: per source state,
 rate, drops and errors, free disk, and the warnings of that second.
 """
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
-from .readback import last_diagnostics
+from haulprofile import contract
 from haulprofile.contract.naming import log_files
+from haulprofile.contract.reader import last_payload
+
+
+def last_diagnostics(path: str | Path) -> dict | None:
+    """The newest complete `/diagnostics` record of a log (read up to its last whole chunk), or None."""
+    payload = last_payload(path, contract.DIAGNOSTICS.name)
+    return None if payload is None else json.loads(payload)
 
 
 def status_lines(directory: str | Path, prefix: str | None = None,

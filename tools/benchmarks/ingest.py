@@ -1,10 +1,14 @@
-"""Ingest of a full-rate log (decode + align) vs cantools per frame and bare mcap iteration.
+"""Ingest of a full-rate log (decode + align) vs cantools per frame, bare mcap iteration and the
+decompression limit.
 
 The log (10 h full size, 6 min with --quick) is a contract-correct synthetic one: J1939 broadcast
 at truck rates plus unrelated traffic to ~1390 frames/s (about 50 M frames in 10 h), IMU at
 952 Hz (34 M samples), barometer, humidity, magnetometer, GPS and time sync, written by
-`logger.writer.LogWriter` in 256 KiB zstd chunks, cached in ``.bench-cache/``. Our ingest and
-the bare mcap iteration each run in a fresh process (seconds and peak RSS of that process).
+`logger.writer.LogWriter` in 256 KiB zstd chunks, cached in ``.bench-cache/``. Each of these runs
+in a fresh process (seconds and peak RSS of that process), one after the other in one run:
+our ingest (read + decode + align, table built), our reader alone (`contract.reader`, every
+chunk checked, walked and its CAN/IMU records scattered into arrays), decompress-only (zstd of
+every chunk on the same number of threads, nothing else: the limit) and the bare mcap iteration.
 """
 
 from __future__ import annotations
@@ -49,7 +53,7 @@ t0 = time.perf_counter()
 from haulprofile.analysis.ingest import ingest_logs
 frame, summary = ingest_logs([sys.argv[1]])
 elapsed = time.perf_counter() - t0
-print(json.dumps({"seconds": elapsed, "rows": len(frame), "can_frames": summary["can_frames"],
+print(json.dumps({"seconds": elapsed, "cpu_s": time.process_time(), "rows": len(frame), "can_frames": summary["can_frames"],
                   "imu_samples": summary["imu_samples"], "valid": summary["valid_fraction"],
                   "peak_rss_mb": peak_rss_mb()}))
 """
@@ -67,8 +71,55 @@ with open(sys.argv[1], "rb") as stream:
     for _, _, message in make_reader(stream).iter_messages(log_time_order=False):
         count += 1
         size += len(message.data)
-print(json.dumps({"seconds": time.perf_counter() - t0, "messages": count, "bytes": size,
+print(json.dumps({"seconds": time.perf_counter() - t0, "cpu_s": time.process_time(), "messages": count, "bytes": size,
                   "peak_rss_mb": peak_rss_mb()}))
+"""
+
+
+_READER = """
+import json, sys, time
+def peak_rss_mb():
+    with open("/proc/self/status") as status:
+        return next(int(line.split()[1]) for line in status if line.startswith("VmHWM")) / 1024
+t0 = time.perf_counter()
+from haulprofile.contract import reader
+records = messages = 0
+for window in reader.read_windows(sys.argv[1]):
+    messages += len(window)
+    for name in reader.PACKED_TOPICS:
+        records += len(window.topic_records(name))
+print(json.dumps({"seconds": time.perf_counter() - t0, "cpu_s": time.process_time(), "messages": messages, "records": records,
+                  "threads": reader.default_threads(), "peak_rss_mb": peak_rss_mb()}))
+"""
+
+_DECOMPRESS = """
+import json, mmap, struct, sys, time
+t0 = time.perf_counter()
+from concurrent.futures import ThreadPoolExecutor
+import zstandard
+from haulprofile.contract import reader
+def chunks(buf):
+    pos, size = 8, len(buf)
+    while pos + 9 <= size:
+        opcode, length = struct.unpack_from("<BQ", buf, pos)
+        if opcode == 0x06:
+            yield pos + 9, pos + 9 + length
+        elif opcode not in range(1, 16):
+            break
+        pos += 9 + length
+def decompress(span):
+    body = view[span[0]:span[1]]
+    size, = struct.unpack_from("<Q", body, 16)
+    n, = struct.unpack_from("<I", body, 28)
+    return len(zstandard.ZstdDecompressor().decompress(body[32 + n + 8:], max_output_size=size))
+with open(sys.argv[1], "rb") as handle:
+    buf = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ)
+    view = memoryview(buf)
+    spans = list(chunks(buf))
+    with ThreadPoolExecutor(reader.default_threads()) as pool:
+        total = sum(pool.map(decompress, spans, chunksize=16))
+    view.release()
+print(json.dumps({"seconds": time.perf_counter() - t0, "cpu_s": time.process_time(), "chunks": len(spans), "bytes": total}))
 """
 
 
@@ -93,17 +144,16 @@ def _j1939_database():
 
 def _frame_sample(path: Path, count: int) -> np.ndarray:
     """The first ``count`` CAN frames of the log."""
-    from haulprofile.analysis.ingest import iter_log_messages
     from haulprofile import contract
+    from haulprofile.contract.reader import packed_records
 
     parts, have = [], 0
-    for message in iter_log_messages([path]):
-        if message.topic == contract.CAN_FRAMES.name:
-            parts.append(message.data)
-            have += len(message.data) // contract.CAN_FRAME_DTYPE.itemsize
-            if have >= count:
-                break
-    return np.frombuffer(b"".join(parts), contract.CAN_FRAME_DTYPE)[:count]
+    for records in packed_records(path, contract.CAN_FRAMES):
+        parts.append(records)
+        have += len(records)
+        if have >= count:
+            break
+    return np.concatenate(parts)[:count]
 
 
 def bench_ingest(quick: bool):
@@ -113,6 +163,8 @@ def bench_ingest(quick: bool):
 
     path, hours = _log(quick)
     ours = _fresh(_OURS, path)
+    alone = _fresh(_READER, path)
+    limit = _fresh(_DECOMPRESS, path)
     bare = _fresh(_BARE, path)
     frames = _frame_sample(path, DECODE_SAMPLE)
     database = _j1939_database()
@@ -142,7 +194,8 @@ def bench_ingest(quick: bool):
         result("ingest_decode_align_s_per_log_hour", ours["seconds"] / hours, "s per hour of log",
                "bare mcap iteration (make_reader.iter_messages)", bare["seconds"] / hours,
                hours=hours, can_frames=n_frames, imu_samples=ours["imu_samples"], rows=ours["rows"],
-               frames_per_s=n_frames / ours["seconds"], messages=bare["messages"]),
+               frames_per_s=n_frames / ours["seconds"], messages=bare["messages"], cpu_s=ours["cpu_s"],
+               peer_cpu_s=bare["cpu_s"]),
         result("ingest_whole_pipeline_ns_per_can_frame", per_frame_ours_ns, "ns/frame (read+decode+align, all topics)",
                "cantools per-frame decode (J1939 DBC, sample)", cantools_per_frame_ns,
                cantools_sample_frames=CANTOOLS_SAMPLE, cantools_decoded=decoded_by_cantools),
@@ -154,6 +207,17 @@ def bench_ingest(quick: bool):
                cantools_per_frame_ns),
         result("ingest_peak_rss_mb", ours["peak_rss_mb"], "MB (fresh process)", "bare mcap iteration",
                bare["peak_rss_mb"]),
+        result("ingest_read_s_vs_decompress_only", alone["seconds"], "s (contract.reader: every chunk checked, "
+               "walked, CAN+IMU scattered; ratio = limit / ours)", "decompress-only (zstd of every chunk, same threads)",
+               limit["seconds"], hours=hours, threads=alone["threads"], chunks=limit["chunks"],
+               decompressed_bytes=limit["bytes"], messages=alone["messages"], records=alone["records"],
+               reader_peak_rss_mb=alone["peak_rss_mb"], cpu_s=alone["cpu_s"], peer_cpu_s=limit["cpu_s"]),
+        result("ingest_read_s_vs_bare_mcap", alone["seconds"], "s (contract.reader; ratio = bare mcap / ours)",
+               "bare mcap iteration (make_reader.iter_messages)", bare["seconds"], hours=hours, cpu_s=alone["cpu_s"],
+               peer_cpu_s=bare["cpu_s"]),
+        result("ingest_decode_align_s_vs_decompress_only", ours["seconds"], "s (whole ingest; ratio = limit / ours)",
+               "decompress-only (zstd of every chunk, same threads)", limit["seconds"], hours=hours,
+               cpu_s=ours["cpu_s"], peer_cpu_s=limit["cpu_s"]),
     ]
 
 

@@ -23,7 +23,7 @@ from . import align
 from . import dbc as dbc_module
 from . import foreign
 from .columns import build_table
-from .logs import (LogArrays, LogError, LogMessage, Timeline, expand, is_mcap, iter_log_batches, iter_log_messages,
+from .logs import (LogArrays, LogError, LogMessage, Timeline, expand, is_mcap, iter_log_messages, iter_log_windows,
                    read_frames)
 from .table import BLOCK_FRAMES, Ingest
 
@@ -102,8 +102,8 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
 
 def _feed_mcap(ingest: Ingest, files: list[Path], timeline: Timeline, bar) -> None:
     done = 0
-    for index, offset, batch in iter_log_batches(files, timeline):
-        ingest.feed_batch(batch, offset)
+    for index, offset, window in iter_log_windows(files, timeline):
+        ingest.feed_window(window, offset)
         position = sum(r.file_bytes for r in timeline.reports[:-1]) + timeline.reports[index].read_bytes
         if position - done > 1 << 24:
             bar.update(position - done)

@@ -18,10 +18,11 @@ import numpy as np
 from haulprofile import contract
 from haulprofile.contract.naming import log_name_parts
 
+from haulprofile.contract.reader import Channel, ReadReport, Window, first_message, read_windows
+
 from ..encrypted import decrypted, is_encrypted
 from ..errors import UserError
 from . import foreign
-from .mcap_read import Channel, RawMessage, ReadReport, read_file, read_file_batches
 
 MCAP_SUFFIXES = {".mcap"}
 
@@ -80,7 +81,7 @@ class Timeline:
 
 def _first_message(path: Path):
     try:
-        return next(iter(read_file(path, ReadReport(str(path)))), None)
+        return first_message(path)
     except OSError as exc:
         raise LogError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
@@ -107,8 +108,9 @@ def order_mcap(files: list[Path]) -> list[tuple[Path, int, int]]:
     return sorted(entries, key=lambda e: (e[1], str(e[0])))
 
 
-def iter_log_batches(paths, timeline: Timeline | None = None) -> Iterator[tuple[int, int, list[RawMessage]]]:
-    """(file index, time shift [ns], messages of one chunk) of the MCAP logs in ``paths``, in time order.
+def iter_log_windows(paths, timeline: Timeline | None = None) -> Iterator[tuple[int, int, Window]]:
+    """(file index, time shift [ns], `Window` of decoded chunks) of the MCAP logs in ``paths``, in
+    time order; a file's monotonic times plus its shift lie on the continuous line.
 
     ``timeline`` (optional) receives each file's ReadReport and time shift. Foreign CAN logs
     in ``paths`` are skipped here (see `read_frames`).
@@ -123,22 +125,18 @@ def iter_log_batches(paths, timeline: Timeline | None = None) -> Iterator[tuple[
         timeline.offsets_ns[str(path)] = offset
         report = ReadReport(str(path))
         timeline.reports.append(report)
-        for batch in read_file_batches(path, report):
-            latest = max(batch, key=_publish_time)
-            if last_mono is None or latest.publish_time_ns + offset > last_mono:
-                last_mono, last_wall = latest.publish_time_ns + offset, latest.log_time_ns
-            yield index, offset, batch
-
-
-def _publish_time(message: RawMessage) -> int:
-    return message.publish_time_ns
+        for window in read_windows(path, report):
+            latest = int(np.argmax(window.publish_times_ns))  # the first message of the latest time
+            if last_mono is None or int(window.publish_times_ns[latest]) + offset > last_mono:
+                last_mono, last_wall = int(window.publish_times_ns[latest]) + offset, int(window.log_times_ns[latest])
+            yield index, offset, window
 
 
 def iter_log_messages(paths, timeline: Timeline | None = None) -> Iterator[LogMessage]:
     """Every recoverable message of the MCAP logs in ``paths``, file after file in time order,
-    with ``t_mono_ns`` on the continuous time line (see `iter_log_batches`)."""
-    for index, offset, batch in iter_log_batches(paths, timeline):
-        for raw in batch:
+    with ``t_mono_ns`` on the continuous time line (see `iter_log_windows`)."""
+    for index, offset, window in iter_log_windows(paths, timeline):
+        for raw in window.messages():
             yield LogMessage(raw.channel.topic, raw.publish_time_ns + offset, raw.log_time_ns, raw.data,
                              raw.channel, index)
 
@@ -171,22 +169,25 @@ def read_frames(paths) -> LogArrays:
     json_records: dict[str, list[dict]] = {}
     metadata: dict[str, dict] = {}
     mono_pairs, wall_pairs = [], []
-    for _, offset, batch in iter_log_batches(paths, timeline):
-        mono_pairs.append(batch[0].publish_time_ns + offset)
-        wall_pairs.append(batch[0].log_time_ns)
-        for message in batch:
-            topic = message.channel.topic
-            metadata.setdefault(topic, dict(message.channel.metadata))
-            if topic == contract.CAN_FRAMES.name:
-                can_parts.append(_shifted(decode_packed(contract.CAN_FRAMES, message), offset))
-            elif topic == contract.IMU.name:
-                imu_parts.append(_shifted(decode_packed(contract.IMU, message), offset))
-            elif message.channel.message_encoding == contract.JSON_ENCODING:
-                record = decode_json(message)
-                if record is not None:
-                    if isinstance(record.get("t_mono_ns"), int):
-                        record["t_mono_ns"] += offset
-                    json_records.setdefault(topic, []).append(record)
+    for _, offset, window in iter_log_windows(paths, timeline):
+        mono_pairs.extend((window.publish_times_ns[window.batch_starts].astype(np.int64) + offset).tolist())
+        wall_pairs.extend(window.log_times_ns[window.batch_starts].astype(np.int64).tolist())
+        for channel_id in _first_seen(window.channel_ids):
+            metadata.setdefault(window.channels[channel_id].topic, dict(window.channels[channel_id].metadata))
+        for topic, parts in ((contract.CAN_FRAMES.name, can_parts), (contract.IMU.name, imu_parts)):
+            records = window.topic_records(topic)
+            if len(records):
+                parts.append(contract.shift_times(records, offset))
+        json_ids = [cid for cid, c in window.channels.items()
+                    if c.message_encoding == contract.JSON_ENCODING and c.topic not in (contract.CAN_FRAMES.name,
+                                                                                        contract.IMU.name)]
+        rows = np.flatnonzero(np.isin(window.channel_ids, json_ids))
+        for channel_id, data in zip(window.channel_ids[rows].tolist(), window.payloads(rows)):
+            record = decode_json(data)
+            if record is not None:
+                if isinstance(record.get("t_mono_ns"), int):
+                    record["t_mono_ns"] += offset
+                json_records.setdefault(window.channels[channel_id].topic, []).append(record)
     for path in expand(paths):
         if not is_mcap(path):
             frames, _ = foreign.read_can_log(path)
@@ -197,23 +198,15 @@ def read_frames(paths) -> LogArrays:
                      (np.array(mono_pairs, dtype=np.int64), np.array(wall_pairs, dtype=np.int64)))
 
 
-def _shifted(records: np.ndarray, shift: int) -> np.ndarray:
-    if shift == 0 or len(records) == 0:
-        return records
-    records = records.copy()
-    records["t_mono_ns"] += np.uint64(shift)
-    return records
+def _first_seen(values: np.ndarray) -> list:
+    """Distinct ``values`` in the order they first occur."""
+    unique, first = np.unique(values, return_index=True)
+    return unique[np.argsort(first)].tolist()
 
 
-def decode_packed(topic: contract.Topic, message) -> np.ndarray:
-    """Record array of a packed message; an odd-sized (damaged) payload keeps its whole records."""
-    usable = len(message.data) - len(message.data) % topic.dtype.itemsize
-    return np.frombuffer(message.data, dtype=topic.dtype, count=usable // topic.dtype.itemsize)
-
-
-def decode_json(message) -> dict | None:
+def decode_json(data: bytes) -> dict | None:
     try:
-        record = json.loads(message.data)
+        record = json.loads(data)
     except (ValueError, UnicodeDecodeError):
         return None
     return record if isinstance(record, dict) else None

@@ -1,19 +1,20 @@
 """``analyze recover``: a repaired, indexed copy of a cut or damaged MCAP log.
 
-Every message the linear reader recovers is written again, with its schema, channel (metadata
-included), times and sequence number unchanged, into a new file with chunk indexes and a summary,
-so the seeking reader and Foxglove open it. The damaged original is never modified.
+Every message the reader (`haulprofile.contract.reader`) recovers is written again by
+`haulprofile.contract.repair` (the logger's repair before encryption does the same, in place),
+with its schema, channel (metadata included), times and sequence number unchanged, into a new
+file with chunk indexes and a summary, so the seeking reader and Foxglove open it. The damaged
+original is never modified.
 """
 
 from __future__ import annotations
 
-import struct
 from pathlib import Path
 
-from mcap.writer import CompressionType, Writer
+from haulprofile.contract.reader import ReadReport
+from haulprofile.contract.repair import write_recovered
 
 from .logs import LogError
-from .mcap_read import MAGIC, OP_HEADER, DamagedRecord, ReadReport, _string, read_file
 
 
 def recover(source: str | Path, target: str | Path, chunk_size: int = 1024 * 1024) -> ReadReport:
@@ -23,40 +24,9 @@ def recover(source: str | Path, target: str | Path, chunk_size: int = 1024 * 102
         raise LogError(f"{source} not found")
     if target.resolve() == source.resolve():
         raise LogError(f"{target}: the repaired copy must not overwrite the original; choose another name")
-    report = ReadReport(str(source))
-    schema_ids: dict[tuple, int] = {}
-    channel_ids: dict[int, int] = {}
     with open(target, "wb") as stream:
-        writer = Writer(stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
-        writer.start(profile=_profile(source), library="haulprofile-recover")
-        for message in read_file(source, report):
-            channel = message.channel
-            if channel.id not in channel_ids:
-                key = (channel.schema_name, channel.schema_encoding, channel.schema_data)
-                if key not in schema_ids:
-                    schema_ids[key] = writer.register_schema(name=channel.schema_name or channel.topic,
-                                                             encoding=channel.schema_encoding,
-                                                             data=channel.schema_data)
-                channel_ids[channel.id] = writer.register_channel(
-                    topic=channel.topic, message_encoding=channel.message_encoding,
-                    schema_id=schema_ids[key], metadata=dict(channel.metadata))
-            writer.add_message(channel_id=channel_ids[channel.id], log_time=message.log_time_ns,
-                               data=message.data, publish_time=message.publish_time_ns,
-                               sequence=message.sequence)
-        writer.finish()
+        report = write_recovered(source, stream, chunk_size=chunk_size, library="haulprofile-recover")
     if report.messages == 0:
         target.unlink()
         raise LogError(f"{source}: no message could be recovered (not an MCAP log, or damaged from the start)")
     return report
-
-
-def _profile(path: Path) -> str:
-    """The header's profile of the original ("" when the header is damaged)."""
-    with open(path, "rb") as handle:
-        head = handle.read(4096)
-    if head[:len(MAGIC)] != MAGIC or len(head) < len(MAGIC) + 9 or head[len(MAGIC)] != OP_HEADER:
-        return ""
-    try:
-        return _string(head, len(MAGIC) + 9)[0]
-    except (DamagedRecord, UnicodeDecodeError, struct.error):
-        return ""

@@ -67,6 +67,18 @@ class _Json:
         return np.array(self.time_ns, dtype=np.int64), np.array(self.fields.get(name, []), dtype=dtype)
 
 
+def _blocks(counts: np.ndarray, records: np.ndarray, held: int, block: int):
+    """``records`` (of messages of ``counts`` records each) in pieces that end where ``held``
+    records plus the pieces first reach ``block`` (after whole messages), then the rest."""
+    ends = np.cumsum(counts)
+    start = 0
+    while start < len(records):
+        k = int(np.searchsorted(ends, start + block - held))  # the message that reaches the block
+        stop = int(ends[k]) if k < len(ends) else len(records)
+        yield records[start:stop]
+        start, held = stop, 0
+
+
 def _loads(payload: bytes):
     try:
         return json.loads(payload)
@@ -108,73 +120,102 @@ class Ingest:
         self.obd_stats = obd_decode.ObdStats()
 
     # -- feeding -----------------------------------------------------------------------------
-    def feed_batch(self, batch, offset_ns: int) -> None:
-        """MCAP messages (`mcap_read.RawMessage`) whose times shift by ``offset_ns`` onto the continuous line."""
-        first = batch[0]
-        self.log_pairs[0].append(first.publish_time_ns + offset_ns)
-        self.log_pairs[1].append(first.log_time_ns)
-        self.messages += len(batch)
-        counts = self.topic_counts
-        can_topic, imu_topic = contract.CAN_FRAMES.name, contract.IMU.name
-        for message in batch:
-            topic = message.channel.topic
-            counts[topic] = counts.get(topic, 0) + 1
-            if topic == can_topic:
-                self._pend_can(message.data, offset_ns)
-            elif topic == imu_topic:
-                self._pend_imu(message, offset_ns)
-            elif topic in JSON_FIELDS:
-                stream = self.json.get(topic)
-                if stream is None:
-                    stream = self.json[topic] = _Json()
-                stream.pending.append(message.data)
+    def feed_window(self, window, offset_ns: int) -> None:
+        """Decoded chunks of an MCAP log (`contract.reader.Window`) whose times shift by
+        ``offset_ns`` onto the continuous line."""
+        starts = window.batch_starts
+        self.log_pairs[0].extend((window.publish_times_ns[starts].astype(np.int64) + offset_ns).tolist())
+        self.log_pairs[1].extend(window.log_times_ns[starts].astype(np.int64).tolist())
+        self.messages += len(window)
+        unique, first, counts = np.unique(window.channel_ids, return_index=True, return_counts=True)
+        topics = self.topic_counts
+        seen = []
+        for k in np.argsort(first, kind="stable"):
+            topic = window.channels[int(unique[k])].topic
+            topics[topic] = topics.get(topic, 0) + int(counts[k])
+            if topic in JSON_FIELDS and topic not in seen:
+                seen.append(topic)
+        self._pend_can(window, offset_ns)
+        self._pend_imu(window, offset_ns)
+        for topic in seen:
+            ids = [cid for cid, channel in window.channels.items() if channel.topic == topic]
+            rows = np.flatnonzero(np.isin(window.channel_ids, ids))
+            stream = self.json.get(topic)
+            if stream is None:
+                stream = self.json[topic] = _Json()
+            names = JSON_FIELDS[topic]
+            for payload in window.payloads(rows):
+                stream.pending.append(payload)
                 stream.offsets.append(offset_ns)
                 if len(stream.pending) >= JSON_BATCH:
-                    stream.flush(JSON_FIELDS[topic])
+                    stream.flush(names)
 
-    def _pend_can(self, payload: bytes, offset_ns: int) -> None:
-        size = contract.CAN_FRAME_DTYPE.itemsize
-        payload = payload[:len(payload) - len(payload) % size]
-        if offset_ns:
-            records = np.frombuffer(payload, contract.CAN_FRAME_DTYPE).copy()
-            records["t_mono_ns"] += np.uint64(offset_ns)
-            payload = records.tobytes()
-        self.can_pending.append(payload)
-        self.can_pending_records += len(payload) // size
-        if self.can_pending_records >= BLOCK_FRAMES:
-            self.flush_can()
+    def _pend_can(self, window, offset_ns: int) -> None:
+        """CAN records into blocks of at least `BLOCK_FRAMES`, cut only between messages."""
+        ids = window.packed_channels(contract.CAN_FRAMES.name)
+        if not ids:
+            return
+        records = contract.shift_times(window.topic_records(contract.CAN_FRAMES.name), offset_ns)
+        counts = np.concatenate([window.record_counts(cid) for cid in ids]) if len(ids) > 1 else \
+            window.record_counts(ids[0])
+        if len(ids) > 1:
+            order = np.concatenate([np.flatnonzero(window.channel_ids == cid) for cid in ids])
+            counts = counts[np.argsort(order, kind="stable")]
+        for part in _blocks(counts, records, self.can_pending_records, BLOCK_FRAMES):
+            self.can_pending.append(part)
+            self.can_pending_records += len(part)
+            if self.can_pending_records >= BLOCK_FRAMES:
+                self.flush_can()
 
     def flush_can(self) -> None:
         if self.can_pending:
-            frames = np.frombuffer(b"".join(self.can_pending), contract.CAN_FRAME_DTYPE)
+            frames = self.can_pending[0] if len(self.can_pending) == 1 else np.concatenate(self.can_pending)
             self.can_pending, self.can_pending_records = [], 0
             self.feed_frames(frames)
 
-    def _pend_imu(self, message, offset_ns: int) -> None:
-        scale = message.channel.metadata.get(ACCEL_SCALE_KEY)
-        try:
-            scale = float(scale)
-        except (TypeError, ValueError):
-            if "imu-scale" not in self.notes:
-                self.notes.append("imu-scale")
+    def _pend_imu(self, window, offset_ns: int) -> None:
+        """IMU records per accelerometer scale (channel metadata), flushed together once all scales
+        hold `BLOCK_IMU` samples, cut only between messages."""
+        ids = window.packed_channels(contract.IMU.name)
+        if not ids:
             return
+        scales = {}
+        for cid in ids:
+            try:
+                scales[cid] = float(window.channels[cid].metadata.get(ACCEL_SCALE_KEY))
+            except (TypeError, ValueError):
+                if "imu-scale" not in self.notes:
+                    self.notes.append("imu-scale")
+        if not scales:
+            return
+        if len(scales) == 1:
+            (cid, scale), = scales.items()
+            streams = [(scale, contract.shift_times(window.records(cid), offset_ns), window.record_counts(cid))]
+        else:  # several IMU channels: message by message in file order
+            order = np.concatenate([np.flatnonzero(window.channel_ids == cid) for cid in scales])
+            owner = np.concatenate([np.full(len(window.record_counts(cid)), cid) for cid in scales])
+            starts = {cid: np.concatenate(([0], np.cumsum(window.record_counts(cid)))) for cid in scales}
+            seen = dict.fromkeys(scales, 0)
+            streams = []
+            for cid in owner[np.argsort(order, kind="stable")].tolist():
+                k = seen[cid]
+                seen[cid] += 1
+                records = window.records(cid)[starts[cid][k]:starts[cid][k + 1]]
+                streams.append((scales[cid], contract.shift_times(records.copy(), offset_ns), np.array([len(records)])))
         size = contract.IMU_SAMPLE_DTYPE.itemsize
-        payload = message.data[:len(message.data) - len(message.data) % size]
-        if offset_ns:
-            records = np.frombuffer(payload, contract.IMU_SAMPLE_DTYPE).copy()
-            records["t_mono_ns"] += np.uint64(offset_ns)
-            payload = records.tobytes()
-        self.imu_pending.setdefault(scale, []).append(payload)
-        self.imu_pending_bytes += len(payload)
-        if self.imu_pending_bytes >= BLOCK_IMU * size:
-            self.flush_imu()
+        for scale, records, counts in streams:
+            for part in _blocks(counts, records, self.imu_pending_bytes // size, BLOCK_IMU):
+                self.imu_pending.setdefault(scale, []).append(part)
+                self.imu_pending_bytes += len(part) * size
+                if self.imu_pending_bytes >= BLOCK_IMU * size:
+                    self.flush_imu()
 
     def flush_imu(self) -> None:
         self.imu_pending_bytes = 0
         for scale, pending in self.imu_pending.items():
             if not pending:
                 continue
-            samples = np.frombuffer(b"".join(pending), contract.IMU_SAMPLE_DTYPE)
+            samples = pending[0] if len(pending) == 1 else np.concatenate(pending)
             pending.clear()
             self.imu_samples += len(samples)
             t = samples["t_mono_ns"].astype(np.int64)

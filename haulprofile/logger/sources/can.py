@@ -15,7 +15,6 @@ all with ``listen_only``.
 from __future__ import annotations
 
 import asyncio
-import struct
 import threading
 
 import can
@@ -27,8 +26,8 @@ from ..config import CanSection
 from .base import Source
 from .can_protocols import J1939Requester, ObdPoller
 
-FRAME_STRUCT = struct.Struct("<QIBBBB8s")
-assert FRAME_STRUCT.size == contract.CAN_FRAME_DTYPE.itemsize
+FRAME_RECORD = contract.record_struct(contract.CAN_FRAMES)
+"""The contract's `/can/frames` record: ``pack(t_mono_ns, arbitration_id, flags, dlc, channel, 0, data)``."""
 
 HW_TIMESTAMP_INTERFACES = {"socketcan"}
 MAX_FRAMES_PER_WAKE = 10_000
@@ -183,7 +182,7 @@ class CanSource(Source):
         most `MAX_FRAMES_PER_WAKE` frames; they go to the shared buffer together, each with its own
         receive time. Returns how many were taken."""
         recv = self.bus.recv
-        pack = FRAME_STRUCT.pack
+        pack = FRAME_RECORD.pack
         clock = self.clock
         scaled = clock.scale != 1.0
         hw_flag = contract.CAN_FLAG_HW_TIMESTAMP if self._hw_stamp else 0
@@ -239,7 +238,7 @@ class CanSource(Source):
 
     def _record_tx(self, arbitration_id: int, data: bytes, extended: bool) -> None:
         flags = contract.CAN_FLAG_TX | (contract.CAN_FLAG_EXTENDED if extended else 0)
-        record = FRAME_STRUCT.pack(self.clock.monotonic_ns(), arbitration_id, flags, len(data), 0, 0, data)
+        record = FRAME_RECORD.pack(self.clock.monotonic_ns(), arbitration_id, flags, len(data), 0, 0, data)
         with self._lock:
             self._buffer += record
             self._count += 1
@@ -296,7 +295,7 @@ class CanSource(Source):
         if self.clock.scale == 1.0:
             self._offset_ns = self.clock.mono_offset_ns()
         if count:
-            first_t = FRAME_STRUCT.unpack_from(payload, 0)[0]
+            first_t = contract.first_time_ns(payload)
             self.emit(contract.CAN_FRAMES, payload, first_t, records=count)
 
     def update_extra(self) -> None:

@@ -11,7 +11,6 @@ kept within the window each FIFO read allows by a bounded correction.
 from __future__ import annotations
 
 import math
-import struct
 
 from haulprofile import contract
 from .base import AUTO_INCREMENT, Driver, s16
@@ -54,8 +53,6 @@ MAG_ODR_CODE = {0.625: 0, 1.25: 1, 2.5: 2, 5.0: 3, 10.0: 4, 20.0: 5, 40.0: 6, 80
 MAG_SENSITIVITY_GAUSS = 0.14e-3
 """±4 gauss full scale [gauss/LSB]."""
 STANDARD_GRAVITY = 9.80665
-_STAMP = struct.Struct("<Q")
-"""Start of one `contract.IMU_SAMPLE_DTYPE` record; the output registers' little-endian words follow."""
 
 
 def accel_scale_mps2_per_lsb(range_g: int) -> float:
@@ -113,7 +110,7 @@ class Lsm9ds1(Driver):
         n = src & FIFO_SRC_FSS
         read = self.bus.read_i2c_block_data
         address = self.address
-        pack = _STAMP.pack
+        pack = contract.TIME_STRUCT.pack  # the record's t_mono_ns; the registers' little-endian words follow
         pending = self._pending
         for t_ns in self.sample_clock.stamps(n, before_ns, after_ns, overrun):
             gyro = read(address, OUT_X_L_G, 6)  # gyroscope first: reading OUT_Z_H_XL pops the slot
@@ -131,7 +128,7 @@ class Lsm9ds1(Driver):
         payload, count = bytes(self._pending), self._pending_count
         self._pending.clear()
         self._pending_count = 0
-        return [(contract.IMU, payload, _STAMP.unpack_from(payload)[0], count)]
+        return [(contract.IMU, payload, contract.first_time_ns(payload), count)]
 
 
 class Lsm9ds1Magnetometer(Driver):

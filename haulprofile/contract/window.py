@@ -1,0 +1,128 @@
+"""A window of decoded chunks: message columns, packed records per channel, payloads on demand."""
+
+from __future__ import annotations
+
+from typing import Iterator, NamedTuple
+
+import numpy as np
+
+from . import CAN_FRAMES, IMU, Topic, unpack
+from . import chunk_walk
+from .mcap_records import Channel, RawMessage
+
+PACKED_TOPICS: dict[str, Topic] = {CAN_FRAMES.name: CAN_FRAMES, IMU.name: IMU}
+"""Topics whose records are scattered into arrays (by topic name, whatever the channel says)."""
+
+
+class _Part(NamedTuple):
+    """Messages of one `_Records` (rows, in order) that belong to one batch."""
+
+    records: object
+    """The reader's `_Records` (not imported here: the reader imports this module)."""
+    rows: np.ndarray
+
+
+class Window:
+    """Consecutive batches (a chunk's messages each) of one file, decoded.
+
+    Per message, in file order: ``channel_ids``, ``sequences``, ``log_times_ns``,
+    ``publish_times_ns`` (monotonic) and ``batch_starts`` (index of each batch's first message).
+    Packed topics' records are in `records` (per channel, whole records only); other payloads by
+    `payloads`."""
+
+    def __init__(self, batches: list[list[_Part]], channels: dict[int, Channel], use_numba: bool):
+        parts = [part for batch in batches for part in batch]
+        self.channels = channels
+        self._parts = parts
+        sizes = np.array([len(p.rows) for p in parts], dtype=np.int64)
+        self._part_starts = np.concatenate(([0], np.cumsum(sizes)))
+        per_batch = np.array([sum(len(p.rows) for p in batch) for batch in batches], dtype=np.int64)
+        self.batch_starts = np.concatenate(([0], np.cumsum(per_batch)[:-1])) if len(batches) else per_batch
+
+        def column(name):
+            return np.concatenate([getattr(p.records, name)[p.rows] if len(p.rows) != len(p.records.opcodes)
+                                   else getattr(p.records, name) for p in parts]) if parts else np.zeros(0)
+
+        self.channel_ids = column("channel_ids").astype(np.uint16, copy=False)
+        self.sequences = column("sequences").astype(np.uint32, copy=False)
+        self.log_times_ns = column("log_times").astype(np.uint64, copy=False)
+        self.publish_times_ns = column("publish_times").astype(np.uint64, copy=False)
+        self._starts = column("starts").astype(np.int64, copy=False) + chunk_walk.MESSAGE_HEAD
+        self._lengths = np.maximum(column("ends").astype(np.int64, copy=False) - self._starts, 0)
+        self._records: dict[int, np.ndarray] = {}
+        self._counts: dict[int, np.ndarray] = {}
+        self._scatter_all(use_numba)
+
+    def __len__(self) -> int:
+        return len(self.channel_ids)
+
+    def _scatter_all(self, use_numba: bool) -> None:
+        scatter = chunk_walk.kernels(use_numba)["scatter"]
+        for channel_id in np.unique(self.channel_ids).tolist():
+            topic = PACKED_TOPICS.get(self.channels[channel_id].topic)
+            if topic is None:
+                continue
+            itemsize = topic.dtype.itemsize
+            mine = self.channel_ids == channel_id
+            counts = self._lengths[mine] // itemsize
+            offsets = np.concatenate(([0], np.cumsum(counts * itemsize)))
+            target = np.empty(int(offsets[-1]), np.uint8)
+            rows = np.flatnonzero(mine)
+            starts, lengths, at = self._starts[rows], counts * itemsize, offsets[:-1]
+            for k, a, b in self._by_part(rows):
+                scatter(self._parts[k].records.array, starts[a:b], lengths[a:b], target, at[a:b])
+            self._records[channel_id] = unpack(topic, target)
+            self._counts[channel_id] = counts
+
+    def _by_part(self, indices: np.ndarray) -> Iterator[tuple[int, int, int]]:
+        """(part, first, end) of the runs of ascending message ``indices`` that lie in one part."""
+        which = np.searchsorted(self._part_starts, indices, side="right") - 1
+        edges = np.flatnonzero(np.diff(which)) + 1
+        for a, b in zip([0, *edges.tolist()], [*edges.tolist(), len(indices)]):
+            if b > a:
+                yield int(which[a]), a, b
+
+    def packed_channels(self, topic: str) -> list[int]:
+        """Ids of the channels of a packed ``topic`` with messages in this window."""
+        return [cid for cid in self._records if self.channels[cid].topic == topic]
+
+    def records(self, channel_id: int) -> np.ndarray:
+        """Records of a packed channel in file order (a fresh writable array, contract dtype)."""
+        return self._records[channel_id]
+
+    def record_counts(self, channel_id: int) -> np.ndarray:
+        """Whole records of each of the channel's messages, in order."""
+        return self._counts[channel_id]
+
+    def topic_records(self, topic: str) -> np.ndarray:
+        """Records of all channels of a packed ``topic`` in file order."""
+        ids = self.packed_channels(topic)
+        if len(ids) == 1:
+            return self._records[ids[0]]
+        if not ids:
+            return np.zeros(0, PACKED_TOPICS[topic].dtype)
+        owner = np.concatenate([np.repeat(np.flatnonzero(self.channel_ids == cid), self._counts[cid]) for cid in ids])
+        return np.concatenate([self._records[cid] for cid in ids])[np.argsort(owner, kind="stable")]
+
+    def payload(self, index: int) -> bytes:
+        k = int(np.searchsorted(self._part_starts, index, side="right") - 1)
+        start = int(self._starts[index])
+        return bytes(self._parts[k].records.data[start:start + int(self._lengths[index])])
+
+    def payloads(self, indices) -> list[bytes]:
+        """Payloads of the messages at ``indices`` (ascending)."""
+        indices = np.asarray(indices, dtype=np.int64)
+        starts, lengths = self._starts[indices].tolist(), self._lengths[indices].tolist()
+        out = []
+        for k, a, b in self._by_part(indices):
+            data = self._parts[k].records.data
+            out += [data[x:x + n] for x, n in zip(starts[a:b], lengths[a:b])]
+        return out
+
+    def messages(self) -> Iterator[RawMessage]:
+        """Every message of the window in file order (payloads as bytes)."""
+        channels = self.channels
+        payloads = self.payloads(np.arange(len(self)))
+        for cid, seq, log, pub, data in zip(self.channel_ids.tolist(), self.sequences.tolist(),
+                                            self.log_times_ns.tolist(), self.publish_times_ns.tolist(), payloads):
+            yield RawMessage(channels[cid], seq, log, pub, data)

@@ -1,0 +1,222 @@
+"""The contract's reader against the mcap library's decoding (the old path, kept here as the
+reference), its numba walk against the plain-Python one, threads against none, the summary's
+chunk index against a scan, and the damaged-file corpus."""
+
+import io
+import struct
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from haulprofile import contract
+from haulprofile.testing import logs as synthetic
+from haulprofile.contract import chunk_walk, reader
+
+
+def _log(seconds: float = 8.0, chunk_size: int = 16 * 1024) -> bytes:
+    stream = io.BytesIO()
+    synthetic.write_log(stream, seconds, seed=4, filler_hz=300.0, chunk_size=chunk_size)
+    return stream.getvalue()
+
+
+@pytest.fixture(scope="module")
+def log() -> bytes:
+    return _log()
+
+
+def _reference(data: bytes, shift_ns: int = 0) -> dict:
+    """The old decoding: mcap's reader, one ``np.frombuffer`` per packed message (whole records),
+    the time shift on a copy, JSON payloads as they are."""
+    out: dict = {}
+    for _, channel, message in make_reader(io.BytesIO(data)).iter_messages(log_time_order=False):
+        topic = contract.TOPICS.get(channel.topic)
+        if topic is not None and topic.encoding == contract.PACKED_ENCODING:
+            size = topic.dtype.itemsize
+            records = np.frombuffer(message.data, topic.dtype, count=len(message.data) // size)
+            if shift_ns:
+                records = records.copy()
+                records["t_mono_ns"] += np.uint64(shift_ns)
+            out.setdefault(channel.topic, []).append(records)
+        else:
+            out.setdefault(channel.topic, []).append(message.data)
+    return {topic: np.concatenate(parts) if isinstance(parts[0], np.ndarray) else parts
+            for topic, parts in out.items()}
+
+
+def _ours(source, shift_ns: int = 0, report=None, **options) -> dict:
+    out: dict = {}
+    for window in reader.read_windows(source, report, **options):
+        for name in (contract.CAN_FRAMES.name, contract.IMU.name):
+            records = window.topic_records(name)
+            if len(records):
+                out.setdefault(name, []).append(contract.shift_times(records, shift_ns))
+        for cid, payload in zip(window.channel_ids.tolist(), window.payloads(np.arange(len(window)))):
+            topic = window.channels[cid].topic
+            if topic not in reader.PACKED_TOPICS:
+                out.setdefault(topic, []).append(payload)
+    return {topic: np.concatenate(parts) if isinstance(parts[0], np.ndarray) else parts
+            for topic, parts in out.items()}
+
+
+def _same(a: dict, b: dict) -> bool:
+    if a.keys() != b.keys():
+        return False
+    for topic in a:
+        if isinstance(a[topic], np.ndarray):
+            if a[topic].dtype != b[topic].dtype or a[topic].tobytes() != b[topic].tobytes():
+                return False
+        elif a[topic] != b[topic]:
+            return False
+    return True
+
+
+@pytest.mark.parametrize("threads,use_numba", [(2, True), (0, True), (0, False)])
+def test_arrays_are_bit_identical_to_the_mcap_library_decoding(log, threads, use_numba):
+    shift = 3_600_000_000_123
+    ours = _ours(log, shift, threads=threads, use_numba=use_numba, window_bytes=64 * 1024)
+    theirs = _reference(log, shift)
+    assert _same(ours, theirs)
+    assert len(ours[contract.CAN_FRAMES.name]) > 3_000 and len(ours[contract.IMU.name]) > 5_000
+
+
+def test_the_demo_log_reads_as_the_mcap_library_reads_it(tmp_path):
+    """The log `analyze demo --direct` ingests (regional-tunnel, seed 0)."""
+    from haulprofile.analysis.virtual_truck import drive, load_scenario, write_mcap
+
+    virtual = drive(load_scenario("regional-tunnel"), seed=0)
+    path = write_mcap(virtual, tmp_path / "virtual.mcap")
+    report = reader.ReadReport(str(path))
+    assert _same(_ours(path, report=report), _reference(path.read_bytes()))
+    assert report.warning() is None
+
+
+def test_without_summary_the_scan_finds_the_same(log):
+    """A file cut just before its summary (no footer, no chunk index) gives the same messages."""
+    footer = len(log) - 8 - 9 - 20
+    (summary_start,) = struct.unpack_from("<Q", log, footer + 9)
+    cut = log[:summary_start]
+    report = reader.ReadReport("cut")
+    assert _same(_ours(cut, report=report), _reference(log))
+    assert not report.complete and report.warning() is not None
+    assert len(reader._expected_chunks(cut)) == len(reader._expected_chunks(log)) > 10
+
+
+def test_numba_walk_equals_the_python_walk(log):
+    """Every chunk of a log, and chunks of random and truncated bytes (the error codes)."""
+    walk = chunk_walk.kernels()["walk_records"]
+    rng = np.random.default_rng(8)
+    chunks = [reader._decompress(memoryview(log)[at + 9:at + 9 + struct.unpack_from("<Q", log, at + 1)[0]])
+              for at in reader._expected_chunks(log).tolist()]
+    samples = chunks + [c[:len(c) - int(rng.integers(1, 40))] for c in chunks[:10]] + \
+        [rng.integers(0, 256, int(n), dtype=np.uint8).tobytes() for n in rng.integers(0, 200, 30)] + \
+        [bytes([5]) + struct.pack("<Q", 3) + b"abc", b""]
+    statuses = set()
+    for data in samples:
+        (status, table), (status_py, table_py) = walk(np.frombuffer(data, np.uint8)), \
+            chunk_walk.walk_records_python(data)
+        assert status == status_py and table.dtype == table_py.dtype and np.array_equal(table, table_py)
+        assert table.shape == (len(chunk_walk.COLUMNS), max(status, 0))
+        statuses.add(int(np.sign(status)) if status >= 0 else status)
+    assert statuses >= {1, chunk_walk.NOT_TILED, chunk_walk.MESSAGE_CUT}
+
+
+def test_scatter_equals_the_python_scatter():
+    rng = np.random.default_rng(2)
+    source = rng.integers(0, 256, 5000, dtype=np.uint8)
+    starts = np.sort(rng.choice(4000, 50, replace=False)).astype(np.int64)
+    lengths = rng.integers(0, 60, 50).astype(np.int64)
+    offsets = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    ours, reference = np.zeros(int(lengths.sum()), np.uint8), np.zeros(int(lengths.sum()), np.uint8)
+    chunk_walk.kernels()["scatter"](source, starts, lengths, ours, offsets)
+    chunk_walk.scatter_python(source, starts, lengths, reference, offsets)
+    assert np.array_equal(ours, reference)
+    assert np.array_equal(ours[:lengths[0]], source[starts[0]:starts[0] + lengths[0]])
+
+
+def test_damaged_files_read_the_same_every_way(log):
+    """Threads or not, numba or not, every damaged file gives the same messages and report."""
+    from test_ingest_robustness import _damage
+
+    rng = np.random.default_rng(44)
+    for _ in range(60):
+        damaged, _, _ = _damage(log, rng)
+        results = []
+        for threads, use_numba in ((2, True), (0, False)):
+            report = reader.ReadReport("damaged")
+            messages = [(m.channel.topic, m.sequence, m.log_time_ns, m.publish_time_ns, m.data)
+                        for m in reader.read_messages(damaged, report, threads=threads, use_numba=use_numba)]
+            results.append((messages, vars(report)))
+        assert results[0] == results[1]
+
+
+def test_record_struct_is_the_dtype():
+    frames = np.zeros(3, contract.CAN_FRAME_DTYPE)
+    frames["t_mono_ns"] = [1, 2**63, 5]
+    frames["arbitration_id"] = [0x18FEF100, 0x7DF, 0]
+    frames["flags"], frames["dlc"] = [1, 0, 8], [8, 3, 0]
+    frames["data"][0] = np.arange(8)
+    pack = contract.record_struct(contract.CAN_FRAMES).pack
+    packed = b"".join(pack(int(f["t_mono_ns"]), int(f["arbitration_id"]), int(f["flags"]), int(f["dlc"]), 0, 0,
+                           f["data"].tobytes()) for f in frames)
+    assert packed == contract.pack(contract.CAN_FRAMES, frames)
+    assert contract.first_time_ns(packed) == 1
+    shifted = contract.unpack(contract.CAN_FRAMES, packed, shift_ns=10)
+    assert shifted["t_mono_ns"].tolist() == [11, 2**63 + 10, 15] and shifted["data"].tobytes() == frames["data"].tobytes()
+    with pytest.raises(ValueError):
+        contract.unpack(contract.CAN_FRAMES, packed[:-1])
+    assert len(contract.unpack(contract.CAN_FRAMES, packed[:-1], whole_only=True)) == 2
+    imu = contract.record_struct(contract.IMU)
+    assert imu.size == contract.IMU_SAMPLE_DTYPE.itemsize and imu.format == "<Q3h3h"
+
+
+def test_metadata_and_attachments_are_read_and_a_damaged_attachment_is_not_believed():
+    from mcap.writer import CompressionType, Writer
+
+    from haulprofile.contract.reader import ReadReport, read_messages
+
+    stream = io.BytesIO()
+    writer = Writer(stream, chunk_size=1024, compression=CompressionType.ZSTD)
+    writer.start(profile="haulprofile", library="test-writer")
+    channel = writer.register_channel("/diagnostics", "json", 0)
+    writer.add_message(channel, log_time=1, data=b"{}", publish_time=1)
+    writer.add_metadata("haulprofile.logger", {"boot_id": "b1"})
+    writer.add_attachment(create_time=5, log_time=6, name="note.txt", media_type="text/plain", data=b"payload")
+    writer.finish()
+    data = stream.getvalue()
+    report = ReadReport("<buffer>")
+    assert len(list(read_messages(data, report))) == 1
+    assert (report.profile, report.library) == ("haulprofile", "test-writer")
+    assert report.metadata == [("haulprofile.logger", {"boot_id": "b1"})]
+    assert [(a.name, a.media_type, a.create_time_ns, a.log_time_ns, a.data) for a in report.attachments] == [
+        ("note.txt", "text/plain", 5, 6, b"payload")]
+    flipped = bytearray(data)
+    at = data.index(b"payload")
+    flipped[at] ^= 0xFF
+    damaged = ReadReport("<buffer>")
+    assert len(list(read_messages(bytes(flipped), damaged))) == 1
+    assert damaged.attachments == [] and damaged.skipped_bytes > 0 and damaged.warning()
+
+
+def test_repair_of_a_cut_log_runs_without_numba_or_pandas(tmp_path):
+    """The logger repairs a power cut's file on the Pi, whose extra has neither numba nor pandas."""
+    import subprocess
+    import sys
+
+    whole = tmp_path / "whole.mcap"
+    with open(whole, "wb") as stream:
+        synthetic.write_log(stream, 20, seed=2, chunk_size=16 * 1024)
+    data = whole.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:len(data) // 2])
+    script = ("import sys; sys.modules['numba'] = None; sys.modules['pandas'] = None\n"
+              "from haulprofile.contract.repair import is_complete, repair\n"
+              f"kept = repair({str(cut)!r}); assert is_complete({str(cut)!r})\n"
+              "assert 'numba' not in [m for m, v in sys.modules.items() if v is not None]\n"
+              "print(kept)\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    kept = int(done.stdout)
+    assert 0 < kept == sum(1 for _ in reader.read_messages(cut)) < sum(1 for _ in reader.read_messages(whole))
+    with open(cut, "rb") as stream:
+        assert make_reader(stream).get_summary() is not None
