@@ -2,10 +2,11 @@
 daemon (asyncio tasks, queue, writer), read back by the analysis side: every CAN frame the ECU
 sent and every sensor sample the emulated sensors delivered is in the log, bit for bit.
 
-The drive runs time-compressed (20 emulated seconds per real second). Sensors without a FIFO are
-set to their slower legal rates so that polling keeps up at 20x on a loaded CI machine; the
-full-rate path (952 Hz IMU, 25 Hz barometer, 12.5 Hz humidity) is covered in real time by
-``test_logger_daemon.py`` and the benchmark.
+The drive runs time-compressed (10 emulated seconds per real second). Sensors without a FIFO are
+set to their slower legal rates so that polling keeps up at 10x on a loaded CI machine (at 20x a
+scheduling gap of about 100 ms, common while the other test worker compiles numba kernels,
+overflowed the LSM9DS1 FIFO); the full-rate path (952 Hz IMU, 25 Hz barometer, 12.5 Hz humidity)
+is covered in real time by ``test_logger_daemon.py`` and the benchmark.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from haulprofile.logger.emulators.rig import record_drive
 from haulprofile.logger.emulators.signals import from_streams
 
 DRIVE_S = 600.0
-TIME_SCALE = 20.0
+TIME_SCALE = 10.0
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +49,7 @@ def test_one_file_no_drops(logged):
     assert len(daemon.storage.files_written) == 1
     for source in daemon.sources:
         overruns = sum(v.get("overruns", 0) for v in source.stats.extra.values() if isinstance(v, dict))
-        # a FIFO overrun needs a scheduling gap of 64 ms (LPS25HB at 20x) on this shared machine,
+        # a FIFO overrun needs a scheduling gap of 128 ms (LPS25HB at 10x) on this shared machine,
         # as on the real sensor; it is counted. The queue to the writer never drops.
         assert source.stats.drops == overruns, source.name
         print(f"{source.name}: {overruns} FIFO overruns")
@@ -91,7 +92,7 @@ def test_every_imu_sample_bit_exact(logged):
 def test_every_sensor_sample_bit_exact(logged, topic, model, fields):
     arrays, _, devices, _ = logged
     emulated = devices.board.models[model]
-    # At 20x a sensor without a FIFO (HTS221, magnetometer) loses a sample to any 50 ms scheduling
+    # At 10x a sensor without a FIFO (HTS221, magnetometer) loses a sample to any 100 ms scheduling
     # gap of this shared machine (the real sensor too would); what was read is logged bit for bit.
     print(f"{model}: {emulated.overwritten} of {emulated.produced} samples overwritten before a read")
     assert emulated.overwritten <= 0.02 * emulated.produced
