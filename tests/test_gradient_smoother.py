@@ -10,6 +10,7 @@ from test_gradient_virtual_truck import virtual_drive_data
 
 from haulprofile.analysis.errors import UserError
 from haulprofile.analysis.gradient import GradientSettings, estimate_gradient, kalman
+from haulprofile.analysis.gradient.smoother import GradientSmoother, Measurements
 
 virtual_truck = pytest.importorskip("haulprofile.analysis.virtual_truck")
 
@@ -29,7 +30,9 @@ def _random_problem(n=400, seed=0):
     params = np.array([10.0, 1e-7, 1e-8, 1e-8, 5.0, 300.0, 9.81])
     x0 = np.array([z[np.isfinite(z[:, 1]), 1][0], 0, 0, 0, 0, 0])
     p0 = np.diag([1e4, 0.01, 1e4, 1e-4, 0.25, 25.0])
-    return (z, r, dt, params, x0, p0), gamma
+    step = np.zeros((n, kalman.N_STATES))
+    step[rng.choice(n, 5, replace=False)] = [0, 0, 1.0, 1e-6, 1e-4, 0]
+    return (z, r, dt, step, params, x0, p0), gamma
 
 
 def test_kernel_equals_reference_and_recovers_the_gradient():
@@ -117,3 +120,27 @@ def test_paper_method_is_selectable_and_a_bad_method_is_a_user_error(world):
     assert "gradient_smooth_pct" in grid
     with pytest.raises(UserError, match="unknown method"):
         estimate_gradient(signals, dem, GradientSettings(gradient_method="kalman"))
+
+
+def test_barometer_step_at_a_standstill_does_not_become_a_grade():
+    """The cab's overpressure changes while the truck stands (door, ventilation): a 3 m step of
+    the barometric height across one standstill. Marked as a standstill, the smoother puts it
+    into the barometric offset, not into the road."""
+    rng = np.random.default_rng(3)
+    n, spacing = 600, 10.0
+    gamma = 0.02 + 0.01 * np.sin(np.arange(n) / 80.0)
+    h = np.concatenate([[0.0], np.cumsum(gamma[1:] * spacing)])
+    z = np.full((n, kalman.N_MEASUREMENTS), np.nan)
+    z[:, kalman.BARO] = h + 3.0 * (np.arange(n) >= 300) + rng.normal(0, 0.05, n)
+    z[:, kalman.IMU] = 9.80665 * gamma / np.sqrt(1 + gamma ** 2) + 0.1 + rng.normal(0, 0.03, n)
+    ones = np.ones((n, kalman.N_MEASUREMENTS))
+    stopped = np.zeros(n, bool)
+    stopped[299] = True
+    errors = {}
+    for marked in (True, False):
+        m = Measurements(z=z, count=ones, h_acc_m=np.full(n, np.nan), v_acc_m=np.full(n, np.nan),
+                         dt_s=np.ones(n), spacing_m=spacing, stopped=stopped if marked else None)
+        result = GradientSmoother(m).estimate()
+        errors[marked] = float(np.sqrt(np.mean((result.gradient[200:400] - gamma[200:400]) ** 2)))
+    assert errors[True] < 0.001
+    assert errors[False] > 3 * errors[True]

@@ -12,7 +12,7 @@ from .. import checks, kinematics
 from ..errors import UserError
 from . import grid as distance_grid
 from . import kalman, sources
-from .smoother import GradientSmoother, Measurements, SmootherSettings, bin_times
+from .smoother import GradientSmoother, Measurements, SmootherSettings, bin_times, standstill_bins
 
 METHODS = ("smoother", "paper")
 
@@ -213,8 +213,10 @@ def _measurements(frame, index, n_bins, time_s, bin_baro, map_bins, map_accuracy
     if 0.01 < missing_gps < 1:
         notes.append(f"no GPS altitude on {100 * missing_gps:.0f} % of the distance (outages): "
                      f"barometer and IMU carry the profile there")
+    speed = frame["speed_mps"].to_numpy(dtype=float)
     return Measurements(z=z, count=count, h_acc_m=h_acc, v_acc_m=v_acc,
-                        dt_s=bin_times(index, frame["speed_mps"].to_numpy(dtype=float), n_bins, settings.spacing_m), spacing_m=settings.spacing_m)
+                        dt_s=bin_times(index, speed, n_bins, settings.spacing_m), spacing_m=settings.spacing_m,
+                        stopped=standstill_bins(index, speed, n_bins))
 
 
 def _map_bins(frame, dem, distance, valid, index, n_bins, settings, notes):

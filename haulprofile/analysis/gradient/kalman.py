@@ -18,6 +18,9 @@ Measurements (columns of ``z``; NaN = none in that bin):
     2 IMU specific force minus dv/dt   z = g sin(atan γ) + b     (linearised at the prediction)
     3 GPS altitude                     z = h
 
+``step`` adds process variance per grid point on the diagonal: the barometric offset d steps at a
+standstill (door and ventilation change the cab's overpressure; `smoother.SmootherSettings`).
+
 ``numba`` kernel `smooth` beside the NumPy reference `smooth_reference` (same contract, tested equal).
 """
 
@@ -52,9 +55,10 @@ def _process_noise(spacing, dt, q_c, q_r, q_b, dem_var, phi):
     return q
 
 
-def smooth_reference(z, r, dt, params, x0, p0):
+def smooth_reference(z, r, dt, step, params, x0, p0):
     """Forward EKF + RTS smoother, matrix form. ``z``, ``r``: (n, 4) measurements and their
-    variances; ``dt``: (n,) seconds between grid points; ``params`` as `PARAMETERS`; ``x0``, ``p0``:
+    variances; ``dt``: (n,) seconds between grid points; ``step``: (n, 6) extra process variance
+    added to the diagonal on the way into each point; ``params`` as `PARAMETERS`; ``x0``, ``p0``:
     prior of the first point. Returns (smoothed states (n, 6), smoothed covariances (n, 6, 6),
     innovations (n, 4), innovation variances (n, 4))."""
     spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g = params
@@ -68,7 +72,7 @@ def smooth_reference(z, r, dt, params, x0, p0):
         if i > 0:
             f = _transition(spacing, dt[i], phi)
             x = f @ x
-            p = f @ p @ f.T + _process_noise(spacing, dt[i], q_c, q_r, q_b, dem_sigma ** 2, phi)
+            p = f @ p @ f.T + _process_noise(spacing, dt[i], q_c, q_r, q_b, dem_sigma ** 2, phi) + np.diag(step[i])
         x_pred[i], p_pred[i] = x, p
         gamma = x[GAMMA]
         rows = np.zeros((N_MEASUREMENTS, N_STATES))
@@ -128,7 +132,7 @@ def _predict(x, p, spacing, dt, phi, q_c, q_r, q_b, dem_var):
 
 
 @numba.njit(cache=True)
-def smooth(z, r, dt, params, x0, p0, backward=True):
+def smooth(z, r, dt, step, params, x0, p0, backward=True):
     """`smooth_reference` as a numba kernel (same arguments and results); ``backward=False``
     stops after the forward filter (filtered states; innovations for a likelihood)."""
     spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g = (params[0], params[1], params[2], params[3], params[4],
@@ -147,6 +151,8 @@ def smooth(z, r, dt, params, x0, p0, backward=True):
     for i in range(n):
         if i > 0:
             _predict(x, p, spacing, dt[i], phi, q_c, q_r, q_b, dem_var)
+            for a in range(ns):
+                p[a, a] += step[i, a]
         x_pred[i] = x
         p_pred[i] = p
         gamma = x[GAMMA]

@@ -49,6 +49,11 @@ class SmootherSettings:
     """False-alarm probability of the map gate's chi-square test per window."""
     gate_detrend_m: float = 2000.0
     """Running-median length [m] that takes the slow barometric drift out of the DEM residual."""
+    stop_offset_sigma_m: float = 1.0
+    """Step of the barometric offset at a standstill [m] (1 m is 12 Pa): the door opens, the
+    ventilation restarts at another level, the door slams; the cab's overpressure changes by tens
+    of pascals while the height is frozen (`sources.freeze_at_standstill`), and what the freeze
+    cannot see is a step the drift's smooth random walk has no room for."""
 
 
 @dataclass
@@ -61,6 +66,8 @@ class Measurements:
     v_acc_m: np.ndarray
     dt_s: np.ndarray
     spacing_m: float
+    stopped: np.ndarray | None = None
+    """(n_bins,) True where the truck stood still in the bin (None: never)."""
 
 
 @dataclass
@@ -89,6 +96,13 @@ def bin_times(index: np.ndarray, speed_mps: np.ndarray, n_bins: int, spacing_m: 
         mean = np.where(count > 0, total / count, np.nan)
     typical = np.nanmedian(mean) if np.isfinite(mean).any() else 15.0
     return np.clip(spacing_m / np.where(np.isfinite(mean), mean, typical), 0.05, 60.0)
+
+
+def standstill_bins(index: np.ndarray, speed_mps: np.ndarray, n_bins: int, stop_speed_mps: float = 0.3) -> np.ndarray:
+    """True for the grid points where the truck stood still (the speed `sources.freeze_at_standstill`
+    calls a standstill)."""
+    stopped = (index >= 0) & ~(np.nan_to_num(np.asarray(speed_mps, dtype=float), nan=np.inf) > stop_speed_mps)
+    return np.bincount(index[stopped], minlength=n_bins)[:n_bins] > 0
 
 
 def _robust_var(values: np.ndarray) -> float:
@@ -168,7 +182,18 @@ class GradientSmoother:
             if not on:
                 z[:, column] = np.nan
         x0, p0 = self._prior(z)
-        return kalman.smooth(z, r, self.m.dt_s, self._params(), x0, p0, backward)
+        return kalman.smooth(z, r, self.m.dt_s, self._steps(), self._params(), x0, p0, backward)
+
+    def _steps(self):
+        """Extra process variance per grid point: the barometric offset's step at a standstill,
+        on the way into the grid point after the standstill's."""
+        n = len(self.m.dt_s)
+        step = np.zeros((n, kalman.N_STATES))
+        if self.m.stopped is not None:
+            after = np.zeros(n, bool)
+            after[1:] = self.m.stopped[:-1]
+            step[after, kalman.DRIFT] = self.s.stop_offset_sigma_m ** 2
+        return step
 
     def estimate(self) -> SmootherResult:
         m, s = self.m, self.s
