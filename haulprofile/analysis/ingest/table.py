@@ -8,9 +8,11 @@ output bins at once, so memory grows with the output, not with the log.
 
 from __future__ import annotations
 
+import functools
 import json
 from dataclasses import dataclass, field
 
+import msgspec
 import numpy as np
 
 from haulprofile import contract
@@ -40,7 +42,14 @@ def _clock(value) -> int:
 
 @dataclass
 class _Json:
-    """Fields of one JSON topic; clock readings (``*_ns``) stay exact integers, -1 when absent."""
+    """Fields of one JSON topic; clock readings (``*_ns``) stay exact integers, -1 when absent.
+
+    A batch is decoded by msgspec into a struct of just the wanted fields (numbers or null; other
+    keys skipped unparsed), some ten times faster than ``json.loads``. Anything that typed decoding
+    refuses (a string, a boolean or ``NaN`` where a number belongs, a record that is not an object,
+    bytes that are not JSON) sends that batch through ``json.loads`` record by record with the
+    same rules, so both paths give the same values.
+    """
 
     time_ns: list = field(default_factory=list)
     fields: dict = field(default_factory=dict)
@@ -50,21 +59,52 @@ class _Json:
     def flush(self, names: tuple[str, ...]) -> None:
         if not self.pending:
             return
-        try:
-            records = json.loads(b"[" + b",".join(self.pending) + b"]")
-        except (ValueError, UnicodeDecodeError):
-            records = [_loads(p) for p in self.pending]
-        offsets = self.offsets
+        pending, offsets = self.pending, np.array(self.offsets, dtype=np.int64)
         self.pending, self.offsets = [], []
-        keep = [k for k, r in enumerate(records) if r.__class__ is dict and r.get("t_mono_ns").__class__ is int]
-        self.time_ns.extend(records[k]["t_mono_ns"] + offsets[k] for k in keep)
+        try:
+            records = _decoder(names).decode(b"[" + b",".join(pending) + b"]")
+        except (msgspec.ValidationError, msgspec.DecodeError):
+            self._flush_untyped(pending, offsets, names)
+            return
+        stamps = [r.t_mono_ns for r in records]
+        keep = np.array([t is not None for t in stamps], dtype=bool)
+        time_ns = np.array([t for t in stamps if t is not None], dtype=np.int64)
+        self.time_ns.append(time_ns + offsets[keep])
         for name in names:
-            convert = _clock if name.endswith("_ns") else _number
-            self.fields.setdefault(name, []).extend(convert(records[k].get(name)) for k in keep)
+            values = [getattr(r, name) for r in records]
+            if name.endswith("_ns"):
+                column = np.array([-1 if v is None or v < 0 else v for v in values], dtype=np.int64)
+            else:
+                column = np.array(values, dtype=np.float64)  # None (null, absent) becomes NaN
+            self.fields.setdefault(name, []).append(column[keep])
+
+    def _flush_untyped(self, pending: list, offsets: np.ndarray, names: tuple[str, ...]) -> None:
+        try:
+            records = json.loads(b"[" + b",".join(pending) + b"]")
+        except (ValueError, UnicodeDecodeError):
+            records = [_loads(p) for p in pending]
+        keep = [k for k, r in enumerate(records) if r.__class__ is dict and r.get("t_mono_ns").__class__ is int]
+        self.time_ns.append(np.array([records[k]["t_mono_ns"] for k in keep], dtype=np.int64) + offsets[keep])
+        for name in names:
+            convert, dtype = (_clock, np.int64) if name.endswith("_ns") else (_number, np.float64)
+            column = np.array([convert(records[k].get(name)) for k in keep], dtype=dtype)
+            self.fields.setdefault(name, []).append(column)
 
     def arrays(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         dtype = np.int64 if name.endswith("_ns") else np.float64
-        return np.array(self.time_ns, dtype=np.int64), np.array(self.fields.get(name, []), dtype=dtype)
+        return _joined(self.time_ns, np.int64), _joined(self.fields.get(name, []), dtype)
+
+
+def _joined(parts: list, dtype) -> np.ndarray:
+    return np.concatenate(parts).astype(dtype, copy=False) if parts else np.zeros(0, dtype)
+
+
+@functools.cache
+def _decoder(names: tuple[str, ...]) -> msgspec.json.Decoder:
+    """Decoder of a JSON array of records into structs of ``t_mono_ns`` and ``names``."""
+    wanted = [("t_mono_ns", int | None, None)] + \
+        [(name, (int | None) if name.endswith("_ns") else (float | None), None) for name in names]
+    return msgspec.json.Decoder(list[msgspec.defstruct("Record", wanted)])
 
 
 def _blocks(counts: np.ndarray, records: np.ndarray, held: int, block: int):
@@ -273,7 +313,7 @@ class Ingest:
         for name, (t, values) in decoded_obd.items():
             self.acc.add(f"obd:{name}", t, values)
         for topic, stream in self.json.items():
-            t = np.array(stream.time_ns, dtype=np.int64)
+            t = _joined(stream.time_ns, np.int64)
             self.acc.mark_recorded(np.sort(t))
             prefix = {contract.BAROMETER.name: "baro", contract.HUMIDITY.name: "hum",
                       contract.GPS_FIX.name: "gps", contract.TIME_SYNC.name: "sync"}[topic]
