@@ -390,6 +390,16 @@ def shift_times(records: np.ndarray, shift_ns: int) -> np.ndarray:
     return records
 
 
+def join_records(parts: list[np.ndarray], dtype: np.dtype) -> np.ndarray:
+    """Packed records of several arrays in one, copied as bytes (NumPy copies a structured dtype
+    field by field, some twenty times slower)."""
+    if not parts:
+        return np.zeros(0, dtype)
+    if len(parts) == 1:
+        return parts[0]
+    return np.concatenate([np.ascontiguousarray(p, dtype).view(np.uint8) for p in parts]).view(dtype)
+
+
 def encode_json(record: dict) -> bytes:
     return json.dumps(record, separators=(",", ":"), allow_nan=False).encode()
 

@@ -6,7 +6,7 @@ from typing import Iterator, NamedTuple
 
 import numpy as np
 
-from . import CAN_FRAMES, IMU, Topic, unpack
+from . import CAN_FRAMES, IMU, Topic, join_records, unpack
 from . import chunk_walk
 from .mcap_records import Channel, RawMessage
 
@@ -102,7 +102,7 @@ class Window:
         if not ids:
             return np.zeros(0, PACKED_TOPICS[topic].dtype)
         owner = np.concatenate([np.repeat(np.flatnonzero(self.channel_ids == cid), self._counts[cid]) for cid in ids])
-        return np.concatenate([self._records[cid] for cid in ids])[np.argsort(owner, kind="stable")]
+        return join_records([self._records[cid] for cid in ids], PACKED_TOPICS[topic].dtype)[np.argsort(owner, kind="stable")]
 
     def payload(self, index: int) -> bytes:
         k = int(np.searchsorted(self._part_starts, index, side="right") - 1)

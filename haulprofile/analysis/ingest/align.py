@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from . import bin_kernels
+
 MAX_HOLD_S = 1.0
 """No value is carried across a missing second."""
 QUASI_STATIC_HOLD_S = 60.0
@@ -95,34 +97,27 @@ class BinAccumulator:
     def add(self, name: str, time_ns: np.ndarray, values: np.ndarray, kind: str = "mean") -> None:
         """Add samples (time [ns, continuous monotonic], values); NaN values count as absent."""
         values = np.asarray(values, dtype=np.float64)
-        keep = np.isfinite(values)
-        time_ns, values = np.asarray(time_ns, dtype=np.int64)[keep], values[keep]
+        time_ns = np.asarray(time_ns, dtype=np.int64)
         stream = self.streams.setdefault(name, _Stream(kind))
-        if len(values) == 0:
+        in_order, bins, sums, counts, kept, t0, t1 = bin_kernels.bin_in_order(time_ns, values, self.period_ns,
+                                                                               kind == "last")
+        if not in_order:
+            bins, sums, counts, kept, t0, t1 = _bin_sorting(time_ns, values, self.period_ns, kind)
+        if kept == 0:
             return
-        bins = time_ns // self.period_ns
-        if kind == "last":
-            order = np.argsort(time_ns, kind="stable")[::-1]
-            unique, first = np.unique(bins[order], return_index=True)
-            stream.bins.append(unique)
-            stream.sums.append(values[order][first])
-            stream.counts.append(np.ones(len(unique)))
-        else:
-            unique, inverse = np.unique(bins, return_inverse=True)
-            stream.bins.append(unique)
-            stream.sums.append(np.bincount(inverse, values, len(unique)))
-            stream.counts.append(np.bincount(inverse, minlength=len(unique)).astype(np.float64))
-        stream.n += len(values)
-        t0, t1 = int(time_ns.min()), int(time_ns.max())
+        stream.bins.append(bins)
+        stream.sums.append(sums)
+        stream.counts.append(counts)
+        stream.n += int(kept)
+        t0, t1 = int(t0), int(t1)
         stream.t_first = t0 if stream.t_first is None else min(stream.t_first, t0)
         stream.t_last = t1 if stream.t_last is None else max(stream.t_last, t1)
 
     def mark_recorded(self, time_ns: np.ndarray) -> None:
         """Note that the logger recorded something at these times (defines ``valid``)."""
         if len(time_ns):
-            bins = np.asarray(time_ns, dtype=np.int64) // self.period_ns
-            runs = bins[np.flatnonzero(np.diff(bins, prepend=bins[0] - 1))]  # mostly sorted: few runs
-            self._activity.append(np.unique(runs))
+            runs, ascending = bin_kernels.bin_runs(np.asarray(time_ns, dtype=np.int64), self.period_ns)
+            self._activity.append(runs if ascending else np.unique(runs))
 
     def grid(self, max_gap_s: float = MAX_GAP_S, kept_gap_s: float = KEPT_GAP_S) -> Grid | None:
         """Rows for every recorded bin and the silences between them, each silence longer than
@@ -192,6 +187,24 @@ class BinAccumulator:
         if stream.n < 2:
             return float("inf")
         return (stream.t_last - stream.t_first) / (stream.n - 1) / 1e9
+
+
+def _bin_sorting(time_ns: np.ndarray, values: np.ndarray, period_ns: int, kind: str):
+    """`bin_kernels.bin_in_order` for samples out of time order: (bins, sums, counts, kept, t_first, t_last)."""
+    keep = np.isfinite(values)
+    time_ns, values = time_ns[keep], values[keep]
+    if len(values) == 0:
+        return None, None, None, 0, 0, 0
+    bins = time_ns // period_ns
+    if kind == "last":
+        order = np.argsort(time_ns, kind="stable")[::-1]
+        unique, first = np.unique(bins[order], return_index=True)
+        sums, counts = values[order][first], np.ones(len(unique))
+    else:
+        unique, inverse = np.unique(bins, return_inverse=True)
+        sums = np.bincount(inverse, values, len(unique))
+        counts = np.bincount(inverse, minlength=len(unique)).astype(np.float64)
+    return unique, sums, counts, len(values), time_ns.min(), time_ns.max()
 
 
 def hold(values: np.ndarray, recorded: np.ndarray, limit_bins: int) -> np.ndarray:

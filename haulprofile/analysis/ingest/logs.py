@@ -192,8 +192,8 @@ def read_frames(paths) -> LogArrays:
         if not is_mcap(path):
             frames, _ = foreign.read_can_log(path)
             can_parts.append(frames)
-    can = np.concatenate(can_parts) if can_parts else np.zeros(0, contract.CAN_FRAME_DTYPE)
-    imu = np.concatenate(imu_parts) if imu_parts else np.zeros(0, contract.IMU_SAMPLE_DTYPE)
+    can = contract.join_records(can_parts, contract.CAN_FRAME_DTYPE)
+    imu = contract.join_records(imu_parts, contract.IMU_SAMPLE_DTYPE)
     return LogArrays(can, imu, json_records, metadata, timeline,
                      (np.array(mono_pairs, dtype=np.int64), np.array(wall_pairs, dtype=np.int64)))
 

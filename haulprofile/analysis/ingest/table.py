@@ -209,7 +209,7 @@ class Ingest:
 
     def flush_can(self) -> None:
         if self.can_pending:
-            frames = self.can_pending[0] if len(self.can_pending) == 1 else np.concatenate(self.can_pending)
+            frames = contract.join_records(self.can_pending, contract.CAN_FRAME_DTYPE)
             self.can_pending, self.can_pending_records = [], 0
             self.feed_frames(frames)
 
@@ -255,7 +255,7 @@ class Ingest:
         for scale, pending in self.imu_pending.items():
             if not pending:
                 continue
-            samples = pending[0] if len(pending) == 1 else np.concatenate(pending)
+            samples = contract.join_records(pending, contract.IMU_SAMPLE_DTYPE)
             pending.clear()
             self.imu_samples += len(samples)
             t = samples["t_mono_ns"].astype(np.int64)
@@ -300,7 +300,7 @@ class Ingest:
         self.flush_imu()
         for topic, stream in self.json.items():
             stream.flush(JSON_FIELDS[topic])
-        tp = np.concatenate(self.tp_parts) if self.tp_parts else np.zeros(0, contract.CAN_FRAME_DTYPE)
+        tp = contract.join_records(self.tp_parts, contract.CAN_FRAME_DTYPE)
         tp_messages, self.tp_stats = j1939_decode.reassemble(tp)
         self.tp_messages = tp_messages
         for decoded in j1939_decode.decode_tp(tp_messages).values():
@@ -308,7 +308,7 @@ class Ingest:
         if self.database is not None:
             for name, (t, values) in dbc_module.decode_long(self.database, tp_messages).items():
                 self.acc.add(f"dbc:{name}", t, values)
-        obd = np.concatenate(self.obd_parts) if self.obd_parts else np.zeros(0, contract.CAN_FRAME_DTYPE)
+        obd = contract.join_records(self.obd_parts, contract.CAN_FRAME_DTYPE)
         decoded_obd, self.obd_stats = obd_decode.decode(obd)
         for name, (t, values) in decoded_obd.items():
             self.acc.add(f"obd:{name}", t, values)
