@@ -51,6 +51,7 @@ class Window:
         self._lengths = np.maximum(column("ends").astype(np.int64, copy=False) - self._starts, 0)
         self._records: dict[int, np.ndarray] = {}
         self._counts: dict[int, np.ndarray] = {}
+        self._use_numba = use_numba
         self._scatter_all(use_numba)
 
     def __len__(self) -> int:
@@ -118,6 +119,23 @@ class Window:
             data = self._parts[k].records.data
             out += [data[x:x + n] for x, n in zip(starts[a:b], lengths[a:b])]
         return out
+
+    def json_array(self, indices) -> tuple[np.ndarray, np.ndarray]:
+        """Payloads of the messages at ``indices`` (ascending) as one buffer ``[p1,p2,…]`` (a JSON
+        array where each payload is a JSON value), and each payload's length [bytes]."""
+        indices = np.asarray(indices, dtype=np.int64)
+        lengths = self._lengths[indices]
+        at = np.empty(len(indices), np.int64)
+        at[:1] = 1
+        np.cumsum(lengths[:-1] + 1, out=at[1:])
+        at[1:] += 1
+        target = np.full(int(lengths.sum()) + max(len(indices), 1) + 1, ord(","), np.uint8)
+        target[0], target[-1] = ord("["), ord("]")
+        scatter = chunk_walk.kernels(self._use_numba)["scatter"]
+        starts = self._starts[indices]
+        for k, a, b in self._by_part(indices):
+            scatter(self._parts[k].records.array, starts[a:b], lengths[a:b], target, at[a:b])
+        return target, lengths
 
     def messages(self) -> Iterator[RawMessage]:
         """Every message of the window in file order (payloads as bytes)."""

@@ -130,16 +130,13 @@ def _feed_gnss(ingest: Ingest, path: Path, bar) -> None:
     from haulprofile import contract
 
     from .gnss import read_fixes
-    from .table import JSON_FIELDS, _Json
+    from .table import JSON_FIELDS, JsonTopic
 
     fixes = read_fixes(path)
     if not fixes:
         raise LogError(f"{path}: NMEA/UBX GPS log without a single position fix")
-    stream = ingest.json.setdefault(contract.GPS_FIX.name, _Json())
-    for fix in fixes:
-        stream.pending.append(contract.encode_json(fix))
-        stream.offsets.append(0)
-    stream.flush(JSON_FIELDS[contract.GPS_FIX.name])
+    stream = ingest.json.setdefault(contract.GPS_FIX.name, JsonTopic(JSON_FIELDS[contract.GPS_FIX.name]))
+    stream.add_payloads([contract.encode_json(fix) for fix in fixes])
     dated = [f["t_mono_ns"] for f in fixes if f.get("gps_time_utc_ns") is not None]
     ingest.log_pairs[0].extend(dated[:1] + dated[-1:])
     ingest.log_pairs[1].extend(dated[:1] + dated[-1:])

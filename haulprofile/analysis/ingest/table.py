@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import json
+import operator
 from dataclasses import dataclass, field
 
 import msgspec
@@ -28,10 +29,6 @@ LAST_KIND = {"current_gear", "selected_gear", "brake_switch", "clutch_switch", "
 ACCEL_SCALE_KEY = "accel_scale_mps2_per_lsb"
 
 
-JSON_BATCH = 20_000
-"""JSON messages of a topic parsed in one ``json.loads`` (of a JSON array of them)."""
-
-
 def _number(value) -> float:
     return float(value) if value.__class__ in (int, float) else np.nan
 
@@ -41,54 +38,67 @@ def _clock(value) -> int:
 
 
 @dataclass
-class _Json:
+class JsonTopic:
     """Fields of one JSON topic; clock readings (``*_ns``) stay exact integers, -1 when absent.
 
-    A batch is decoded by msgspec into a struct of just the wanted fields (numbers or null; other
-    keys skipped unparsed), some ten times faster than ``json.loads``. Anything that typed decoding
-    refuses (a string, a boolean or ``NaN`` where a number belongs, a record that is not an object,
-    bytes that are not JSON) sends that batch through ``json.loads`` record by record with the
-    same rules, so both paths give the same values.
+    Records arrive as one JSON array per window (`contract.window.Window.json_array`), decoded by
+    msgspec into structs of just the wanted fields (numbers or null; other keys skipped unparsed),
+    some ten times faster than ``json.loads``. Anything typed decoding refuses (a string, a boolean
+    or ``NaN`` where a number belongs, a record that is not an object, bytes that are not JSON)
+    sends that array through ``json.loads``, record by record where the whole does not parse, with
+    the same rules, so both paths give the same values.
     """
 
+    names: tuple[str, ...]
     time_ns: list = field(default_factory=list)
     fields: dict = field(default_factory=dict)
-    pending: list = field(default_factory=list)
-    offsets: list = field(default_factory=list)
 
-    def flush(self, names: tuple[str, ...]) -> None:
-        if not self.pending:
+    def add(self, array, lengths: np.ndarray, offset_ns: int) -> None:
+        """Records of the JSON array ``array`` (bytes-like; ``lengths`` of its elements [bytes]),
+        whose ``t_mono_ns`` shift by ``offset_ns`` onto the continuous time line."""
+        if len(lengths) == 0:
             return
-        pending, offsets = self.pending, np.array(self.offsets, dtype=np.int64)
-        self.pending, self.offsets = [], []
         try:
-            records = _decoder(names).decode(b"[" + b",".join(pending) + b"]")
+            records = _decoder(self.names).decode(array)
         except (msgspec.ValidationError, msgspec.DecodeError):
-            self._flush_untyped(pending, offsets, names)
+            self._add_untyped(array, lengths, offset_ns)
             return
         stamps = [r.t_mono_ns for r in records]
         keep = np.array([t is not None for t in stamps], dtype=bool)
-        time_ns = np.array([t for t in stamps if t is not None], dtype=np.int64)
-        self.time_ns.append(time_ns + offsets[keep])
-        for name in names:
-            values = [getattr(r, name) for r in records]
+        if not keep.all():
+            records = [r for r, k in zip(records, keep.tolist()) if k]
+            stamps = [r.t_mono_ns for r in records]
+        self.time_ns.append(np.array(stamps, dtype=np.int64) + offset_ns)
+        numbers = [name for name in self.names if not name.endswith("_ns")]
+        if numbers:
+            get = operator.attrgetter(*numbers)
+            table = np.array([get(r) for r in records] if len(numbers) > 1 else [[get(r)] for r in records],
+                             dtype=np.float64).reshape(len(records), len(numbers))  # null, absent: NaN
+            for k, name in enumerate(numbers):
+                self.fields.setdefault(name, []).append(table[:, k].copy())
+        for name in self.names:
             if name.endswith("_ns"):
-                column = np.array([-1 if v is None or v < 0 else v for v in values], dtype=np.int64)
-            else:
-                column = np.array(values, dtype=np.float64)  # None (null, absent) becomes NaN
-            self.fields.setdefault(name, []).append(column[keep])
+                column = [getattr(r, name) for r in records]
+                self.fields.setdefault(name, []).append(
+                    np.array([-1 if v is None or v < 0 else v for v in column], dtype=np.int64))
 
-    def _flush_untyped(self, pending: list, offsets: np.ndarray, names: tuple[str, ...]) -> None:
+    def _add_untyped(self, array, lengths: np.ndarray, offset_ns: int) -> None:
         try:
-            records = json.loads(b"[" + b",".join(pending) + b"]")
+            records = json.loads(bytes(array))
         except (ValueError, UnicodeDecodeError):
-            records = [_loads(p) for p in pending]
+            data = bytes(array)
+            starts = 1 + np.concatenate(([0], np.cumsum(lengths[:-1] + 1)))
+            records = [_loads(data[a:a + n]) for a, n in zip(starts.tolist(), lengths.tolist())]
         keep = [k for k, r in enumerate(records) if r.__class__ is dict and r.get("t_mono_ns").__class__ is int]
-        self.time_ns.append(np.array([records[k]["t_mono_ns"] for k in keep], dtype=np.int64) + offsets[keep])
-        for name in names:
+        self.time_ns.append(np.array([records[k]["t_mono_ns"] for k in keep], dtype=np.int64) + offset_ns)
+        for name in self.names:
             convert, dtype = (_clock, np.int64) if name.endswith("_ns") else (_number, np.float64)
             column = np.array([convert(records[k].get(name)) for k in keep], dtype=dtype)
             self.fields.setdefault(name, []).append(column)
+
+    def add_payloads(self, payloads: list[bytes], offset_ns: int = 0) -> None:
+        """Records given one payload each."""
+        self.add(b"[" + b",".join(payloads) + b"]", np.array([len(p) for p in payloads], np.int64), offset_ns)
 
     def arrays(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         dtype = np.int64 if name.endswith("_ns") else np.float64
@@ -104,7 +114,7 @@ def _decoder(names: tuple[str, ...]) -> msgspec.json.Decoder:
     """Decoder of a JSON array of records into structs of ``t_mono_ns`` and ``names``."""
     wanted = [("t_mono_ns", int | None, None)] + \
         [(name, (int | None) if name.endswith("_ns") else (float | None), None) for name in names]
-    return msgspec.json.Decoder(list[msgspec.defstruct("Record", wanted)])
+    return msgspec.json.Decoder(list[msgspec.defstruct("Record", wanted, gc=False)])
 
 
 def _blocks(counts: np.ndarray, records: np.ndarray, held: int, block: int):
@@ -149,7 +159,7 @@ class Ingest:
         self.can_pending_records = 0
         self.imu_pending: dict[float, list[bytes]] = {}
         self.imu_pending_bytes = 0
-        self.json: dict[str, _Json] = {}
+        self.json: dict[str, JsonTopic] = {}
         self.log_pairs: tuple[list, list] = ([], [])
         self.topic_counts: dict[str, int] = {}
         self.can_frames = 0
@@ -179,16 +189,10 @@ class Ingest:
         self._pend_imu(window, offset_ns)
         for topic in seen:
             ids = [cid for cid, channel in window.channels.items() if channel.topic == topic]
-            rows = np.flatnonzero(np.isin(window.channel_ids, ids))
             stream = self.json.get(topic)
             if stream is None:
-                stream = self.json[topic] = _Json()
-            names = JSON_FIELDS[topic]
-            for payload in window.payloads(rows):
-                stream.pending.append(payload)
-                stream.offsets.append(offset_ns)
-                if len(stream.pending) >= JSON_BATCH:
-                    stream.flush(names)
+                stream = self.json[topic] = JsonTopic(JSON_FIELDS[topic])
+            stream.add(*window.json_array(np.flatnonzero(np.isin(window.channel_ids, ids))), offset_ns)
 
     def _pend_can(self, window, offset_ns: int) -> None:
         """CAN records into blocks of at least `BLOCK_FRAMES`, cut only between messages."""
@@ -298,8 +302,6 @@ class Ingest:
         """Flush pending blocks; reassemble TP sessions; match OBD-II; bin the JSON topics."""
         self.flush_can()
         self.flush_imu()
-        for topic, stream in self.json.items():
-            stream.flush(JSON_FIELDS[topic])
         tp = contract.join_records(self.tp_parts, contract.CAN_FRAME_DTYPE)
         tp_messages, self.tp_stats = j1939_decode.reassemble(tp)
         self.tp_messages = tp_messages
