@@ -98,20 +98,25 @@ class BinAccumulator:
         """Add samples (time [ns, continuous monotonic], values); NaN values count as absent."""
         values = np.asarray(values, dtype=np.float64)
         time_ns = np.asarray(time_ns, dtype=np.int64)
-        stream = self.streams.setdefault(name, _Stream(kind))
         in_order, bins, sums, counts, kept, t0, t1 = bin_kernels.bin_in_order(time_ns, values, self.period_ns,
                                                                                kind == "last")
         if not in_order:
-            bins, sums, counts, kept, t0, t1 = _bin_sorting(time_ns, values, self.period_ns, kind)
-        if kept == 0:
+            bins, sums, counts, kept, t0, t1 = bin_sorting(time_ns, values, self.period_ns, kind)
+        self.add_binned(name, bins, sums, counts, int(kept), int(t0), int(t1), kind)
+
+    def add_binned(self, name: str, bins: np.ndarray, sums: np.ndarray, counts: np.ndarray, n: int,
+                   t_first_ns: int, t_last_ns: int, kind: str = "mean") -> None:
+        """Add samples already reduced to distinct ``bins`` (their sums or last values, and counts),
+        ``n`` samples from ``t_first_ns`` to ``t_last_ns``."""
+        stream = self.streams.setdefault(name, _Stream(kind))
+        if n == 0:
             return
         stream.bins.append(bins)
         stream.sums.append(sums)
         stream.counts.append(counts)
-        stream.n += int(kept)
-        t0, t1 = int(t0), int(t1)
-        stream.t_first = t0 if stream.t_first is None else min(stream.t_first, t0)
-        stream.t_last = t1 if stream.t_last is None else max(stream.t_last, t1)
+        stream.n += n
+        stream.t_first = t_first_ns if stream.t_first is None else min(stream.t_first, t_first_ns)
+        stream.t_last = t_last_ns if stream.t_last is None else max(stream.t_last, t_last_ns)
 
     def mark_recorded(self, time_ns: np.ndarray) -> None:
         """Note that the logger recorded something at these times (defines ``valid``)."""
@@ -189,7 +194,7 @@ class BinAccumulator:
         return (stream.t_last - stream.t_first) / (stream.n - 1) / 1e9
 
 
-def _bin_sorting(time_ns: np.ndarray, values: np.ndarray, period_ns: int, kind: str):
+def bin_sorting(time_ns: np.ndarray, values: np.ndarray, period_ns: int, kind: str):
     """`bin_kernels.bin_in_order` for samples out of time order: (bins, sums, counts, kept, t_first, t_last)."""
     keep = np.isfinite(values)
     time_ns, values = time_ns[keep], values[keep]

@@ -76,3 +76,31 @@ def bin_runs(time_ns, period_ns):
             out[k] = b
             k += 1
     return out[:k].copy(), ascending
+
+
+@numba.njit(cache=True, nogil=True)
+def bin_axes_in_order(time_ns, raw, scale, period_ns):
+    """`bin_in_order` of the three axes of raw sensor counts (``raw``: n × 3) times ``scale`` at
+    once: (in_order, bins, sums (runs × 3), counts, t_first, t_last)."""
+    n = len(time_ns)
+    runs = 0
+    for i in range(n):
+        if i > 0 and time_ns[i] < time_ns[i - 1]:
+            return False, np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0), np.int64(0), np.int64(0)
+        if i == 0 or time_ns[i] // period_ns != time_ns[i - 1] // period_ns:
+            runs += 1
+    bins = np.empty(runs, np.int64)
+    sums = np.zeros((runs, 3))
+    counts = np.zeros(runs)
+    k = -1
+    for i in range(n):
+        b = time_ns[i] // period_ns
+        if k < 0 or b != bins[k]:
+            k += 1
+            bins[k] = b
+        for axis in range(3):
+            sums[k, axis] += np.float64(raw[i, axis]) * scale
+        counts[k] += 1.0
+    if n == 0:
+        return True, bins, sums, counts, np.int64(0), np.int64(0)
+    return True, bins, sums, counts, time_ns[0], time_ns[n - 1]

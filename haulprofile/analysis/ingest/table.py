@@ -19,7 +19,7 @@ import numpy as np
 from haulprofile import contract
 from haulprofile.contract import j1939
 
-from . import align, j1939_decode, obd_decode
+from . import align, bin_kernels, j1939_decode, obd_decode
 from . import dbc as dbc_module
 
 BLOCK_FRAMES = 1 << 20
@@ -27,6 +27,7 @@ BLOCK_FRAMES = 1 << 20
 BLOCK_IMU = 1 << 20
 LAST_KIND = {"current_gear", "selected_gear", "brake_switch", "clutch_switch", "axle_location"}
 ACCEL_SCALE_KEY = "accel_scale_mps2_per_lsb"
+IMU_ACCEL_COLUMNS = ("accel_x_mps2", "accel_y_mps2", "accel_z_mps2")
 
 
 def _number(value) -> float:
@@ -262,11 +263,15 @@ class Ingest:
             samples = contract.join_records(pending, contract.IMU_SAMPLE_DTYPE)
             pending.clear()
             self.imu_samples += len(samples)
-            t = samples["t_mono_ns"].astype(np.int64)
+            t = samples["t_mono_ns"].view(np.int64)
             self.acc.mark_recorded(t)
-            accel = samples["accel_raw"].astype(np.float64) * scale
-            for axis, name in enumerate(("accel_x_mps2", "accel_y_mps2", "accel_z_mps2")):
-                self.acc.add(name, t, accel[:, axis])
+            in_order, bins, sums, counts, t0, t1 = bin_kernels.bin_axes_in_order(t, samples["accel_raw"], scale,
+                                                                                 self.acc.period_ns)
+            for axis, name in enumerate(IMU_ACCEL_COLUMNS):
+                if in_order:
+                    self.acc.add_binned(name, bins, sums[:, axis].copy(), counts, len(t), int(t0), int(t1))
+                else:
+                    self.acc.add(name, t, samples["accel_raw"][:, axis].astype(np.float64) * scale)
 
     def feed_frames(self, frames: np.ndarray) -> None:
         """A block of raw CAN records (contract dtype, continuous monotonic time)."""
