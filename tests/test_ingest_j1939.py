@@ -177,3 +177,24 @@ def test_bam_and_rts_cts_reassembly_interleaved():
     assert (stats.bam, stats.rts_cts, stats.aborted, stats.incomplete) == (1, 1, 1, 1)
     decoded = j1939_decode.decode_tp(messages)
     assert decoded[j1939.PGN_EC1].values["engine_reference_torque_nm"][0] == 2386.0
+
+
+def test_frame_columns_in_one_pass_equal_the_numpy_columns(random_frames):
+    """The kernel's columns and PGN groups equal NumPy's masks, on frames of every kind (PDU1 with
+    destinations, 11-bit, remote and error frames, transport protocol)."""
+    rng = np.random.default_rng(21)
+    frames = random_frames.copy()
+    frames["arbitration_id"][::7] = rng.integers(0, 1 << 29, len(frames[::7]))
+    frames["arbitration_id"][3::11] = [j1939.make_id(j1939.PGN_TP_DT, 0x21, destination=int(d))
+                                       for d in rng.integers(0, 256, len(frames[3::11]))]
+    frames["flags"][5::13] = rng.integers(0, 8, len(frames[5::13]))
+    columns = j1939_decode.FrameColumns.of(frames)
+    pgn, source = j1939_decode.pgn_and_source(frames["arbitration_id"])
+    extended = j1939_decode.j1939_frames(frames)
+    np.testing.assert_array_equal(columns.time_ns, frames["t_mono_ns"].astype(np.int64))
+    np.testing.assert_array_equal(columns.pgn, pgn)
+    np.testing.assert_array_equal(columns.source, source)
+    np.testing.assert_array_equal(columns.is_j1939, extended)
+    np.testing.assert_array_equal(columns.words, j1939_decode.data_u64(frames))
+    for number in (*j1939_decode.GROUPED_PGNS, 65262, 0x1234):
+        np.testing.assert_array_equal(columns.frames_of(number), np.flatnonzero(extended & (pgn == number)))

@@ -18,6 +18,8 @@ import numpy as np
 from haulprofile.contract import j1939
 from haulprofile.contract import CAN_FLAG_ERROR, CAN_FLAG_EXTENDED, CAN_FLAG_REMOTE
 
+from . import frame_kernels
+
 TP_PGNS = (j1939.PGN_TP_CM, j1939.PGN_TP_DT)
 
 
@@ -61,21 +63,34 @@ class DecodedPgn:
 
 @dataclass
 class FrameColumns:
-    """Columns of a block of frames computed once and shared by every decoder."""
+    """Columns of a block of frames computed once and shared by every decoder; the frames of each
+    of `GROUPED_PGNS` (extended data frames only), in frame order, by `frames_of`."""
 
     time_ns: np.ndarray
     pgn: np.ndarray
     source: np.ndarray
     is_j1939: np.ndarray
     words: np.ndarray
+    grouped: np.ndarray
+    group_starts: np.ndarray
 
     @classmethod
     def of(cls, frames: np.ndarray) -> "FrameColumns":
-        pgn, source = pgn_and_source(frames["arbitration_id"])
-        return cls(frames["t_mono_ns"].astype(np.int64), pgn, source, j1939_frames(frames), data_u64(frames))
+        return cls(*frame_kernels.frame_columns(frames["t_mono_ns"], frames["arbitration_id"], frames["flags"],
+                                                frames["data"], _GROUP_CODES, len(GROUPED_PGNS)))
+
+    def frames_of(self, pgn: int) -> np.ndarray:
+        """Indices of the extended data frames of ``pgn``, ascending."""
+        k = _GROUP_INDEX.get(pgn)
+        if k is None:
+            return np.flatnonzero(self.is_j1939 & (self.pgn == pgn))
+        return self.grouped[self.group_starts[k]:self.group_starts[k + 1]]
 
 
 SINGLE_FRAME_PGNS = tuple(sorted({s.pgn for s in j1939.SPNS.values()} - set(j1939.PGN_LENGTH)))
+GROUPED_PGNS = SINGLE_FRAME_PGNS + TP_PGNS
+_GROUP_INDEX = {pgn: k for k, pgn in enumerate(GROUPED_PGNS)}
+_GROUP_CODES = frame_kernels.pgn_codes(GROUPED_PGNS)
 
 
 def decode_block(frames: np.ndarray, pgns=SINGLE_FRAME_PGNS, columns: FrameColumns | None = None
@@ -84,7 +99,7 @@ def decode_block(frames: np.ndarray, pgns=SINGLE_FRAME_PGNS, columns: FrameColum
     c = columns if columns is not None else FrameColumns.of(frames)
     out = {}
     for number in pgns:
-        index = np.flatnonzero(c.is_j1939 & (c.pgn == number))
+        index = c.frames_of(number)
         if len(index) == 0:
             continue
         words = c.words[index]
@@ -97,7 +112,7 @@ def decode_block(frames: np.ndarray, pgns=SINGLE_FRAME_PGNS, columns: FrameColum
 def tp_frames(frames: np.ndarray, columns: FrameColumns | None = None) -> np.ndarray:
     """The TP.CM and TP.DT frames of a block (kept for reassembly after all blocks are read)."""
     c = columns if columns is not None else FrameColumns.of(frames)
-    return frames[c.is_j1939 & ((c.pgn == TP_PGNS[0]) | (c.pgn == TP_PGNS[1]))]
+    return frames[np.union1d(c.frames_of(TP_PGNS[0]), c.frames_of(TP_PGNS[1]))]
 
 
 @dataclass(frozen=True)
