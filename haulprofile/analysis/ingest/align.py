@@ -129,7 +129,9 @@ class BinAccumulator:
         ``max_gap_s`` [s] shortened to ``kept_gap_s`` [s]; None if nothing was recorded."""
         if not self._activity:
             return None
-        recorded = np.unique(np.concatenate(self._activity))
+        recorded = np.concatenate(self._activity)
+        if not np.all(recorded[1:] > recorded[:-1]):  # blocks of one file follow each other: mostly not needed
+            recorded = np.unique(recorded)
         max_gap = int(round(max_gap_s * 1e9 / self.period_ns))
         kept = int(round(kept_gap_s * 1e9 / self.period_ns))
         long_gap = np.flatnonzero(np.diff(recorded) > max_gap)

@@ -64,24 +64,23 @@ class JsonTopic:
         except (msgspec.ValidationError, msgspec.DecodeError):
             self._add_untyped(array, lengths, offset_ns)
             return
-        stamps = [r.t_mono_ns for r in records]
-        keep = np.array([t is not None for t in stamps], dtype=bool)
-        if not keep.all():
-            records = [r for r, k in zip(records, keep.tolist()) if k]
-            stamps = [r.t_mono_ns for r in records]
-        self.time_ns.append(np.array(stamps, dtype=np.int64) + offset_ns)
-        numbers = [name for name in self.names if not name.endswith("_ns")]
-        if numbers:
-            get = operator.attrgetter(*numbers)
-            table = np.array([get(r) for r in records] if len(numbers) > 1 else [[get(r)] for r in records],
-                             dtype=np.float64).reshape(len(records), len(numbers))  # null, absent: NaN
-            for k, name in enumerate(numbers):
-                self.fields.setdefault(name, []).append(table[:, k].copy())
+        time_ns = _column(records, "t_mono_ns", np.int64)
+        if time_ns is None:  # records without a monotonic time are not used
+            records = [r for r in records if r.t_mono_ns is not None]
+            time_ns = _column(records, "t_mono_ns", np.int64)
+        self.time_ns.append(time_ns + offset_ns)
         for name in self.names:
             if name.endswith("_ns"):
-                column = [getattr(r, name) for r in records]
-                self.fields.setdefault(name, []).append(
-                    np.array([-1 if v is None or v < 0 else v for v in column], dtype=np.int64))
+                column = _column(records, name, np.int64)
+                if column is None:
+                    column = np.array([-1 if v is None else v for v in map(operator.attrgetter(name), records)],
+                                      dtype=np.int64)
+                column[column < 0] = -1
+            else:
+                column = _column(records, name, np.float64)
+                if column is None:  # null or absent: NaN
+                    column = np.array(list(map(operator.attrgetter(name), records)), dtype=np.float64)
+            self.fields.setdefault(name, []).append(column)
 
     def _add_untyped(self, array, lengths: np.ndarray, offset_ns: int) -> None:
         try:
@@ -104,6 +103,14 @@ class JsonTopic:
     def arrays(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         dtype = np.int64 if name.endswith("_ns") else np.float64
         return _joined(self.time_ns, np.int64), _joined(self.fields.get(name, []), dtype)
+
+
+def _column(records: list, name: str, dtype) -> np.ndarray | None:
+    """Field ``name`` of every decoded record; None if one of them is null or absent."""
+    try:
+        return np.fromiter(map(operator.attrgetter(name), records), dtype=dtype, count=len(records))
+    except TypeError:
+        return None
 
 
 def _joined(parts: list, dtype) -> np.ndarray:
