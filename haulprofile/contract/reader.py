@@ -26,7 +26,9 @@ from __future__ import annotations
 
 import mmap
 import os
+import queue
 import struct
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
@@ -408,10 +410,15 @@ def default_threads() -> int:
 
 
 def read_windows(source, report: ReadReport | None = None, threads: int | None = None,
-                 use_numba: bool | None = None, window_bytes: int = WINDOW_BYTES) -> Iterator[Window]:
+                 use_numba: bool | None = None, window_bytes: int = WINDOW_BYTES, ahead: int = 0) -> Iterator[Window]:
     """`Window`s of every recoverable message of one MCAP file (a path, or bytes) in file order;
     fills ``report``. ``threads`` (default: the usable cores) load chunks ahead; 0 reads
-    sequentially. ``use_numba`` (default: if it imports) picks the compiled walk."""
+    sequentially. ``use_numba`` (default: if it imports) picks the compiled walk. ``ahead`` > 0
+    builds up to that many windows on a thread of their own while the caller works on the last
+    one (the walk and the scatter release the GIL); the report is complete once the windows end."""
+    if ahead > 0:
+        yield from _built_ahead(read_windows(source, report, threads, use_numba, window_bytes), ahead)
+        return
     report = report if report is not None else ReadReport(str(source) if isinstance(source, (str, Path))
                                                           else "<buffer>")
     if isinstance(source, (str, Path)):
@@ -442,6 +449,49 @@ def read_windows(source, report: ReadReport | None = None, threads: int | None =
             scanner.close()
             if executor is not None:
                 executor.shutdown(wait=True)
+
+
+_END = object()
+
+
+def _built_ahead(windows: Iterator[Window], depth: int) -> Iterator[Window]:
+    """``windows`` made on a thread of their own, at most ``depth`` waiting; its errors are raised here."""
+    waiting: queue.Queue = queue.Queue(maxsize=depth)
+    stop = threading.Event()
+
+    def hand_over(item) -> bool:
+        while not stop.is_set():
+            try:
+                waiting.put(item, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def produce() -> None:
+        try:
+            for window in windows:
+                if not hand_over(window):
+                    break
+        except BaseException as exc:  # noqa: BLE001 - raised again in the caller's thread
+            hand_over(exc)
+        finally:
+            windows.close()
+        hand_over(_END)
+
+    producer = threading.Thread(target=produce, name="mcap-windows", daemon=True)
+    producer.start()
+    try:
+        while True:
+            item = waiting.get()
+            if item is _END:
+                break
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        stop.set()
+        producer.join()
 
 
 def read_messages(source, report: ReadReport | None = None, **options) -> Iterator[RawMessage]:
