@@ -19,11 +19,18 @@ def pgn_codes(pgns) -> np.ndarray:
     return table
 
 
+def frame_words(frames: np.ndarray) -> np.ndarray:
+    """Raw CAN records (contract dtype) as n × 3 little-endian uint64: time; identifier, flags,
+    dlc, channel; the 8 data bytes."""
+    return np.ascontiguousarray(frames).view(np.uint64).reshape(len(frames), 3)
+
+
 @numba.njit(cache=True, nogil=True)
-def frame_columns(time_ns, ids, flags, data, codes, n_codes):
+def frame_columns(words3, codes, n_codes):
     """(time [ns] int64, PGN (destination cleared for PDU1), source address, extended data frame?,
-    data bytes as a little-endian uint64, frame indices grouped by PGN code, group starts)."""
-    n = len(ids)
+    data bytes as a little-endian uint64, frame indices grouped by PGN code, group starts) of
+    records given as `frame_words`."""
+    n = words3.shape[0]
     time_out = np.empty(n, np.int64)
     pgn = np.empty(n, np.uint32)
     source = np.empty(n, np.uint8)
@@ -32,20 +39,18 @@ def frame_columns(time_ns, ids, flags, data, codes, n_codes):
     code = np.empty(n, np.int32)
     starts = np.zeros(n_codes + 1, np.int64)
     for i in range(n):
-        arbitration_id = np.uint32(ids[i])
+        head = words3[i, 1]
+        arbitration_id = np.uint32(head & np.uint64(0xFFFFFFFF))
+        f = np.uint8((head >> np.uint64(32)) & np.uint64(0xFF))
         p = (arbitration_id >> 8) & 0x3FFFF
         if ((p >> 8) & 0xFF) < 240:
             p &= 0x3FF00
         pgn[i] = p
         source[i] = arbitration_id & 0xFF
-        f = flags[i]
         ok = (f & CAN_FLAG_EXTENDED) != 0 and (f & (CAN_FLAG_REMOTE | CAN_FLAG_ERROR)) == 0
         j1939[i] = ok
-        w = np.uint64(0)
-        for b in range(8):
-            w |= np.uint64(data[i, b]) << np.uint64(8 * b)
-        words[i] = w
-        time_out[i] = np.int64(time_ns[i])
+        words[i] = words3[i, 2]
+        time_out[i] = np.int64(words3[i, 0])
         c = codes[p] if ok else -1
         code[i] = c
         if c >= 0:

@@ -76,8 +76,7 @@ class FrameColumns:
 
     @classmethod
     def of(cls, frames: np.ndarray) -> "FrameColumns":
-        return cls(*frame_kernels.frame_columns(frames["t_mono_ns"], frames["arbitration_id"], frames["flags"],
-                                                frames["data"], _GROUP_CODES, len(GROUPED_PGNS)))
+        return cls(*frame_kernels.frame_columns(frame_kernels.frame_words(frames), _GROUP_CODES, len(GROUPED_PGNS)))
 
     def frames_of(self, pgn: int) -> np.ndarray:
         """Indices of the extended data frames of ``pgn``, ascending."""
