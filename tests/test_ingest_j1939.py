@@ -188,13 +188,17 @@ def test_frame_columns_in_one_pass_equal_the_numpy_columns(random_frames):
     frames["arbitration_id"][3::11] = [j1939.make_id(j1939.PGN_TP_DT, 0x21, destination=int(d))
                                        for d in rng.integers(0, 256, len(frames[3::11]))]
     frames["flags"][5::13] = rng.integers(0, 8, len(frames[5::13]))
+    frames["arbitration_id"][9::17] = rng.choice([0x7DF, 0x7E8, 0x7EF, 0x18DB33F1, 0x18DAF110], len(frames[9::17]))
     columns = j1939_decode.FrameColumns.of(frames)
     pgn, source = j1939_decode.pgn_and_source(frames["arbitration_id"])
     extended = j1939_decode.j1939_frames(frames)
     np.testing.assert_array_equal(columns.time_ns, frames["t_mono_ns"].astype(np.int64))
-    np.testing.assert_array_equal(columns.pgn, pgn)
-    np.testing.assert_array_equal(columns.source, source)
-    np.testing.assert_array_equal(columns.is_j1939, extended)
     np.testing.assert_array_equal(columns.words, j1939_decode.data_u64(frames))
+    everything = np.arange(len(frames))
+    np.testing.assert_array_equal(columns.sources(everything), source)
     for number in (*j1939_decode.GROUPED_PGNS, 65262, 0x1234):
         np.testing.assert_array_equal(columns.frames_of(number), np.flatnonzero(extended & (pgn == number)))
+    ids = frames["arbitration_id"]
+    obd_ids = ((ids >= 0x7DF) & (ids <= 0x7EF)) | ((ids >> 17) == (0x18DA0000 >> 17))
+    assert obd_ids.sum() > 100
+    np.testing.assert_array_equal(columns.obd_candidates(), np.flatnonzero(obd_ids))

@@ -1,6 +1,6 @@
-"""One pass over a block of raw CAN records: the columns every decoder shares, and the frames
-of each wanted J1939 PGN grouped (a counting sort, in frame order), instead of one NumPy mask
-over the whole block per PGN."""
+"""One pass over a block of raw CAN records: the frames of each wanted J1939 PGN, and the possible
+OBD-II frames, grouped (a counting sort, in frame order), instead of NumPy masks over the whole
+block per PGN."""
 
 from __future__ import annotations
 
@@ -14,8 +14,10 @@ PGN_SPACE = 1 << 18
 
 def pgn_codes(pgns) -> np.ndarray:
     """Lookup table PGN → its position in ``pgns`` (-1 for every other PGN)."""
-    table = np.full(PGN_SPACE, -1, np.int32)
-    table[np.asarray(pgns, dtype=np.int64)] = np.arange(len(pgns), dtype=np.int32)
+    if len(pgns) > 126:
+        raise ValueError("at most 126 grouped PGNs (codes are int8)")
+    table = np.full(PGN_SPACE, -1, np.int8)
+    table[np.asarray(pgns, dtype=np.int64)] = np.arange(len(pgns), dtype=np.int8)
     return table
 
 
@@ -25,43 +27,44 @@ def frame_words(frames: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(frames).view(np.uint64).reshape(len(frames), 3)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _code(head, codes, n_codes):
+    """Group of one record (its identifier-and-flags word): the PGN's code for extended data frames
+    of a wanted PGN, ``n_codes`` for a possible OBD-II request or response, else -1. Written
+    without branches: which frame comes next on a bus is a coin toss for the branch predictor."""
+    arbitration_id = np.uint32(head & np.uint64(0xFFFFFFFF))
+    f = np.uint32((head >> np.uint64(32)) & np.uint64(0xFF))
+    extended_data = ((f & np.uint32(CAN_FLAG_EXTENDED)) != 0) & \
+        ((f & np.uint32(CAN_FLAG_REMOTE | CAN_FLAG_ERROR)) == 0)
+    p = (arbitration_id >> np.uint32(8)) & np.uint32(0x3FFFF)
+    pdu1 = ((p >> np.uint32(8)) & np.uint32(0xFF)) < np.uint32(240)
+    p = p & (np.uint32(0x3FF00) if pdu1 else np.uint32(0x3FFFF))
+    c = np.int64(codes[p])
+    obd = ((arbitration_id >= np.uint32(0x7DF)) & (arbitration_id <= np.uint32(0x7EF))) | \
+        ((arbitration_id >> np.uint32(17)) == np.uint32(0x18DA0000 >> 17))
+    other = np.int64(n_codes) if obd else np.int64(-1)
+    return c if (extended_data & (c >= 0)) else other
+
+
 @numba.njit(cache=True, nogil=True)
-def frame_columns(words3, codes, n_codes):
-    """(time [ns] int64, PGN (destination cleared for PDU1), source address, extended data frame?,
-    data bytes as a little-endian uint64, frame indices grouped by PGN code, group starts) of
-    records given as `frame_words`."""
+def group_frames(words3, codes, n_codes):
+    """Indices of the records (`frame_words`) of each group (`_code`), in frame order: (indices,
+    starts of the ``n_codes`` + 1 groups)."""
     n = words3.shape[0]
-    time_out = np.empty(n, np.int64)
-    pgn = np.empty(n, np.uint32)
-    source = np.empty(n, np.uint8)
-    j1939 = np.empty(n, np.bool_)
-    words = np.empty(n, np.uint64)
-    code = np.empty(n, np.int32)
-    starts = np.zeros(n_codes + 1, np.int64)
+    code = np.empty(n, np.int8)
+    starts = np.zeros(n_codes + 2, np.int64)
     for i in range(n):
-        head = words3[i, 1]
-        arbitration_id = np.uint32(head & np.uint64(0xFFFFFFFF))
-        f = np.uint8((head >> np.uint64(32)) & np.uint64(0xFF))
-        p = (arbitration_id >> 8) & 0x3FFFF
-        if ((p >> 8) & 0xFF) < 240:
-            p &= 0x3FF00
-        pgn[i] = p
-        source[i] = arbitration_id & 0xFF
-        ok = (f & CAN_FLAG_EXTENDED) != 0 and (f & (CAN_FLAG_REMOTE | CAN_FLAG_ERROR)) == 0
-        j1939[i] = ok
-        words[i] = words3[i, 2]
-        time_out[i] = np.int64(words3[i, 0])
-        c = codes[p] if ok else -1
+        c = _code(words3[i, 1], codes, n_codes)
         code[i] = c
-        if c >= 0:
-            starts[c + 1] += 1
-    for k in range(n_codes):
+        starts[c + 1] += 1  # -1 (no group) counts into starts[0], cleared below
+    starts[0] = 0
+    for k in range(n_codes + 1):
         starts[k + 1] += starts[k]
-    order = np.empty(starts[n_codes], np.int64)
-    fill = starts[:n_codes].copy()
+    order = np.empty(starts[n_codes + 1], np.int64)
+    fill = starts[:n_codes + 1].copy()
     for i in range(n):
         c = code[i]
         if c >= 0:
             order[fill[c]] = i
             fill[c] += 1
-    return time_out, pgn, source, j1939, words, order, starts
+    return order, starts

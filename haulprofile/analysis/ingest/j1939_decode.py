@@ -61,28 +61,45 @@ class DecodedPgn:
     values: dict[str, np.ndarray]
 
 
-@dataclass
 class FrameColumns:
-    """Columns of a block of frames computed once and shared by every decoder; the frames of each
-    of `GROUPED_PGNS` (extended data frames only), in frame order, by `frames_of`."""
+    """A block of frames as the decoders share it: its records as words (`frame_kernels.frame_words`),
+    and the frames of each of `GROUPED_PGNS` (extended data frames only) and the possible OBD-II
+    frames, in frame order (`frames_of`, `obd_candidates`)."""
 
-    time_ns: np.ndarray
-    pgn: np.ndarray
-    source: np.ndarray
-    is_j1939: np.ndarray
-    words: np.ndarray
-    grouped: np.ndarray
-    group_starts: np.ndarray
+    def __init__(self, frames: np.ndarray):
+        self.words3 = frame_kernels.frame_words(frames)
+        self.grouped, self.group_starts = frame_kernels.group_frames(self.words3, _GROUP_CODES, len(GROUPED_PGNS))
 
     @classmethod
     def of(cls, frames: np.ndarray) -> "FrameColumns":
-        return cls(*frame_kernels.frame_columns(frame_kernels.frame_words(frames), _GROUP_CODES, len(GROUPED_PGNS)))
+        return cls(frames)
+
+    @property
+    def time_ns(self) -> np.ndarray:
+        return self.words3[:, 0].view(np.int64)
+
+    @property
+    def words(self) -> np.ndarray:
+        """The 8 data bytes of each frame as one little-endian uint64."""
+        return self.words3[:, 2]
+
+    def sources(self, index: np.ndarray) -> np.ndarray:
+        return (self.words3[index, 1] & np.uint64(0xFF)).astype(np.uint8)
 
     def frames_of(self, pgn: int) -> np.ndarray:
         """Indices of the extended data frames of ``pgn``, ascending."""
         k = _GROUP_INDEX.get(pgn)
         if k is None:
-            return np.flatnonzero(self.is_j1939 & (self.pgn == pgn))
+            head = self.words3[:, 1]
+            pgns, _ = pgn_and_source((head & np.uint64(0xFFFFFFFF)).astype(np.uint32))
+            flags = ((head >> np.uint64(32)) & np.uint64(0xFF)).astype(np.uint8)
+            extended = ((flags & CAN_FLAG_EXTENDED) != 0) & ((flags & (CAN_FLAG_REMOTE | CAN_FLAG_ERROR)) == 0)
+            return np.flatnonzero(extended & (pgns == pgn))
+        return self.grouped[self.group_starts[k]:self.group_starts[k + 1]]
+
+    def obd_candidates(self) -> np.ndarray:
+        """Indices of frames with an OBD-II request or response identifier (any flags), ascending."""
+        k = len(GROUPED_PGNS)
         return self.grouped[self.group_starts[k]:self.group_starts[k + 1]]
 
 
@@ -104,7 +121,7 @@ def decode_block(frames: np.ndarray, pgns=SINGLE_FRAME_PGNS, columns: FrameColum
         words = c.words[index]
         values = {s.name: spn_values(s, words) for s in j1939.spns_of(number)
                   if s.bit_offset + s.length_bits <= 64}
-        out[number] = DecodedPgn(number, c.time_ns[index], c.source[index], values)
+        out[number] = DecodedPgn(number, c.time_ns[index], c.sources(index), values)
     return out
 
 

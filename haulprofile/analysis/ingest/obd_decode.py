@@ -33,11 +33,13 @@ def _response_mask(ids: np.ndarray, extended: np.ndarray) -> np.ndarray:
     return eleven | twenty_nine
 
 
-def obd_frames(frames: np.ndarray) -> np.ndarray:
-    """Mode 01 request and response frames of a block (kept for matching after all blocks)."""
-    ids = frames["arbitration_id"]
-    # cheap first cut: 0x7DF-0x7EF, or 29-bit 0x18DA..../0x18DB....
-    candidates = np.flatnonzero(((ids >= 0x7DF) & (ids <= 0x7EF)) | ((ids >> 17) == (0x18DA0000 >> 17)))
+def obd_frames(frames: np.ndarray, candidates: np.ndarray | None = None) -> np.ndarray:
+    """Mode 01 request and response frames of a block (kept for matching after all blocks);
+    ``candidates``: indices of the frames with an OBD-II identifier, if known."""
+    if candidates is None:
+        ids = frames["arbitration_id"]
+        # cheap first cut: 0x7DF-0x7EF, or 29-bit 0x18DA..../0x18DB....
+        candidates = np.flatnonzero(((ids >= 0x7DF) & (ids <= 0x7EF)) | ((ids >> 17) == (0x18DA0000 >> 17)))
     frames = frames[candidates]
     flags = frames["flags"]
     data_frame = (flags & (CAN_FLAG_REMOTE | CAN_FLAG_ERROR)) == 0

@@ -290,7 +290,7 @@ class Ingest:
         for decoded in j1939_decode.decode_block(frames, columns=columns).values():
             self._add_decoded(decoded)
         self.tp_parts.append(j1939_decode.tp_frames(frames, columns))
-        self.obd_parts.append(obd_decode.obd_frames(frames))
+        self.obd_parts.append(obd_decode.obd_frames(frames, columns.obd_candidates()))
         if self.database is not None:
             for name, (t, values) in dbc_module.decode_frames(self.database, frames, self.dbc_messages).items():
                 self.acc.add(f"dbc:{name}", t, values)
