@@ -130,8 +130,10 @@ class BinAccumulator:
         if not self._activity:
             return None
         recorded = np.concatenate(self._activity)
-        if not np.all(recorded[1:] > recorded[:-1]):  # blocks of one file follow each other: mostly not needed
-            recorded = np.unique(recorded)
+        if not np.all(recorded[1:] > recorded[:-1]):
+            # sorted runs, one per block and stream: a merging sort finds them
+            recorded = np.sort(recorded, kind="stable")
+            recorded = recorded[np.concatenate(([True], recorded[1:] != recorded[:-1]))]
         max_gap = int(round(max_gap_s * 1e9 / self.period_ns))
         kept = int(round(kept_gap_s * 1e9 / self.period_ns))
         long_gap = np.flatnonzero(np.diff(recorded) > max_gap)
