@@ -125,7 +125,7 @@ def iter_log_windows(paths, timeline: Timeline | None = None) -> Iterator[tuple[
         timeline.offsets_ns[str(path)] = offset
         report = ReadReport(str(path))
         timeline.reports.append(report)
-        for window in read_windows(path, report, threads=0, ahead=1):
+        for window in read_windows(path, report, threads=1, ahead=1):
             latest = int(np.argmax(window.publish_times_ns))  # the first message of the latest time
             if last_mono is None or int(window.publish_times_ns[latest]) + offset > last_mono:
                 last_mono, last_wall = int(window.publish_times_ns[latest]) + offset, int(window.log_times_ns[latest])
