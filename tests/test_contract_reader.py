@@ -71,10 +71,10 @@ def _same(a: dict, b: dict) -> bool:
     return True
 
 
-@pytest.mark.parametrize("threads,use_numba", [(2, True), (0, True), (0, False)])
-def test_arrays_are_bit_identical_to_the_mcap_library_decoding(log, threads, use_numba):
+@pytest.mark.parametrize("threads,use_numba,ahead", [(2, True, 0), (0, True, 0), (0, False, 0), (1, True, 1), (0, True, 3)])
+def test_arrays_are_bit_identical_to_the_mcap_library_decoding(log, threads, use_numba, ahead):
     shift = 3_600_000_000_123
-    ours = _ours(log, shift, threads=threads, use_numba=use_numba, window_bytes=64 * 1024)
+    ours = _ours(log, shift, threads=threads, use_numba=use_numba, window_bytes=64 * 1024, ahead=ahead)
     theirs = _reference(log, shift)
     assert _same(ours, theirs)
     assert len(ours[contract.CAN_FRAMES.name]) > 3_000 and len(ours[contract.IMU.name]) > 5_000
@@ -220,3 +220,29 @@ def test_repair_of_a_cut_log_runs_without_numba_or_pandas(tmp_path):
     assert 0 < kept == sum(1 for _ in reader.read_messages(cut)) < sum(1 for _ in reader.read_messages(whole))
     with open(cut, "rb") as stream:
         assert make_reader(stream).get_summary() is not None
+
+
+def test_windows_built_ahead_give_the_same_report_and_stop_with_the_caller(log, monkeypatch):
+    """On a thread of their own, windows come in the same order with the same read report; a
+    caller that stops early stops the thread, and an error there is raised in the caller."""
+    import threading
+
+    cut = log[: len(log) * 3 // 4]
+    reports = [reader.ReadReport("cut"), reader.ReadReport("cut")]
+    plain = [len(w) for w in reader.read_windows(cut, reports[0], window_bytes=32 * 1024)]
+    ahead = [len(w) for w in reader.read_windows(cut, reports[1], window_bytes=32 * 1024, ahead=2)]
+    assert plain == ahead and len(plain) > 3
+    assert vars(reports[0]) == vars(reports[1])
+
+    windows = reader.read_windows(log, window_bytes=32 * 1024, ahead=1)
+    next(windows)
+    windows.close()
+    assert not any(t.name == "mcap-windows" for t in threading.enumerate())
+
+    def broken(*_args, **_kwargs):
+        raise MemoryError("no memory for the window")
+
+    monkeypatch.setattr(reader, "Window", broken)
+    with pytest.raises(MemoryError, match="no memory"):
+        list(reader.read_windows(log, window_bytes=32 * 1024, ahead=1))
+    assert not any(t.name == "mcap-windows" for t in threading.enumerate())
