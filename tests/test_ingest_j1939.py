@@ -202,3 +202,9 @@ def test_frame_columns_in_one_pass_equal_the_numpy_columns(random_frames):
     obd_ids = ((ids >= 0x7DF) & (ids <= 0x7EF)) | ((ids >> 17) == (0x18DA0000 >> 17))
     assert obd_ids.sum() > 100
     np.testing.assert_array_equal(columns.obd_candidates(), np.flatnonzero(obd_ids))
+    period_ns = 100_000_000
+    in_order = j1939_decode.FrameColumns(frames, period_ns)
+    assert in_order.ascending
+    np.testing.assert_array_equal(in_order.recorded_bins, np.unique(frames["t_mono_ns"].astype(np.int64) // period_ns))
+    frames["t_mono_ns"][:500] = frames["t_mono_ns"][:500][::-1].copy()
+    assert not j1939_decode.FrameColumns(frames, period_ns).ascending

@@ -118,6 +118,11 @@ class BinAccumulator:
         stream.t_first = t_first_ns if stream.t_first is None else min(stream.t_first, t_first_ns)
         stream.t_last = t_last_ns if stream.t_last is None else max(stream.t_last, t_last_ns)
 
+    def mark_recorded_bins(self, bins: np.ndarray) -> None:
+        """`mark_recorded` of samples whose distinct bins, ascending, are known."""
+        if len(bins):
+            self._activity.append(bins)
+
     def mark_recorded(self, time_ns: np.ndarray) -> None:
         """Note that the logger recorded something at these times (defines ``valid``)."""
         if len(time_ns):

@@ -23,17 +23,17 @@ def bin_in_order(time_ns, values, period_ns, last):
     runs = 0
     kept = 0
     previous_t = np.int64(0)
-    previous_bin = np.int64(0)
+    high = np.int64(0)
     for i in range(n):
         if not np.isfinite(values[i]):
             continue
         t = time_ns[i]
         if kept > 0 and t < previous_t:
             return False, np.zeros(0, np.int64), np.zeros(0), np.zeros(0), 0, np.int64(0), np.int64(0)
-        b = t // period_ns
-        if kept == 0 or b != previous_bin:
+        if kept == 0 or t >= high:  # in time order: a new bin only past the current one's end
+            high = (t // period_ns + 1) * period_ns
             runs += 1
-        previous_t, previous_bin = t, b
+        previous_t = t
         kept += 1
     bins = np.empty(runs, np.int64)
     sums = np.zeros(runs)
@@ -45,12 +45,12 @@ def bin_in_order(time_ns, values, period_ns, last):
         if not np.isfinite(v):
             continue
         t = time_ns[i]
-        b = t // period_ns
         if k < 0:
             t_first = t
-        if k < 0 or b != bins[k]:
+        if k < 0 or t >= high:
             k += 1
-            bins[k] = b
+            bins[k] = t // period_ns
+            high = (bins[k] + 1) * period_ns
         if last:
             sums[k] = v
             counts[k] = 1.0
@@ -65,17 +65,31 @@ def bin_runs(time_ns, period_ns):
     """The bin of each run of consecutive samples in one bin (a log's times are nearly sorted: few
     runs), and whether those bins ascend (then they are already the distinct bins, sorted)."""
     n = len(time_ns)
-    out = np.empty(n, np.int64)
-    k = 0
-    ascending = True
+    runs = 0
+    low = np.int64(1)
+    high = np.int64(0)  # empty: the first sample starts a run
     for i in range(n):
-        b = time_ns[i] // period_ns
-        if k == 0 or b != out[k - 1]:
+        t = time_ns[i]
+        if t < low or t >= high:
+            low = (t // period_ns) * period_ns
+            high = low + period_ns
+            runs += 1
+    out = np.empty(runs, np.int64)
+    ascending = True
+    k = 0
+    low = np.int64(1)
+    high = np.int64(0)
+    for i in range(n):
+        t = time_ns[i]
+        if t < low or t >= high:
+            b = t // period_ns
+            low = b * period_ns
+            high = low + period_ns
             if k > 0 and b < out[k - 1]:
                 ascending = False
             out[k] = b
             k += 1
-    return out[:k].copy(), ascending
+    return out, ascending
 
 
 @numba.njit(cache=True, nogil=True)
@@ -84,20 +98,24 @@ def bin_axes_in_order(time_ns, raw, scale, period_ns):
     once: (in_order, bins, sums (runs × 3), counts, t_first, t_last)."""
     n = len(time_ns)
     runs = 0
+    high = np.int64(0)
     for i in range(n):
-        if i > 0 and time_ns[i] < time_ns[i - 1]:
+        t = time_ns[i]
+        if i > 0 and t < time_ns[i - 1]:
             return False, np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0), np.int64(0), np.int64(0)
-        if i == 0 or time_ns[i] // period_ns != time_ns[i - 1] // period_ns:
+        if i == 0 or t >= high:  # in time order: a new bin only past the current one's end
+            high = (t // period_ns + 1) * period_ns
             runs += 1
     bins = np.empty(runs, np.int64)
     sums = np.zeros((runs, 3))
     counts = np.zeros(runs)
     k = -1
     for i in range(n):
-        b = time_ns[i] // period_ns
-        if k < 0 or b != bins[k]:
+        t = time_ns[i]
+        if k < 0 or t >= high:
             k += 1
-            bins[k] = b
+            bins[k] = t // period_ns
+            high = (bins[k] + 1) * period_ns
         for axis in range(3):
             sums[k, axis] += np.float64(raw[i, axis]) * scale
         counts[k] += 1.0

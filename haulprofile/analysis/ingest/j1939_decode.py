@@ -63,12 +63,14 @@ class DecodedPgn:
 
 class FrameColumns:
     """A block of frames as the decoders share it: its records as words (`frame_kernels.frame_words`),
-    and the frames of each of `GROUPED_PGNS` (extended data frames only) and the possible OBD-II
-    frames, in frame order (`frames_of`, `obd_candidates`)."""
+    the frames of each of `GROUPED_PGNS` (extended data frames only) and the possible OBD-II
+    frames, in frame order (`frames_of`, `obd_candidates`), and ``recorded_bins``: the bin of
+    ``period_ns`` of each run of frames in one bin (the distinct bins where ``ascending``)."""
 
-    def __init__(self, frames: np.ndarray):
+    def __init__(self, frames: np.ndarray, period_ns: int = 100_000_000):
         self.words3 = frame_kernels.frame_words(frames)
-        self.grouped, self.group_starts = frame_kernels.group_frames(self.words3, _GROUP_CODES, len(GROUPED_PGNS))
+        self.grouped, self.group_starts, self.recorded_bins, self.ascending = frame_kernels.group_frames(
+            self.words3, _GROUP_CODES, len(GROUPED_PGNS), period_ns)
 
     @classmethod
     def of(cls, frames: np.ndarray) -> "FrameColumns":
@@ -118,10 +120,10 @@ def decode_block(frames: np.ndarray, pgns=SINGLE_FRAME_PGNS, columns: FrameColum
         index = c.frames_of(number)
         if len(index) == 0:
             continue
-        words = c.words[index]
+        time_ns, sources, words = frame_kernels.gather(c.words3, index)
         values = {s.name: spn_values(s, words) for s in j1939.spns_of(number)
                   if s.bit_offset + s.length_bits <= 64}
-        out[number] = DecodedPgn(number, c.time_ns[index], c.sources(index), values)
+        out[number] = DecodedPgn(number, time_ns, sources, values)
     return out
 
 

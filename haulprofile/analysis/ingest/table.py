@@ -271,9 +271,12 @@ class Ingest:
             pending.clear()
             self.imu_samples += len(samples)
             t = samples["t_mono_ns"].view(np.int64)
-            self.acc.mark_recorded(t)
             in_order, bins, sums, counts, t0, t1 = bin_kernels.bin_axes_in_order(t, samples["accel_raw"], scale,
                                                                                  self.acc.period_ns)
+            if in_order:
+                self.acc.mark_recorded_bins(bins)
+            else:
+                self.acc.mark_recorded(t)
             for axis, name in enumerate(IMU_ACCEL_COLUMNS):
                 if in_order:
                     self.acc.add_binned(name, bins, sums[:, axis].copy(), counts, len(t), int(t0), int(t1))
@@ -285,8 +288,11 @@ class Ingest:
         if len(frames) == 0:
             return
         self.can_frames += len(frames)
-        columns = j1939_decode.FrameColumns.of(frames)
-        self.acc.mark_recorded(columns.time_ns)
+        columns = j1939_decode.FrameColumns(frames, self.acc.period_ns)
+        if columns.ascending:
+            self.acc.mark_recorded_bins(columns.recorded_bins)
+        else:
+            self.acc.mark_recorded(columns.time_ns)
         for decoded in j1939_decode.decode_block(frames, columns=columns).values():
             self._add_decoded(decoded)
         self.tp_parts.append(j1939_decode.tp_frames(frames, columns))
