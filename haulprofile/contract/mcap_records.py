@@ -7,6 +7,7 @@ CRC-32 of the records, records tiling the chunk), the footer's summary CRC, and 
 from __future__ import annotations
 
 import struct
+import threading
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -179,6 +180,19 @@ def header_profile(head) -> str:
         return ""
 
 
+_per_thread = threading.local()
+
+
+def _zstd_decompressor():
+    """This thread's zstd decompressor (a context is worth keeping: some 7 % of the time of a chunk)."""
+    decompressor = getattr(_per_thread, "zstd", None)
+    if decompressor is None:
+        import zstandard
+
+        decompressor = _per_thread.zstd = zstandard.ZstdDecompressor()
+    return decompressor
+
+
 def _decompress(body) -> bytes:
     """Decompressed, CRC-checked records of a chunk body (DamagedRecord if not)."""
     if len(body) < _CHUNK_HEAD.size:
@@ -199,7 +213,7 @@ def _decompress(body) -> bytes:
     import zstandard
     try:
         if compression == b"zstd":
-            data = zstandard.ZstdDecompressor().decompress(raw, max_output_size=size)
+            data = _zstd_decompressor().decompress(raw, max_output_size=size)
         elif compression == b"lz4":
             import lz4.frame
             data = lz4.frame.decompress(raw)
@@ -208,6 +222,7 @@ def _decompress(body) -> bytes:
         else:
             raise DamagedRecord(f"unknown chunk compression {compression!r}")
     except (zstandard.ZstdError, RuntimeError, ValueError, OverflowError, MemoryError) as exc:
+        _per_thread.__dict__.pop("zstd", None)  # start the next chunk with a fresh context
         raise DamagedRecord(f"chunk does not decompress: {exc}") from None
     if len(data) != size or (crc != 0 and crc32(data) != crc):
         raise DamagedRecord("chunk CRC mismatch")
