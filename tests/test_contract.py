@@ -46,3 +46,13 @@ def test_all_topics_round_trip_through_mcap():
     record = json.loads(message.data)
     assert record["position_covariance"][8] == 16.0 and record["position_covariance_type"] == 2
     assert message.publish_time == 5 and message.log_time == 6
+
+
+def test_records_joined_as_bytes_equal_numpy_concatenate():
+    rng = np.random.default_rng(12)
+    for dtype in (contract.CAN_FRAME_DTYPE, contract.IMU_SAMPLE_DTYPE):
+        whole = np.frombuffer(rng.integers(0, 256, dtype.itemsize * 1000, dtype=np.uint8).tobytes(), dtype)
+        parts = [whole[:10], whole[10:10], whole[10:700:3], whole[700:]]  # empty and strided ones too
+        joined = contract.join_records(parts, dtype)
+        assert joined.dtype == dtype and joined.tobytes() == np.concatenate(parts).tobytes()
+        assert len(contract.join_records([], dtype)) == 0
