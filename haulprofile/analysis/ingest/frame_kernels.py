@@ -47,50 +47,27 @@ def _code(head, codes, n_codes):
 
 
 @numba.njit(cache=True, nogil=True)
-def group_frames(words3, codes, n_codes, period_ns):
-    """Indices of the records (`frame_words`) of each group (`_code`), in frame order, and the bins
-    of ``period_ns`` the records fall in: (indices, starts of the ``n_codes`` + 1 groups, the bin
-    of each run of records in one bin, whether those ascend: then they are the distinct bins)."""
+def group_frames(words3, codes, n_codes):
+    """Indices of the records (`frame_words`) of each group (`_code`), in frame order: (indices,
+    starts of the ``n_codes`` + 1 groups)."""
     n = words3.shape[0]
     code = np.empty(n, np.int8)
     starts = np.zeros(n_codes + 2, np.int64)
-    runs = 0
-    low = np.int64(1)
-    high = np.int64(0)
     for i in range(n):
         c = _code(words3[i, 1], codes, n_codes)
         code[i] = c
         starts[c + 1] += 1  # -1 (no group) counts into starts[0], cleared below
-        t = np.int64(words3[i, 0])
-        if t < low or t >= high:
-            low = (t // period_ns) * period_ns
-            high = low + period_ns
-            runs += 1
     starts[0] = 0
     for k in range(n_codes + 1):
         starts[k + 1] += starts[k]
     order = np.empty(starts[n_codes + 1], np.int64)
     fill = starts[:n_codes + 1].copy()
-    bins = np.empty(runs, np.int64)
-    ascending = True
-    k = 0
-    low = np.int64(1)
-    high = np.int64(0)
     for i in range(n):
         c = code[i]
         if c >= 0:
             order[fill[c]] = i
             fill[c] += 1
-        t = np.int64(words3[i, 0])
-        if t < low or t >= high:
-            b = t // period_ns
-            low = b * period_ns
-            high = low + period_ns
-            if k > 0 and b < bins[k - 1]:
-                ascending = False
-            bins[k] = b
-            k += 1
-    return order, starts, bins, ascending
+    return order, starts
 
 
 @numba.njit(cache=True, nogil=True)

@@ -63,14 +63,13 @@ class DecodedPgn:
 
 class FrameColumns:
     """A block of frames as the decoders share it: its records as words (`frame_kernels.frame_words`),
-    the frames of each of `GROUPED_PGNS` (extended data frames only) and the possible OBD-II
-    frames, in frame order (`frames_of`, `obd_candidates`), and ``recorded_bins``: the bin of
-    ``period_ns`` of each run of frames in one bin (the distinct bins where ``ascending``)."""
+    and the frames of each of `GROUPED_PGNS` (extended data frames only) and the possible OBD-II
+    frames, in frame order (`frames_of`, `obd_candidates`)."""
 
-    def __init__(self, frames: np.ndarray, period_ns: int = 100_000_000):
+    def __init__(self, frames: np.ndarray):
+        self.frames = frames
         self.words3 = frame_kernels.frame_words(frames)
-        self.grouped, self.group_starts, self.recorded_bins, self.ascending = frame_kernels.group_frames(
-            self.words3, _GROUP_CODES, len(GROUPED_PGNS), period_ns)
+        self.grouped, self.group_starts = frame_kernels.group_frames(self.words3, _GROUP_CODES, len(GROUPED_PGNS))
 
     @classmethod
     def of(cls, frames: np.ndarray) -> "FrameColumns":
@@ -85,18 +84,12 @@ class FrameColumns:
         """The 8 data bytes of each frame as one little-endian uint64."""
         return self.words3[:, 2]
 
-    def sources(self, index: np.ndarray) -> np.ndarray:
-        return (self.words3[index, 1] & np.uint64(0xFF)).astype(np.uint8)
-
     def frames_of(self, pgn: int) -> np.ndarray:
         """Indices of the extended data frames of ``pgn``, ascending."""
         k = _GROUP_INDEX.get(pgn)
         if k is None:
-            head = self.words3[:, 1]
-            pgns, _ = pgn_and_source((head & np.uint64(0xFFFFFFFF)).astype(np.uint32))
-            flags = ((head >> np.uint64(32)) & np.uint64(0xFF)).astype(np.uint8)
-            extended = ((flags & CAN_FLAG_EXTENDED) != 0) & ((flags & (CAN_FLAG_REMOTE | CAN_FLAG_ERROR)) == 0)
-            return np.flatnonzero(extended & (pgns == pgn))
+            pgns, _ = pgn_and_source(self.frames["arbitration_id"])
+            return np.flatnonzero(j1939_frames(self.frames) & (pgns == pgn))
         return self.grouped[self.group_starts[k]:self.group_starts[k + 1]]
 
     def obd_candidates(self) -> np.ndarray:

@@ -275,12 +275,11 @@ class Ingest:
                                                                                  self.acc.period_ns)
             if in_order:
                 self.acc.mark_recorded_bins(bins)
+                for axis, name in enumerate(IMU_ACCEL_COLUMNS):
+                    self.acc.add_binned(name, bins, sums[:, axis].copy(), counts, len(t), int(t0), int(t1))
             else:
                 self.acc.mark_recorded(t)
-            for axis, name in enumerate(IMU_ACCEL_COLUMNS):
-                if in_order:
-                    self.acc.add_binned(name, bins, sums[:, axis].copy(), counts, len(t), int(t0), int(t1))
-                else:
+                for axis, name in enumerate(IMU_ACCEL_COLUMNS):
                     self.acc.add(name, t, samples["accel_raw"][:, axis].astype(np.float64) * scale)
 
     def feed_frames(self, frames: np.ndarray) -> None:
@@ -288,11 +287,8 @@ class Ingest:
         if len(frames) == 0:
             return
         self.can_frames += len(frames)
-        columns = j1939_decode.FrameColumns(frames, self.acc.period_ns)
-        if columns.ascending:
-            self.acc.mark_recorded_bins(columns.recorded_bins)
-        else:
-            self.acc.mark_recorded(columns.time_ns)
+        columns = j1939_decode.FrameColumns(frames)
+        self.acc.mark_recorded(columns.time_ns)
         for decoded in j1939_decode.decode_block(frames, columns=columns).values():
             self._add_decoded(decoded)
         self.tp_parts.append(j1939_decode.tp_frames(frames, columns))
