@@ -8,7 +8,6 @@ mass stages; ``--mass-kg`` gives a known constant total mass instead.
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 from .. import checks
 from ..errors import UserError

@@ -139,7 +139,7 @@ def fit_truck(parts: list[SegmentMoments], vehicle, known: dict[tuple[str, int],
                  "drag_area_m2": vehicle.drag_coefficient * vehicle.frontal_area_m2}
     if not parts:
         if known:
-            raise UserError(f"known_masses: no segment of this truck has a joint mass fit to calibrate against")
+            raise UserError("known_masses: no segment of this truck has a joint mass fit to calibrate against")
         return {"logs": 0, "segments": [], "notes": ["no segment with enough samples for the joint fit"],
                 **{name: {"value": value, "std": None, "identified": False,
                           "reason": "no segment with enough samples"} for name, value in datasheet.items()}}

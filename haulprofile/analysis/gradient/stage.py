@@ -1,13 +1,11 @@
 """The gradient stage: `estimate_gradient` on the signals table, its columns added in memory;
-`write_gradient` is its part of the output step (``gradient.csv``, ``gradient.png``), `chapter`
-its report chapter."""
+`write_gradient` is its part of the output step (``gradient.csv``, ``gradient.png``),
+`gradient_chapter` its report chapter."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import numpy as np
 
 from ..dem import MissingTileError, open_dem
 from ..dem.plausible import ImplausibleDemError

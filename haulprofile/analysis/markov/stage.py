@@ -18,13 +18,12 @@ from .chain import build_chain
 from .chapter import TITLE, cycle_chapter
 from .classes import ClassWidths
 from .converge import MOVES, POOL, select_refined
-from .counting import TransitionCounts, count_transitions, resample_1hz
+from .counting import NEEDED, TransitionCounts, count_transitions, resample_1hz
 from .export import write_cycle
 from .figure import plot_cycle, plot_scores
 from .load_criteria import load_target
 from .select import Selection, select_cycle
 
-NEEDED = ["time_s", "speed_mps", "gradient_pct", "mass_kg"]
 SELECTIONS = ("refined", "paper")
 PAPER_CANDIDATES = 100_000
 CYCLES_DIR = "cycles"
