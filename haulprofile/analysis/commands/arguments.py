@@ -38,6 +38,13 @@ def in_flags(message: str) -> str:
     return _FIELD.sub(lambda match: FLAGS[match.group(0)], message)
 
 
+def printer(quiet: bool = False, stream=None):
+    """A ``say`` for the stages: their messages in flags, on ``stream`` (stdout), or nothing."""
+    if quiet:
+        return lambda _message: None
+    return lambda message: print(in_flags(message), file=stream)
+
+
 def add_inputs(parser, what: str = "MCAP logs, directories of logs, or signals tables") -> None:
     parser.add_argument("inputs", nargs="+", type=Path, help=what)
 

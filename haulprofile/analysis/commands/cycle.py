@@ -12,7 +12,7 @@ import sys
 from .. import checks
 from ..errors import UserError
 from ..vehicle import load_vehicle
-from .arguments import add_cycle, add_dem, add_inputs, add_out, add_vehicle, in_flags
+from .arguments import add_cycle, add_dem, add_inputs, add_out, add_vehicle, in_flags, printer
 
 EXIT_UNTRUSTWORTHY_RESULT = 3
 
@@ -70,7 +70,7 @@ def run(args) -> int:
                       output=OutputOptions(summary_files=("cycle",)))
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out,
                      vehicle=load_vehicle(args.vehicle) if args.vehicle else None, dem_dir=args.dem,
-                     say=(lambda _msg: None) if args.quiet else print, options=options)
+                     say=printer(args.quiet), options=options)
     ctx = run_pipeline(ctx, until="cycle")
     if ctx.results.cycle is None:
         reasons = [f"{name}: {reason}" for name, reason in ctx.skipped.items()]

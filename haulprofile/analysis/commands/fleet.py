@@ -17,7 +17,7 @@ from ..fleet import FleetSpec, run_fleet
 from ..ingest.stage import IngestOptions
 from ..pipeline import Options
 from ..vehicle import load_vehicle
-from .arguments import add_dem, add_out, add_rate, parse_fleet_known_masses
+from .arguments import add_dem, add_out, add_rate, parse_fleet_known_masses, printer
 
 EXIT_INCOMPLETE = 3
 
@@ -59,7 +59,7 @@ def run(args) -> int:
                         figures=not args.no_figures, known_masses=parse_fleet_known_masses(args.known_mass))
     quiet = args.quiet or args.json
     fleet = run_fleet(spec, args.out, workers=args.workers, scheduler=args.scheduler,
-                      say=(lambda _msg: None) if quiet else print, debug=getattr(args, "debug", False),
+                      say=printer(quiet), debug=getattr(args, "debug", False),
                       progress=not quiet and sys.stderr.isatty())
     problems = []
     for group in fleet.groups:

@@ -21,7 +21,7 @@ from ..outputs import OutputOptions
 from ..pipeline import Options, RunContext, run as run_pipeline, verdict
 from ..simulate.stage import SimulateOptions
 from ..vehicle import load_vehicle
-from .arguments import add_cycle, add_dem, add_inputs, add_out, add_rate, add_vehicle, in_flags, parse_known_masses
+from .arguments import add_cycle, add_dem, add_inputs, add_out, add_rate, add_vehicle, in_flags, parse_known_masses, printer
 
 EXIT_UNTRUSTWORTHY_RESULT = 3
 
@@ -72,7 +72,7 @@ def run(args) -> int:
     check_arguments(args)
     quiet = args.quiet or args.json
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle),
-                     dem_dir=args.dem, options=options_from(args), say=(lambda _msg: None) if quiet else print)
+                     dem_dir=args.dem, options=options_from(args), say=printer(quiet))
     run_pipeline(ctx, cache=not args.no_cache, progress=not quiet and sys.stderr.isatty())
     problem = verdict(ctx)
     if args.json:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .. import checks
 from .. import signals as signals_table
-from .arguments import add_inputs, add_out, add_rate
+from .arguments import add_inputs, add_out, add_rate, printer
 
 
 def add_arguments(parser) -> None:
@@ -25,7 +25,7 @@ def run(args) -> int:
 
     checks.output_file(args.out, args.inputs, signals_table.SIGNALS_SUFFIXES, what="signals table")
     checks.rate_hz(args.rate_hz)
-    say = (lambda _msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    say = printer(args.quiet, sys.stderr)
     options = IngestOptions(rate_hz=args.rate_hz, dbc=args.dbc, progress=not args.quiet and sys.stderr.isatty())
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out.parent,
                      options=Options(ingest=options, output=OutputOptions(signals_file=args.out.name)), say=say)
