@@ -26,6 +26,7 @@ from pathlib import Path
 from haulprofile.private_files import make_dirs, restrict_tree
 
 from . import checks, jsonable
+from .manifest import Manifest, refuse_link, staged_files
 from .errors import UserError
 
 SUMMARY = "summary.json"
@@ -118,11 +119,9 @@ def _stage_files(ctx, staging: Path, full: bool) -> None:
         (staging / SUMMARY).write_text(jsonable.dumps(summary, indent=2))
 
 
-def _remove(path: Path) -> None:
-    if path.is_dir() and not path.is_symlink():
-        shutil.rmtree(path)
-    elif path.exists() or path.is_symlink():
-        path.unlink()
+def _remove(manifest: Manifest, path: Path) -> None:
+    """Remove ``path`` if this tool wrote it (a file the user put there or replaced stays)."""
+    manifest.remove(path)
 
 
 def _files_read(ctx) -> list[Path]:
@@ -134,17 +133,25 @@ def _files_read(ctx) -> list[Path]:
 
 def check(ctx) -> None:
     """Before any stage runs: the output directory can be written and nothing this run may write
-    there is one of its inputs or an existing log (`checks.output_dir`)."""
+    there is one of its inputs, an existing log, a symbolic link or a file this tool did not write
+    (`checks.output_dir`, `manifest.Manifest`)."""
     names = {*RUN_FILES, SUMMARY, *ctx.json_files, *(n for n in ctx.subdirs.values() if n)}
     if ctx.signals_name is not None:
         names.add(ctx.signals_name)
     checks.output_dir(ctx.out_dir, _files_read(ctx), names=sorted(names))
+    manifest = Manifest(ctx.out_dir)
+    for name in sorted(names):
+        if not (ctx.out_dir / name).is_dir() or (ctx.out_dir / name).is_symlink():
+            manifest.check_target(ctx.out_dir / name)
 
 
 def write_outputs(ctx, full: bool) -> list[Path]:
     """Write the files of the stages that ran (and, for a ``full`` run, the report, signals table and
-    summary) into ``ctx.out_dir``; returns the paths written, the summary last."""
+    summary) into ``ctx.out_dir``; returns the paths written (top-level files and folders), the
+    summary last. Files are moved in one by one: a folder such as ``loads/`` keeps what else it
+    holds, and only files this tool wrote are replaced or removed (`manifest.Manifest`)."""
     out = ctx.out_dir
+    refuse_link(out)
     try:
         make_dirs(out)
         staging = Path(tempfile.mkdtemp(prefix=".partial-", dir=out))
@@ -155,21 +162,26 @@ def write_outputs(ctx, full: bool) -> list[Path]:
         restrict_tree(staging)
         if ctx.cache_dir is not None and ctx.cache_dir.exists():
             restrict_tree(ctx.cache_dir)
-        names = sorted(p.name for p in staging.iterdir())
-        if not names:
+        staged = staged_files(staging)
+        if not staged:
             return []
-        if full or set(names) & set(RUN_FILES):
-            (out / SUMMARY).unlink(missing_ok=True)  # the folder no longer holds one finished run
-        if full:
-            for name in RUN_FILES:
-                if name not in names:
-                    _remove(out / name)
-        moved = []
-        for name in [n for n in names if not (full and n == SUMMARY)] + ([SUMMARY] if full else []):
-            if (staging / name).is_dir():
-                _remove(out / name)
-            os.replace(staging / name, out / name)
-            moved.append(out / name)
+        manifest = Manifest(out)
+        tops = {rel.parts[0] for rel in staged}
+        drop_summary = full or bool(tops & set(RUN_FILES))
+        for rel in staged + ([Path(SUMMARY)] if drop_summary else []):
+            manifest.check_target(out / rel)
+        stale = [path for top in (set(RUN_FILES) if full else set()) | {t for t in tops if (staging / t).is_dir()}
+                 for path in manifest.under(top) if path.relative_to(out) not in staged]
+        if drop_summary:
+            _remove(manifest, out / SUMMARY)  # the folder no longer holds one finished run
+        for path in stale:
+            _remove(manifest, path)
+        order = [rel for rel in staged if not (full and rel == Path(SUMMARY))] + ([Path(SUMMARY)] if full else [])
+        manifest.place(staging, order)
+        moved: list[Path] = []
+        for rel in order:
+            if out / rel.parts[0] not in moved:
+                moved.append(out / rel.parts[0])
         return moved
     finally:
         shutil.rmtree(staging, ignore_errors=True)
