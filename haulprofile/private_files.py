@@ -33,8 +33,9 @@ def make_dirs(path: str | Path) -> Path:
 
 
 def open_new(path: str | Path, exclusive: bool = True):
-    """A binary file for writing, created with `FILE_MODE` (refused if it exists and ``exclusive``)."""
-    flags = os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC | (os.O_EXCL if exclusive else os.O_TRUNC)
+    """A binary file for writing, created with `FILE_MODE` (refused if it exists and ``exclusive``;
+    a symbolic link at ``path`` is refused, never written through)."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC | os.O_NOFOLLOW | (os.O_EXCL if exclusive else os.O_TRUNC)
     fd = os.open(path, flags, FILE_MODE)
     try:
         os.fchmod(fd, FILE_MODE)

@@ -137,3 +137,53 @@ def test_demo_through_the_daemon_keeps_a_users_log(tmp_path, monkeypatch):
     assert main(["demo", "--out", str(out), "--scenario", str(tmp_path / "short.toml"), "--realism", "ideal",
                  "--quiet"]) in (0, 3)
     assert (out / "logs" / "truck07.mcap").read_bytes() == LOG
+
+
+@pytest.fixture(scope="module")
+def short_log(tmp_path_factory):
+    from haulprofile.analysis.virtual_truck import drive, load_scenario, write_mcap
+    from test_demo import SCENARIO
+
+    root = tmp_path_factory.mktemp("short")
+    (root / "short.toml").write_text(SCENARIO)
+    log = write_mcap(drive(load_scenario(root / "short.toml"), seed=1), root / "logs" / "short.mcap")
+    (root / "zones.toml").write_text('[[zones]]\nname = "depot"\nlat = 0.0\nlon = 0.0\nradius_m = 500\n')
+    return log, root / "zones.toml"
+
+
+def test_redact_never_replaces_a_different_log_of_the_same_name(short_log, tmp_path, capsys):
+    log, zones = short_log
+    out = tmp_path / "D"
+    out.mkdir()
+    (out / "short.mcap").write_bytes(LOG)
+    assert main(["redact", str(log), "--zones", str(zones), "--out", str(out)]) == 2
+    assert "did not write" in capsys.readouterr().err
+    assert (out / "short.mcap").read_bytes() == LOG
+
+
+def test_redact_replaces_its_own_copy_and_writes_through_no_link(short_log, tmp_path):
+    log, zones = short_log
+    out = tmp_path / "D"
+    out.mkdir()
+    other = tmp_path / "other.mcap"
+    other.write_bytes(LOG)
+    (out / "short.mcap.partial").symlink_to(other)
+    for _ in range(2):
+        assert main(["redact", str(log), "--zones", str(zones), "--out", str(out)]) == 0
+    assert other.read_bytes() == LOG
+    assert (out / "short.mcap").read_bytes()[:8] == LOG[:8] and (out / "short.mcap").stat().st_size > 10_000
+    assert (out / "short.mcap").stat().st_mode & 0o777 == 0o640
+
+
+def test_recover_refuses_a_dangling_link_and_writes_0640(short_log, tmp_path, capsys):
+    log, _ = short_log
+    link = tmp_path / "repaired.mcap"
+    link.symlink_to(tmp_path / "elsewhere.mcap")
+    assert main(["recover", str(log), "-o", str(link)]) == 2
+    assert "symbolic link" in capsys.readouterr().err and not (tmp_path / "elsewhere.mcap").exists()
+    old = os.umask(0o022)
+    try:
+        assert main(["recover", str(log), "-o", str(tmp_path / "fresh.mcap")]) == 0
+    finally:
+        os.umask(old)
+    assert (tmp_path / "fresh.mcap").stat().st_mode & 0o777 == 0o640

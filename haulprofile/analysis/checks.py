@@ -72,6 +72,8 @@ def output_file(path: str | Path, inputs=(), suffixes: set[str] | None = None, o
                 what: str = "file") -> Path:
     """Where a command writes one file: not an input, not an existing log, a known suffix, writable."""
     path = Path(path)
+    if path.is_symlink():
+        raise UserError(f"{option} {path} is a symbolic link; it is never followed, give the real path")
     if suffixes is not None and path.suffix.lower() not in suffixes:
         raise UserError(f"{option} {path}: unknown suffix {path.suffix or '(none)'}; "
                         f"give a {what} ending in {', '.join(sorted(suffixes))}")
@@ -90,6 +92,8 @@ def output_dir(path: str | Path, inputs=(), option: str = "--out", names=()) -> 
     """Where a command writes its files: a directory (or one to create), writable, not an input;
     none of ``names`` (what the command writes into it) may be an input or an existing log."""
     path = Path(path)
+    if path.is_symlink():
+        raise UserError(f"{option} {path} is a symbolic link; it is never followed, give the real path")
     if path.exists() and not path.is_dir():
         raise UserError(f"{option} {path} is an existing file; give a directory")
     sources = _input_files(inputs)

@@ -120,6 +120,14 @@ class Manifest:
             if partial.exists():
                 partial.unlink()
 
+    def install(self, target: str | Path, written: str | Path) -> None:
+        """Rename the finished file ``written`` (in the same folder tree) to ``target``, ours."""
+        self.check_target(target)
+        self.expect(target, written)
+        self.save(prune=False)
+        os.replace(written, target)
+        self.save()
+
     def place(self, staging: str | Path, names: list[Path]) -> None:
         """Move the finished files ``names`` (relative paths, in this order) from ``staging`` to the
         same places under ``root``: all are checked first (`check_target`), each is recorded as

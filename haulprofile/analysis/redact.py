@@ -14,13 +14,15 @@ damaged log is refused: ``analyze recover`` first):
    is copied as it was (data byte for byte, times, sequence numbers); chunk indexes, statistics
    and the summary are those of the new file.
 
-Inputs are never opened for writing, and an output that would replace an input is refused.
+Inputs are never opened for writing; an output that would replace an input, or a file that
+`analyze redact` did not write itself (`manifest.Manifest`), is refused, and so is a symbolic link.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,9 +31,10 @@ from mcap.writer import CompressionType, Writer
 from haulprofile import contract
 from haulprofile.contract.privacy import Zone, in_any, zones_from_tables
 from haulprofile.contract.reader import Channel, RawMessage, ReadReport, read_messages, read_windows
-from haulprofile.private_files import make_dirs, open_new
+from haulprofile.private_files import FILE_MODE, make_dirs
 
 from .errors import UserError
+from .manifest import Manifest, refuse_link
 
 INF = float("inf")
 
@@ -214,7 +217,9 @@ def redact_files(inputs: list[Path], zones: list[Zone], out_dir: Path, read=None
     ``read(path) -> bytes`` opens a log (decrypting it where needed). A stretch that reaches the
     end of one file is carried into the next (inputs in the order given)."""
     read = read or (lambda p: Path(p).read_bytes())
+    refuse_link(out_dir, "--out")
     make_dirs(out_dir)
+    manifest = Manifest(out_dir)
     resolved_inputs = {p.resolve() for p in inputs}
     targets: dict[Path, Path] = {}
     for path in inputs:
@@ -224,17 +229,20 @@ def redact_files(inputs: list[Path], zones: list[Zone], out_dir: Path, read=None
             raise UserError(f"--out {out_dir}: {target} would replace an input log; choose another directory")
         if target in targets:
             raise UserError(f"{path} and {targets[target]} would both be written to {target}; redact them apart")
+        manifest.check_target(target)
         targets[target] = path
     reports, inside = [], False
     for target, path in targets.items():
         report = RedactReport(path, target)
-        partial = target.with_name(target.name + ".partial")
+        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".partial", dir=out_dir)
+        partial = Path(name)
         try:
-            with open_new(partial, exclusive=False) as stream:
+            os.fchmod(fd, FILE_MODE)
+            with os.fdopen(fd, "wb") as stream:
                 redact_bytes(read(path), zones, stream, inside, report)
                 stream.flush()
                 os.fsync(stream.fileno())
-            os.replace(partial, target)
+            manifest.install(target, partial)
         finally:
             partial.unlink(missing_ok=True)
         inside = report.ends_inside

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from haulprofile.contract.reader import ReadReport
 from haulprofile.contract.repair import write_recovered
+from haulprofile.private_files import open_new
 
 from .logs import LogError
 
@@ -24,7 +25,12 @@ def recover(source: str | Path, target: str | Path, chunk_size: int = 1024 * 102
         raise LogError(f"{source} not found")
     if target.resolve() == source.resolve():
         raise LogError(f"{target}: the repaired copy must not overwrite the original; choose another name")
-    with open(target, "wb") as stream:
+    try:
+        stream = open_new(target)
+    except FileExistsError:
+        raise LogError(f"{target} exists (or is a symbolic link); the repaired copy is a new file, "
+                       "choose another name") from None
+    with stream:
         report = write_recovered(source, stream, chunk_size=chunk_size, library="haulprofile-recover")
     if report.messages == 0:
         target.unlink()
