@@ -9,7 +9,9 @@ damaged log is refused: ``analyze recover`` first):
    is inside, or the file before ended inside; to the end when its last one is);
 2. a new file is written with the ``mcap`` library's writer: fixes inside are dropped, NMEA
    sentences received inside are cut out of their ``/gps/nmea`` batches (a batch left empty is
-   dropped), ``/time/sync`` inside loses its GPS time, and ``/privacy/zone`` records (``source =
+   dropped), J1939 Vehicle Position (PGN 65267) and Time/Date (65254) frames inside leave
+   ``/can/frames`` (as do Vehicle Position frames whose own position is in a zone), ``/time/sync``
+   inside loses its GPS time, and ``/privacy/zone`` records (``source =
    "redact"``) mark each stretch. Every other message, schema, channel, metadata and attachment
    is copied as it was (data byte for byte, times, sequence numbers); chunk indexes, statistics
    and the summary are those of the new file.
@@ -29,7 +31,8 @@ from pathlib import Path
 from mcap.writer import CompressionType, Writer
 
 from haulprofile import contract
-from haulprofile.contract.privacy import Zone, in_any, zones_from_tables
+from haulprofile.contract.privacy import (POSITION_PGNS, VEHICLE_POSITION_PGN, Zone, frame_pgns, in_any,
+                                          vehicle_positions, zones_from_tables)
 from haulprofile.contract.reader import Channel, RawMessage, ReadReport, read_messages, read_windows
 from haulprofile.private_files import FILE_MODE, make_dirs
 
@@ -69,13 +72,15 @@ class RedactReport:
     fixes_removed: int = 0
     sentences_removed: int = 0
     gps_times_removed: int = 0
+    frames_removed: int = 0
     stretches: list[tuple[float, float]] = field(default_factory=list)
     ends_inside: bool = False
 
     def line(self) -> str:
         return (f"{self.source.name} -> {self.target}: {len(self.stretches)} stretch(es) in zones; removed "
                 f"{self.fixes_removed} fixes, {self.sentences_removed} NMEA sentences, "
-                f"{self.gps_times_removed} GPS times; {self.messages_out} of {self.messages_in} messages kept")
+                f"{self.gps_times_removed} GPS times, {self.frames_removed} J1939 position/time frames; "
+                f"{self.messages_out} of {self.messages_in} messages kept")
 
 
 def _stretches(fixes: list[tuple[int, bool]], inside_at_start: bool) -> list[tuple[float, float]]:
@@ -113,6 +118,30 @@ def _read_fixes(data: bytes, zones: list[Zone], source: Path) -> tuple[list[tupl
     if read.warning():
         raise UserError(f"{read.warning()}; run 'analyze recover' on it first")
     return fixes, read
+
+
+def _without_position_frames(payload: bytes, zones: list[Zone], stretches, report: RedactReport) -> bytes | None:
+    """A ``/can/frames`` batch without the J1939 Vehicle Position and Time/Date frames received in a
+    zone's stretch, nor Vehicle Position frames whose own position lies in a zone (a log without
+    GPS has no stretches); the batch as it was if none is dropped, None if all are."""
+    import numpy as np
+
+    frames = contract.unpack(contract.CAN_FRAMES, payload)
+    pgns = frame_pgns(frames["arbitration_id"], frames["flags"] & contract.CAN_FLAG_EXTENDED)
+    candidates = np.flatnonzero(np.isin(pgns, POSITION_PGNS))
+    if not len(candidates):
+        return payload
+    drop = np.zeros(len(frames), bool)
+    lat, lon = vehicle_positions(frames["data"][candidates])
+    for i, index in enumerate(candidates):
+        t = int(frames["t_mono_ns"][index])
+        positioned = pgns[index] == VEHICLE_POSITION_PGN and np.isfinite(lat[i]) and np.isfinite(lon[i])
+        drop[index] = _in(stretches, t) or bool(positioned and in_any(zones, float(lat[i]), float(lon[i])))
+    if not drop.any():
+        return payload
+    report.frames_removed += int(drop.sum())
+    kept = frames[~drop]
+    return contract.pack(contract.CAN_FRAMES, kept) if len(kept) else None
 
 
 def redact_bytes(data: bytes, zones: list[Zone], target_stream, inside_at_start: bool = False,
@@ -198,6 +227,10 @@ def redact_bytes(data: bytes, zones: list[Zone], target_stream, inside_at_start:
                         continue
                     payload = contract.encode_json({"t_mono_ns": keep[0][1], "sentences": [s for s, _ in keep],
                                                     "t_mono_ns_each": [t for _, t in keep]})
+            elif topic == contract.CAN_FRAMES.name:
+                payload = _without_position_frames(payload, zones, stretches, report)
+                if payload is None:
+                    continue
             elif topic == contract.TIME_SYNC.name and stretches:
                 sync = json.loads(payload)
                 if sync.get("gps_time_utc_ns") is not None and _in(stretches, int(sync["t_mono_ns"])):

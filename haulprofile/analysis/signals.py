@@ -6,6 +6,8 @@ Accepted as input wherever a log is, so data from other loggers can be analysed.
 
 from __future__ import annotations
 
+import re
+
 from pathlib import Path
 
 import numpy as np
@@ -158,8 +160,30 @@ POSITION_COLUMNS = ("latitude_deg", "longitude_deg", "wall_time_ns")
 distances and times since the start stay)."""
 
 
+_POSITION_WORDS = {"lat", "latitude", "lon", "lng", "longitude", "utc", "gmt", "wall", "date", "datetime",
+                   "timestamp", "epoch"}
+_CLOCK_WORDS = {"second", "seconds", "minute", "minutes", "hour", "hours", "day", "days", "month", "year",
+                "local", "offset", "of"}
+"""A column made of these words only is a wall-clock reading (J1939 Time/Date decoded by a DBC)."""
+
+
+def _words(name: str) -> list[str]:
+    return [w.lower() for w in re.findall(r"[A-Z]?[a-z]+|[A-Z]+(?![a-z])|\d+", str(name))]
+
+
+def is_position_column(name: str) -> bool:
+    """A column that tells where or when (of day): ours (`POSITION_COLUMNS`) or one a foreign table or
+    a DBC brings (``lat``, ``Longitude``, ``gps_time_utc``, ``VP_Latitude``, ``Hours``+``Minutes``)."""
+    words = _words(name)
+    if name in POSITION_COLUMNS or not words:
+        return name in POSITION_COLUMNS
+    return (bool(_POSITION_WORDS & set(words)) or words == ["long"] or {"gps", "time"} <= set(words)
+            or set(words) <= _CLOCK_WORDS)
+
+
 def without_positions(frame: pd.DataFrame) -> pd.DataFrame:
-    return frame.drop(columns=[c for c in POSITION_COLUMNS if c in frame.columns])
+    """``frame`` without every column that tells where or when (`is_position_column`)."""
+    return frame.drop(columns=[c for c in frame.columns if is_position_column(c)])
 
 
 def write_signals(frame: pd.DataFrame, path: str | Path) -> Path:

@@ -19,6 +19,31 @@ EARTH_RADIUS_M = 6_371_008.8
 METRES_PER_DEGREE = EARTH_RADIUS_M * math.pi / 180.0
 
 
+VEHICLE_POSITION_PGN = 65267
+"""J1939-71 Vehicle Position: SPN 584 latitude, SPN 585 longitude (1e-7 deg/bit, offset -210 deg)."""
+TIME_DATE_PGN = 65254
+"""J1939-71 Time/Date: the wall-clock time of day and date."""
+POSITION_PGNS = (VEHICLE_POSITION_PGN, TIME_DATE_PGN)
+
+
+def frame_pgns(arbitration_id, extended):
+    """J1939 PGN of PDU2 frames (29-bit identifiers); -1 for standard frames. Arrays in, array out."""
+    import numpy as np
+
+    arbitration_id = np.asarray(arbitration_id, dtype=np.int64)
+    return np.where(np.asarray(extended, dtype=bool), (arbitration_id >> 8) & 0x3FFFF, -1)
+
+
+def vehicle_positions(data):
+    """(latitude, longitude) [deg] of Vehicle Position frames (``data``: n × 8 bytes); NaN where
+    the receiver sent "not available" (above 0xFAFFFFFF)."""
+    import numpy as np
+
+    raw = np.ascontiguousarray(data, dtype=np.uint8).reshape(-1, 8).view("<u4").astype(np.float64)
+    raw[raw > 0xFAFFFFFF] = np.nan
+    return raw[:, 0] * 1e-7 - 210.0, raw[:, 1] * 1e-7 - 210.0
+
+
 @dataclass(frozen=True)
 class Zone:
     name: str
