@@ -23,7 +23,8 @@ class RunResult:
 
     signals: pd.DataFrame
     summary: dict
-    out_dir: Path
+    out_dir: Path | None
+    """Where the files went (None: no ``out`` was given, none were kept)."""
     results: Results = field(default_factory=Results)
     """Each stage's typed result (``results.mass``, ``results.cycle``, ``results.simulation`` …)."""
 
@@ -52,7 +53,9 @@ def run(inputs, vehicle: str | Path | Vehicle, dem: str | Path | None = None, ou
     dem : str or Path, optional
         Directory of SRTM ``.hgt`` tiles or GeoTIFFs; without it the gradient is barometric only.
     out : str or Path, optional
-        Output directory; default a new temporary directory.
+        Output directory; without it the files go to a temporary folder that is removed before
+        this returns (it holds positions and times), the results stay in memory and
+        ``out_dir`` is None.
     until : str, optional
         Last stage to run (``"mass"``, ``"cycle"`` …); default every stage and the report.
     cache : bool
@@ -73,10 +76,11 @@ def run(inputs, vehicle: str | Path | Vehicle, dem: str | Path | None = None, ou
     Gradient: paper equations (5)-(8); mass: (9)-(14); cycle selection: (15).
     """
     inputs = [Path(p) for p in ([inputs] if isinstance(inputs, (str, Path)) else inputs)]
-    out_dir = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="haulprofile-"))
-    ctx = RunContext(inputs=inputs, out_dir=out_dir,
-                     vehicle=vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle),
-                     dem_dir=Path(dem) if dem is not None else None, options=options,
-                     say=(lambda _m: None) if quiet else print)
-    run_pipeline(ctx, until=until, cache=cache)
-    return RunResult(ctx.signals, ctx.summary, out_dir, ctx.results)
+    with tempfile.TemporaryDirectory(prefix="haulprofile-") as scratch:
+        out_dir = Path(out) if out is not None else Path(scratch)
+        ctx = RunContext(inputs=inputs, out_dir=out_dir,
+                         vehicle=vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle),
+                         dem_dir=Path(dem) if dem is not None else None, options=options,
+                         say=(lambda _m: None) if quiet else print)
+        run_pipeline(ctx, until=until, cache=cache and out is not None)
+    return RunResult(ctx.signals, ctx.summary, out_dir if out is not None else None, ctx.results)
