@@ -66,3 +66,15 @@ def restrict_tree(root: str | Path) -> None:
             path = Path(directory, name)
             if not path.is_symlink():
                 restrict(path)
+
+
+def restrict_written(root: str | Path, since_ns: int) -> None:
+    """`restrict` the files under ``root`` written since ``since_ns`` (``time.time_ns()``) by this
+    user: what a command wrote into a folder it shares with other files (a fleet's output)."""
+    uid = os.getuid()
+    for directory, _dirnames, filenames in os.walk(root):
+        for name in filenames:
+            path = Path(directory, name)
+            info = path.lstat()
+            if not path.is_symlink() and info.st_uid == uid and info.st_mtime_ns >= since_ns:
+                restrict(path)

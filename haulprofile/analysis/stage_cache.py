@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from haulprofile.private_files import make_dirs
+from haulprofile.private_files import make_dirs, restrict_tree
 
 from .jsonable import jsonable
 
@@ -119,3 +119,4 @@ class StageCache:
             pickle.dump({"summary": self.ctx.summary, "results": self.ctx.results, "skipped": self.ctx.skipped},
                         stream, protocol=pickle.HIGHEST_PROTOCOL)
         (target / "key").write_text(self.keys[name])
+        restrict_tree(target)  # 0640 now, not only if the run gets to its output step

@@ -6,10 +6,13 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
+
+from haulprofile.private_files import restrict_written
 
 from ..checks import repeated_content
 from ..errors import UserError
@@ -190,6 +193,7 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
     from .output import write_fleet
 
     out_dir = Path(out_dir)
+    started_ns = time.time_ns() - 1_000_000_000  # file systems with coarse time stamps
     inside_out = out_dir.resolve()
     for group in spec.groups:
         group.logs = [log for log in group.logs if inside_out not in log.resolve().parents]
@@ -222,6 +226,7 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
         group.cycle, group.selection, group.error = cycle.cycle, cycle.selection, cycle.error
     fleet = FleetResult(groups, executor.name)
     write_fleet(fleet, spec, out_dir, say)
+    restrict_written(out_dir, started_ns)  # positions and times: 0640 whatever the umask
     return fleet
 
 
