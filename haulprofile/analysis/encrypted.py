@@ -20,6 +20,8 @@ import tempfile
 import threading
 from pathlib import Path
 
+from haulprofile.input_files import read_small
+
 from .errors import UserError
 
 SUFFIX = ".mcap.age"
@@ -50,10 +52,7 @@ def use_identity_file(path: str | Path) -> int:
         import pyrage
     except ImportError:
         raise UserError("reading .mcap.age logs needs pyrage (pip install 'haulprofile[analysis]')") from None
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise UserError(f"--identity {path}: cannot read: {exc.strerror}") from None
+    data = read_small(path, "identity", UserError)
     found = []
     try:
         if data.lstrip().startswith(b"-----BEGIN OPENSSH PRIVATE KEY"):

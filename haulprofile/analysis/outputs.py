@@ -23,6 +23,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from haulprofile.input_files import refuse_special
 from haulprofile.private_files import make_dirs, restrict_tree
 
 from . import checks, jsonable
@@ -134,7 +135,12 @@ def _files_read(ctx) -> list[Path]:
 def check(ctx) -> None:
     """Before any stage runs: the output directory can be written and nothing this run may write
     there is one of its inputs, an existing log, a symbolic link or a file this tool did not write
-    (`checks.output_dir`, `manifest.Manifest`)."""
+    (`checks.output_dir`, `manifest.Manifest`); no input, file named by an option or DEM is a
+    device, FIFO or socket, whose reading might never end (`input_files.refuse_special`)."""
+    for path in _files_read(ctx):
+        refuse_special(path, "input", UserError)
+    if ctx.dem_dir is not None:
+        refuse_special(ctx.dem_dir, "DEM directory", UserError)
     names = {*RUN_FILES, SUMMARY, *ctx.json_files, *(n for n in ctx.subdirs.values() if n)}
     if ctx.signals_name is not None:
         names.add(ctx.signals_name)

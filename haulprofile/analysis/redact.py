@@ -36,6 +36,8 @@ from haulprofile.contract.privacy import (POSITION_PGNS, VEHICLE_POSITION_PGN, Z
 from haulprofile.contract.reader import Channel, RawMessage, ReadReport, read_messages, read_windows
 from haulprofile.private_files import FILE_MODE, make_dirs
 
+from haulprofile.input_files import read_small
+
 from .errors import UserError
 from .manifest import Manifest, refuse_link
 
@@ -46,16 +48,17 @@ def load_zones(path: str | Path) -> list[Zone]:
     """Zones from a TOML file: ``[[zones]]`` tables, or a logger configuration's ``[[privacy.zones]]``."""
     import tomllib
     path = Path(path)
+    raw = read_small(path, "zones file", UserError)
     try:
-        data = tomllib.loads(path.read_text())
-    except OSError as exc:
-        raise UserError(f"--zones {path}: cannot read: {exc.strerror}") from None
+        data = tomllib.loads(raw.decode("utf-8-sig"))
+    except UnicodeDecodeError as exc:
+        raise UserError(f"--zones {path}: not UTF-8 text (invalid byte at offset {exc.start}); TOML is UTF-8") from None
     except tomllib.TOMLDecodeError as exc:
         raise UserError(f"--zones {path}: not valid TOML: {exc}") from None
     tables, where = data.get("zones"), "zones"
-    if tables is None:
-        tables, where = data.get("privacy", {}).get("zones"), "privacy.zones"
-    if not tables:
+    if tables is None and isinstance(data.get("privacy"), dict):
+        tables, where = data["privacy"].get("zones"), "privacy.zones"
+    if not tables or not isinstance(tables, list):
         raise UserError(f"--zones {path}: no [[zones]] (or [[privacy.zones]]) tables")
     try:
         return zones_from_tables(tables, where)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from haulprofile.contract import obd
+from haulprofile.input_files import read_small
 from haulprofile.contract.privacy import zones_from_tables
 from haulprofile.toml_tables import check_typed, table_kwargs
 
@@ -282,10 +283,7 @@ def example_path() -> Path:
 def load(path: str | Path) -> Config:
     """Read and check a configuration file; raises `ConfigError` with a one-line message."""
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise ConfigError(f"config: cannot read {path}: {exc.strerror}") from None
+    raw = read_small(path, "config:", ConfigError)
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
         raise ConfigError(f"config: {path} is saved as UTF-16; save it as UTF-8 (TOML is UTF-8)")
     try:

@@ -1,0 +1,116 @@
+"""Inputs that hung a command or filled the memory, each refused by design before the work:
+chunks that decompress past their declared size, devices and FIFOs where files belong, files
+far larger than a configuration can be. Memory is judged (tracemalloc's peak), never time."""
+
+from __future__ import annotations
+
+import os
+import struct
+import tracemalloc
+
+import lz4.frame
+import pytest
+import zstandard
+
+from haulprofile.contract import mcap_records
+
+BOMB_BYTES = 256 * 1024 * 1024
+
+
+def chunk_body(compression: bytes, data: bytes, size: int) -> bytes:
+    head = mcap_records._CHUNK_HEAD.pack(0, 0, size, 0, len(compression))
+    return head + compression + struct.pack("<Q", len(data)) + data
+
+
+@pytest.fixture(scope="module")
+def bombs():
+    zeros = bytes(BOMB_BYTES)
+    return {"zstd": zstandard.ZstdCompressor(level=3).compress(zeros), "lz4": lz4.frame.compress(zeros)}
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4"])
+def test_a_chunk_never_decompresses_past_its_declared_size(bombs, compression):
+    """A chunk that says 1000 bytes and holds 256 MiB of zeros (a zstd frame that declares them,
+    an lz4 frame): refused as damaged with no more memory than a few chunks'."""
+    body = chunk_body(compression.encode(), bombs[compression], 1000)
+    tracemalloc.start()
+    try:
+        with pytest.raises(mcap_records.DamagedRecord):
+            mcap_records._decompress(body)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 16 * 1024 * 1024, f"{peak / 1e6:.0f} MB for a 1000-byte chunk"
+
+
+def test_a_chunk_declaring_gigabytes_is_damaged_not_allocated():
+    body = chunk_body(b"zstd", zstandard.ZstdCompressor().compress(b"x"), 3_500_000_000)
+    with pytest.raises(mcap_records.DamagedRecord, match="size field"):
+        mcap_records._decompress(body)
+
+
+def run_limited(argv: list[str], memory_bytes: int = 1 << 31, guard_s: float = 300.0):
+    """A command line in a child process with its address space limited (reading a device would
+    end in a MemoryError, not in minutes of swapping); ``guard_s`` only stops a hang from stalling
+    the suite, it judges nothing."""
+    import resource
+    import subprocess
+    import sys
+
+    def limits():
+        resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    return subprocess.run([sys.executable, "-c", "import sys; from {0} import main; sys.exit(main(sys.argv[1:]))"
+                           .format(argv[0]), *argv[1:]], capture_output=True, text=True, preexec_fn=limits,
+                          env=env, timeout=guard_s, stdin=subprocess.DEVNULL)
+
+
+def one_line_error(result, code: int, words: str) -> None:
+    assert result.returncode == code, result.stderr[-2000:]
+    assert words in result.stderr and result.stderr.strip().count("\n") == 0, result.stderr[-2000:]
+
+
+@pytest.fixture(scope="module")
+def table(tmp_path_factory):
+    from haulprofile.testing.drives import synthetic_drive
+
+    path = tmp_path_factory.mktemp("table") / "drive.csv"
+    synthetic_drive(300, seed=4).round(3).drop(columns=["distance_m"]).to_csv(path, index=False)
+    return path
+
+
+def test_devices_where_files_belong_are_refused_by_type(table, tmp_path):
+    analyze = "haulprofile.analysis.cli"
+    zones = tmp_path / "zones.toml"
+    one_line_error(run_limited([analyze, "run", str(table), "--vehicle", "rigid-18t", "--dem", "/dev/zero",
+                                "--out", str(tmp_path / "o1")]), 2, "character device")
+    one_line_error(run_limited([analyze, "--identity", "/dev/zero", "info", str(table)]), 2, "character device")
+    zones.write_text('[[zones]]\nname = "d"\nlat = 48.0\nlon = 11.0\nradius_m = 100\n')
+    one_line_error(run_limited([analyze, "redact", str(table), "--zones", "/dev/zero", "--out", str(tmp_path / "r")]),
+                   2, "character device")
+    one_line_error(run_limited(["haulprofile.logger.cli", "--config", "/dev/zero", "--check"]), 2, "character device")
+
+
+def test_a_fifo_input_or_log_is_refused_not_waited_on(table, tmp_path):
+    fifo = tmp_path / "drive.csv"
+    os.mkfifo(fifo)
+    one_line_error(run_limited(["haulprofile.analysis.cli", "run", str(fifo), "--vehicle", "rigid-18t",
+                                "--out", str(tmp_path / "o")]), 2, "FIFO")
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    os.mkfifo(logs / "haulprofile_0badf00d_20240514T080000Z_0007.mcap")
+    config = tmp_path / "logger.toml"
+    config.write_text(f'[logger]\ndirectory = "{logs}"\n')
+    result = run_limited(["haulprofile.logger.cli", "--config", str(config), "--status"])
+    assert result.returncode == 1 and "no logs in" in result.stdout, result.stderr[-2000:]
+
+
+def test_a_huge_configuration_is_refused_by_its_size(tmp_path):
+    from haulprofile.logger import config as cfg
+
+    big = tmp_path / "logger.toml"
+    with open(big, "wb") as stream:
+        stream.truncate(64 * 1024 * 1024)  # sparse: no disk used
+    with pytest.raises(cfg.ConfigError, match="at most"):
+        cfg.load(big)
