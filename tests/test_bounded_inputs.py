@@ -114,3 +114,25 @@ def test_a_huge_configuration_is_refused_by_its_size(tmp_path):
         stream.truncate(64 * 1024 * 1024)  # sparse: no disk used
     with pytest.raises(cfg.ConfigError, match="at most"):
         cfg.load(big)
+
+
+def test_a_signals_table_with_months_between_drives_is_shortened_as_logs_are(tmp_path):
+    """Two drives four months apart in one CSV: the silence is shortened (as a log's is), so the
+    stages resample hours, not four months at 10 Hz."""
+    import numpy as np
+    import pandas as pd
+
+    from haulprofile.analysis.pipeline import RunContext, run
+    from haulprofile.testing.drives import synthetic_drive
+
+    drive = synthetic_drive(600, seed=4).round(3).drop(columns=["distance_m"])
+    later = drive.assign(time_s=drive["time_s"] + 120 * 86400.0)
+    table = tmp_path / "two-drives.csv"
+    pd.concat([drive, later]).to_csv(table, index=False)
+    said = []
+    ctx = run(RunContext(inputs=[table], out_dir=tmp_path / "out", say=said.append), until="kinematics")
+    time = ctx.signals["time_s"].to_numpy()
+    assert len(ctx.signals) == 2 * len(drive)
+    assert time[-1] - time[0] < 2 * drive["time_s"].iloc[-1] + 120.0
+    assert np.all(np.diff(time) > 0)
+    assert any("shortened" in line for line in said)

@@ -108,7 +108,27 @@ def combine(paths, say=None) -> pd.DataFrame:
 
     paths = drop_same_content([Path(p) for p in paths], say)
     frames = sorted((read_signals(p) for p in paths), key=lambda f: float(f["time_s"].iloc[0]))
-    return validate(pd.concat(frames, ignore_index=True), ", ".join(map(str, paths)))
+    return shorten_silences(validate(pd.concat(frames, ignore_index=True), ", ".join(map(str, paths))), say)
+
+
+def shorten_silences(frame: pd.DataFrame, say=None) -> pd.DataFrame:
+    """Silences longer than the ingest's `MAX_GAP_S` shortened to `KEPT_GAP_S`, as the logs' are
+    (`ingest.align.Grid`): a table with a month between two drives would otherwise be resampled
+    over the month (gigabytes of empty rows). Wall-clock time, if the table has it, stays."""
+    from .ingest.align import KEPT_GAP_S, MAX_GAP_S
+
+    time = frame["time_s"].to_numpy(dtype=float)
+    step = np.diff(time)
+    long = step > MAX_GAP_S
+    if not long.any():
+        return frame
+    removed = np.concatenate([[0.0], np.cumsum(np.where(long, step - KEPT_GAP_S, 0.0))])
+    frame = frame.copy()
+    frame["time_s"] = time - removed
+    if say is not None:
+        say(f"signals table: {int(long.sum())} silence(s) longer than {MAX_GAP_S:g} s shortened to {KEPT_GAP_S:g} s "
+            f"({removed[-1] / 86400:.3g} days left out of time_s, as for logs)")
+    return frame
 
 
 def describe(frame: pd.DataFrame) -> dict:
