@@ -51,3 +51,49 @@ def test_a_port_that_is_not_a_dask_scheduler_is_one_error_not_a_silent_wait(monk
     finally:
         silent.close()
     assert accepted, "the connection was made: the port answered TCP, not as a scheduler"
+
+
+def drive_csv(tmp_path, **columns):
+    import numpy as np
+    import pandas as pd
+
+    from haulprofile.testing.drives import synthetic_drive
+
+    frame = synthetic_drive(300, seed=4).round(3).drop(columns=["distance_m"])
+    n = len(frame)
+    for name, value in columns.items():
+        frame[name] = value(n) if callable(value) else np.full(n, value)
+    path = tmp_path / "drive.csv"
+    frame.to_csv(path, index=False)
+    return path
+
+
+@pytest.mark.parametrize("column, value, unit", [("pressure_pa", 1013.0, "hPa"), ("pressure_pa", 101.3, "kPa"),
+                                                 ("air_temperature_c", 293.0, "kelvin")])
+def test_a_column_in_another_unit_is_refused_naming_it(tmp_path, column, value, unit):
+    from haulprofile.analysis.errors import UserError
+    from haulprofile.analysis.signals import combine
+
+    with pytest.raises(UserError, match=unit):
+        combine([drive_csv(tmp_path, **{column: value})])
+
+
+@pytest.mark.parametrize("column, bad", [("pressure_pa", 1e308), ("pressure_pa", -5.0), ("latitude_deg", 200.0),
+                                         ("engine_torque_nm", 1e12)])
+def test_implausible_samples_are_left_out_with_a_note(tmp_path, column, bad):
+    import numpy as np
+
+    from haulprofile.analysis.signals import combine
+
+    typical = {"pressure_pa": 95_000.0, "latitude_deg": 48.1, "engine_torque_nm": 800.0}[column]
+
+    def with_spikes(n):
+        values = np.full(n, typical)
+        values[::50] = bad
+        return values
+
+    said = []
+    frame = combine([drive_csv(tmp_path, **{column: with_spikes})], said.append)
+    values = frame[column].to_numpy()
+    assert np.isnan(values[::50]).all() and np.isfinite(np.delete(values, np.s_[::50])).all()
+    assert any(column in line and "left out" in line for line in said), said

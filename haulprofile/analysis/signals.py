@@ -108,7 +108,10 @@ def combine(paths, say=None) -> pd.DataFrame:
 
     paths = drop_same_content([Path(p) for p in paths], say)
     frames = sorted((read_signals(p) for p in paths), key=lambda f: float(f["time_s"].iloc[0]))
-    return shorten_silences(validate(pd.concat(frames, ignore_index=True), ", ".join(map(str, paths))), say)
+    from .plausible import check_ranges
+
+    source = ", ".join(map(str, paths))
+    return shorten_silences(check_ranges(validate(pd.concat(frames, ignore_index=True), source), source, say), say)
 
 
 def shorten_silences(frame: pd.DataFrame, say=None) -> pd.DataFrame:
