@@ -97,3 +97,23 @@ def test_implausible_samples_are_left_out_with_a_note(tmp_path, column, bad):
     values = frame[column].to_numpy()
     assert np.isnan(values[::50]).all() and np.isfinite(np.delete(values, np.s_[::50])).all()
     assert any(column in line and "left out" in line for line in said), said
+
+
+@pytest.mark.parametrize("out", ["/proc/haulprofile-out", b"o\xff".decode("utf-8", "surrogateescape")])
+def test_outputs_that_cannot_be_written_are_one_line_before_any_stage(tmp_path, capsys, out):
+    from haulprofile.analysis.cli import main
+
+    code = main(["run", str(drive_csv(tmp_path)), "--vehicle", "rigid-18t", "--out", out])
+    captured = capsys.readouterr()
+    err = captured.err
+    assert code == 2 and "internal error" not in err and err.strip().count("\n") == 0, err
+    assert "[kinematics]" not in captured.out, "refused before any stage ran"
+
+
+@pytest.mark.parametrize("inputs", [None, b"logs/", [None], 3, []])
+def test_the_python_api_given_no_paths_says_so(inputs):
+    from haulprofile import analysis
+    from haulprofile.analysis.errors import UserError
+
+    with pytest.raises(UserError, match="inputs must be a path"):
+        analysis.run(inputs, vehicle="rigid-18t")

@@ -7,6 +7,7 @@ summary (dict) besides writing the files; the single stages are re-exported from
 
 from __future__ import annotations
 
+import os
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,6 +15,7 @@ from pathlib import Path
 import pandas as pd
 
 from .pipeline import Results, RunContext, run as run_pipeline
+from .errors import UserError
 from .vehicle import Vehicle, load_vehicle
 
 
@@ -38,6 +40,19 @@ class RunResult:
     def mass_segments(self) -> pd.DataFrame:
         """One row per segment between stops: LS/RLS/LM masses, uncertainty, CAN estimate, status."""
         return pd.DataFrame(self.summary.get("mass", {}).get("segments", []))
+
+
+def _paths(value, what: str) -> list[Path]:
+    """A path or a list of paths (str or `os.PathLike`); anything else is one `UserError`."""
+    items = [value] if isinstance(value, (str, os.PathLike)) else value
+    if isinstance(items, (bytes, dict)) or not hasattr(items, "__iter__"):
+        raise UserError(f"{what} must be a path or a list of paths (str or Path), got {type(value).__name__}")
+    items = list(items)
+    bad = [item for item in items if not isinstance(item, (str, os.PathLike))]
+    if bad or not items:
+        raise UserError(f"{what} must be a path or a list of paths (str or Path), got "
+                        + (f"a {type(bad[0]).__name__}" if bad else "none"))
+    return [Path(item) for item in items]
 
 
 def run(inputs, vehicle: str | Path | Vehicle, dem: str | Path | None = None, out: str | Path | None = None,
@@ -75,7 +90,13 @@ def run(inputs, vehicle: str | Path | Vehicle, dem: str | Path | None = None, ou
     ----------
     Gradient: paper equations (5)-(8); mass: (9)-(14); cycle selection: (15).
     """
-    inputs = [Path(p) for p in ([inputs] if isinstance(inputs, (str, Path)) else inputs)]
+    inputs = _paths(inputs, "inputs")
+    if not isinstance(vehicle, (str, os.PathLike, Vehicle)):
+        raise UserError(f"vehicle must be a vehicle file, a shipped name or a Vehicle, got {type(vehicle).__name__}")
+    if dem is not None and not isinstance(dem, (str, os.PathLike)):
+        raise UserError(f"dem must be a folder (str or Path), got {type(dem).__name__}")
+    if out is not None and not isinstance(out, (str, os.PathLike)):
+        raise UserError(f"out must be a folder (str or Path), got {type(out).__name__}")
     with tempfile.TemporaryDirectory(prefix="haulprofile-") as scratch:
         out_dir = Path(out) if out is not None else Path(scratch)
         ctx = RunContext(inputs=inputs, out_dir=out_dir,
