@@ -9,6 +9,7 @@ import struct
 import tracemalloc
 
 import lz4.frame
+import numpy as np
 import pytest
 import zstandard
 
@@ -136,3 +137,29 @@ def test_a_signals_table_with_months_between_drives_is_shortened_as_logs_are(tmp
     assert time[-1] - time[0] < 2 * drive["time_s"].iloc[-1] + 120.0
     assert np.all(np.diff(time) > 0)
     assert any("shortened" in line for line in said)
+
+
+def test_a_geotiff_declaring_40000_squared_pixels_is_refused_from_its_header(tmp_path):
+    rasterio = pytest.importorskip("rasterio")
+    from haulprofile.analysis.dem import open_dem
+    from haulprofile.analysis.errors import UserError
+
+    with rasterio.open(tmp_path / "huge.tif", "w", driver="GTiff", width=40000, height=40000, count=1,
+                       dtype="float32", crs="EPSG:4326", tiled=True, compress="deflate", sparse_ok=True,
+                       transform=rasterio.Affine(1 / 3600, 0, 11.0, 0, -1 / 3600, 48.0)) as dst:
+        dst.write(np.zeros((1, 256, 256), "float32"), window=rasterio.windows.Window(0, 0, 256, 256))
+    assert (tmp_path / "huge.tif").stat().st_size < 10_000_000
+    with pytest.raises(UserError, match="40000 x 40000 pixels"):
+        open_dem(tmp_path)
+
+
+def test_a_geotiff_without_crs_is_refused_not_taken_as_wgs84(tmp_path):
+    rasterio = pytest.importorskip("rasterio")
+    from haulprofile.analysis.dem import open_dem
+    from haulprofile.analysis.errors import UserError
+
+    with rasterio.open(tmp_path / "nocrs.tif", "w", driver="GTiff", width=64, height=64, count=1, dtype="float32",
+                       transform=rasterio.Affine(25.0, 0, 600000.0, 0, -25.0, 5300000.0)) as dst:
+        dst.write(np.full((1, 64, 64), 500.0, "float32"))
+    with pytest.raises(UserError, match="coordinate reference system"):
+        open_dem(tmp_path)
