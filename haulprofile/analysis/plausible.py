@@ -76,3 +76,13 @@ def check_ranges(frame: pd.DataFrame, source: str, say=None) -> pd.DataFrame:
 
 def values_example(column: pd.Series, outside: np.ndarray) -> str:
     return f"{float(pd.to_numeric(column, errors='coerce').to_numpy(dtype=float)[outside][0]):g}"
+
+
+def known_mass_kg(value: float, what: str) -> float:
+    """A weighed mass [kg] (``--known-mass``): within a road vehicle's range, else one `UserError`
+    (0.001 kg once became a torque gain of 1.6e7)."""
+    allowed = RANGES["reported_mass_kg"]
+    if not allowed.low <= value <= allowed.high:
+        raise UserError(f"{what}: {value:g} kg is not {allowed.why} ({allowed.low:g} to {allowed.high:g} kg); "
+                        "give the weighed mass in kg")
+    return value

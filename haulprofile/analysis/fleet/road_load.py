@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
+from ..plausible import known_mass_kg
 from ..mass import calibration
 from ..mass.joint import COEFFICIENTS, JointSettings
 from ..road_load import G_MPS2
@@ -145,7 +146,7 @@ def parse_fleet_known_masses(items: list[str] | None) -> list[tuple[str, str, in
         if not truck or not log or number < 1 or not mass > 0:
             raise UserError(f"--known-mass {item!r}: give the truck (log directory), the log, a segment number "
                             f"from 1 and a positive mass in kg")
-        out.append((truck, log, number, mass))
+        out.append((truck, log, number, known_mass_kg(mass, f"--known-mass {item!r}")))
     return out
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
+from ..plausible import known_mass_kg
 
 
 def parse_known_masses(items: list[str] | None) -> dict[int, float]:
@@ -26,7 +27,7 @@ def parse_known_masses(items: list[str] | None) -> dict[int, float]:
             raise UserError(f"--known-mass {item!r}: expected SEGMENT=KG (e.g. 2=18400) or KG") from None
         if index < 0 or not mass > 0:
             raise UserError(f"--known-mass {item!r}: segment numbers start at 1 and the mass must be positive")
-        known[index] = mass
+        known[index] = known_mass_kg(mass, f"--known-mass {item!r}")
     return known
 
 
