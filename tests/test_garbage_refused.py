@@ -129,3 +129,40 @@ def test_a_known_mass_no_road_vehicle_has_is_refused(item):
         parse_known_masses([item])
     with pytest.raises(UserError, match="--known-mass"):
         parse_fleet_known_masses([f"rigid:drive.mcap:{item if '=' in item else '1=' + item}"])
+
+
+def test_a_can_fd_frame_is_flagged_and_counted_not_stored_as_a_classic_one():
+    import asyncio
+
+    import can
+
+    from haulprofile import contract
+    from haulprofile.logger.clock import Clock
+    from haulprofile.logger.config import CanSection
+    from haulprofile.logger.sources.can import CanSource
+
+    channel = "fd-frames"
+    player = can.Bus(interface="virtual", channel=channel)
+    logger_bus = can.Bus(interface="virtual", channel=channel)
+
+    async def main():
+        queue = asyncio.Queue(1000)
+        source = CanSource(queue, Clock(), CanSection(interface="virtual"), logger_bus)
+        task = asyncio.create_task(source.run())
+        player.send(can.Message(arbitration_id=0x18FF0017, data=bytes(range(64)), is_extended_id=True, is_fd=True))
+        player.send(can.Message(arbitration_id=0x0CF00400, data=bytes(range(8)), is_extended_id=True))
+        await asyncio.sleep(0.3)
+        source.update_extra()
+        task.cancel()
+        await asyncio.gather(task, return_exceptions=True)
+        await source.close()
+        return source, b"".join(queue.get_nowait().payload for _ in range(queue.qsize()))
+
+    source, payload = asyncio.run(main())
+    player.shutdown()
+    frames = contract.unpack(contract.CAN_FRAMES, payload)
+    fd = frames[frames["arbitration_id"] == 0x18FF0017]
+    classic = frames[frames["arbitration_id"] == 0x0CF00400]
+    assert len(fd) == 1 and fd["flags"][0] & contract.CAN_FLAG_FD and fd["dlc"][0] == 64
+    assert not classic["flags"][0] & contract.CAN_FLAG_FD
+    assert source.stats.extra["fd_truncated"] == 1
