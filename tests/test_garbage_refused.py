@@ -166,3 +166,60 @@ def test_a_can_fd_frame_is_flagged_and_counted_not_stored_as_a_classic_one():
     assert len(fd) == 1 and fd["flags"][0] & contract.CAN_FLAG_FD and fd["dlc"][0] == 64
     assert not classic["flags"][0] & contract.CAN_FLAG_FD
     assert source.stats.extra["fd_truncated"] == 1
+
+
+class StuckBus:
+    """An SMBus whose data registers all read ``value`` (a held SDA line reads 0x00 or 0xFF);
+    the barometer's FIFO always holds 4 samples."""
+
+    def __init__(self, value: int):
+        self.value = value
+
+    def read_byte_data(self, address, register):
+        return 4 if register == 0x2F else self.value
+
+    def write_byte_data(self, address, register, value):
+        pass
+
+    def read_i2c_block_data(self, address, register, length):
+        return [self.value] * length
+
+
+@pytest.mark.parametrize("value", [0x00, 0xFF])
+def test_a_stuck_i2c_sensor_is_said_and_its_state_is_not_running(value):
+    import asyncio
+
+    from haulprofile.logger.clock import Clock
+    from haulprofile.logger.sources.i2c.base import RAIL_LIMIT, I2cBusSource
+    from haulprofile.logger.sources.i2c.lps25hb import Lps25hb
+
+    said = []
+    driver = Lps25hb(StuckBus(value), 0x5C, Clock())
+    source = I2cBusSource(asyncio.Queue(10_000), Clock(), [driver], say=said.append)
+    for _ in range(RAIL_LIMIT // 4 + 2):
+        source._emit_all(source._poll_round({driver.name: 0}, 1))
+    assert source.stats.extra["lps25hb"]["state"] == "stuck"
+    assert any("0x00 or 0xFF" in line for line in said), said
+
+
+def test_an_imu_at_full_scale_is_said_saturated():
+    import asyncio
+
+    from haulprofile.logger.clock import Clock
+    from haulprofile.logger.sources.i2c.base import RAIL_LIMIT, I2cBusSource
+    from haulprofile.logger.sources.i2c.lsm9ds1 import Lsm9ds1
+
+    class Saturated(StuckBus):
+        def read_byte_data(self, address, register):
+            return 8  # FIFO_SRC: 8 samples waiting
+
+        def read_i2c_block_data(self, address, register, length):
+            return [0x10, 0x02, 0x33, 0x01, 0xFF, 0x7F][:length]  # z at +32767: beyond the range
+
+    said = []
+    driver = Lsm9ds1(Saturated(0), 0x6A, Clock())
+    source = I2cBusSource(asyncio.Queue(10_000), Clock(), [driver], say=said.append)
+    for _ in range(RAIL_LIMIT // 8 + 2):
+        source._emit_all(source._poll_round({driver.name: 0}, 1))
+    assert source.stats.extra[driver.name]["state"] == "saturated"
+    assert any("full scale" in line for line in said), said
