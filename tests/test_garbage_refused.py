@@ -223,3 +223,39 @@ def test_an_imu_at_full_scale_is_said_saturated():
         source._emit_all(source._poll_round({driver.name: 0}, 1))
     assert source.stats.extra[driver.name]["state"] == "saturated"
     assert any("full scale" in line for line in said), said
+
+
+def synthetic_log(tmp_path, name="log.mcap"):
+    from haulprofile.testing import logs as synthetic
+
+    path = tmp_path / name
+    with open(path, "wb") as stream:
+        synthetic.write_log(stream, 20, seed=2)
+    return path
+
+
+def test_a_dbc_signal_named_like_one_of_our_columns_does_not_replace_it(tmp_path, data_dir):
+    import numpy as np
+
+    from haulprofile.analysis.ingest import ingest_logs
+
+    log = synthetic_log(tmp_path)
+    plain, _ = ingest_logs([log])
+    dbc = tmp_path / "clash.dbc"
+    text = (data_dir / "real-can" / "CSS-Electronics-SAE-J1939-DEMO.dbc").read_text()
+    dbc.write_text(text.replace("EngineSpeed", "speed_mps"))
+    table, _ = ingest_logs([log], dbc=dbc)
+    assert np.allclose(table["speed_mps"], plain["speed_mps"], equal_nan=True)
+    assert "dbc_speed_mps" in table and np.nanmax(table["dbc_speed_mps"]) > 100  # the engine's rpm, kept apart
+
+
+@pytest.mark.parametrize("scale", [float("nan"), float("inf"), 0.0, -0.0006])
+def test_an_imu_scale_that_is_no_number_leaves_the_accelerations_out_with_a_warning(tmp_path, monkeypatch, scale):
+    from haulprofile.analysis.ingest import ingest_logs
+    from haulprofile.testing import logs as synthetic
+
+    monkeypatch.setattr(synthetic, "ACCEL_SCALE_MPS2_PER_LSB", scale)
+    said = []
+    table, _ = ingest_logs([synthetic_log(tmp_path)], say=said.append)
+    assert "accel_x_mps2" not in table or table["accel_x_mps2"].isna().all()
+    assert any("accel_scale_mps2_per_lsb" in line for line in said), said

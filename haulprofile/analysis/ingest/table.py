@@ -243,7 +243,10 @@ class Ingest:
         scales = {}
         for cid in ids:
             try:
-                scales[cid] = float(window.channels[cid].metadata.get(ACCEL_SCALE_KEY))
+                scale = float(window.channels[cid].metadata.get(ACCEL_SCALE_KEY))
+                if not 1e-6 <= scale <= 1.0:  # nan, inf, 0, negative: no accelerometer's LSB [m/s^2]
+                    raise ValueError(scale)
+                scales[cid] = scale
             except (TypeError, ValueError):
                 if "imu-scale" not in self.notes:
                     self.notes.append("imu-scale")
