@@ -259,3 +259,28 @@ def test_an_imu_scale_that_is_no_number_leaves_the_accelerations_out_with_a_warn
     table, _ = ingest_logs([synthetic_log(tmp_path)], say=said.append)
     assert "accel_x_mps2" not in table or table["accel_x_mps2"].isna().all()
     assert any("accel_scale_mps2_per_lsb" in line for line in said), said
+
+
+@pytest.mark.parametrize("text", ["speed_rpm,torque_nm,efficiency\n1000,100,high\n1000,200,0.9\n",
+                                  "speed_rpm,torque_nm,efficiency\n1000,100,0.9\nfast,200,0.9\n",
+                                  "speed_rpm,torque_nm,efficiency\n1000,inf,0.9\n2000,100,0.9\n"])
+def test_a_non_numeric_efficiency_map_is_one_line(tmp_path, text):
+    from haulprofile.analysis.errors import UserError
+    from haulprofile.analysis.simulate.model import efficiency_map
+
+    path = tmp_path / "map.csv"
+    path.write_text(text)
+    with pytest.raises(UserError, match="finite number"):
+        efficiency_map(path)
+
+
+@pytest.mark.parametrize("content", ["privacy = 5\n".encode(), "zones = \"home\"\n".encode(),
+                                     '[[zones]]\nname = "d"\nlat = 48.0\nlon = 11.0\nradius_m = 100\n'.encode("utf-16")])
+def test_zone_files_of_the_wrong_shape_or_encoding_are_one_line(tmp_path, content):
+    from haulprofile.analysis.errors import UserError
+    from haulprofile.analysis.redact import load_zones
+
+    path = tmp_path / "zones.toml"
+    path.write_bytes(content)
+    with pytest.raises(UserError, match="--zones"):
+        load_zones(path)
