@@ -33,8 +33,9 @@ def make_dirs(path: str | Path) -> Path:
 
 
 def open_new(path: str | Path, exclusive: bool = True):
-    """A binary file for writing, created with `FILE_MODE` (refused if it exists and ``exclusive``)."""
-    flags = os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC | (os.O_EXCL if exclusive else os.O_TRUNC)
+    """A binary file for writing, created with `FILE_MODE` (refused if it exists and ``exclusive``;
+    a symbolic link at ``path`` is refused, never written through)."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC | os.O_NOFOLLOW | (os.O_EXCL if exclusive else os.O_TRUNC)
     fd = os.open(path, flags, FILE_MODE)
     try:
         os.fchmod(fd, FILE_MODE)
@@ -64,4 +65,16 @@ def restrict_tree(root: str | Path) -> None:
         for name in dirnames + filenames:
             path = Path(directory, name)
             if not path.is_symlink():
+                restrict(path)
+
+
+def restrict_written(root: str | Path, since_ns: int) -> None:
+    """`restrict` the files under ``root`` written since ``since_ns`` (``time.time_ns()``) by this
+    user: what a command wrote into a folder it shares with other files (a fleet's output)."""
+    uid = os.getuid()
+    for directory, _dirnames, filenames in os.walk(root):
+        for name in filenames:
+            path = Path(directory, name)
+            info = path.lstat()
+            if not path.is_symlink() and info.st_uid == uid and info.st_mtime_ns >= since_ns:
                 restrict(path)

@@ -81,7 +81,7 @@ def test_interrupted_while_moving_into_place_leaves_no_summary(quick_stages, tab
         moved.append(target)
         os.rename(source, target)
 
-    monkeypatch.setattr(outputs.os, "replace", replace_then_interrupt)
+    monkeypatch.setattr(os, "replace", replace_then_interrupt)
     with pytest.raises(KeyboardInterrupt):
         run(RunContext(inputs=[table], out_dir=out, options={"cycle": {**CYCLE, "seed": 2}}, say=lambda _m: None))
     assert len(moved) == 1 and not (out / "summary.json").exists()

@@ -83,8 +83,44 @@ def test_replay_into_a_running_listen_only_logger(recorded, tmp_path):
     span_ratio = t_replay[-1] / t_orig[-1]
     print(f"replay timing: median {np.median(error_ms):.2f} ms, p99 {np.percentile(error_ms, 99):.2f} ms, "
           f"max {error_ms.max():.2f} ms; span ratio {span_ratio:.4f} over {t_orig[-1] * 1e-9:.2f} s")
-    assert np.median(error_ms) < 5.0 and np.percentile(error_ms, 99) < 150.0
-    assert abs(span_ratio - 1.0) < 0.05
+    # the pacing itself is tested on a simulated clock below: timings on a shared machine are printed, not judged
+    assert np.all(np.diff(t_replay) >= 0)
+
+
+class SimulatedClock:
+    """``time.perf_counter`` and ``time.sleep`` of `replay`, advanced only by the sleeps it asks for."""
+
+    def __init__(self):
+        self.now_s = 1000.0
+
+    def perf_counter(self) -> float:
+        return self.now_s
+
+    def sleep(self, seconds: float) -> None:
+        self.now_s += seconds
+
+
+class RecordingBus:
+    def __init__(self, clock: SimulatedClock):
+        self.clock, self.sent = clock, []
+
+    def send(self, message, timeout=None) -> None:
+        self.sent.append((self.clock.now_s, message))
+
+
+@pytest.mark.parametrize("speed", [1.0, 2.5])
+def test_realtime_replay_sends_each_frame_at_its_original_offset(recorded, monkeypatch, speed):
+    clock = SimulatedClock()
+    monkeypatch.setattr(replay.time, "perf_counter", clock.perf_counter)
+    monkeypatch.setattr(replay.time, "sleep", clock.sleep)
+    bus = RecordingBus(clock)
+    stats = replay.replay([recorded], bus, realtime=True, speed=speed)
+    original = received(frames(recorded))
+    assert stats.sent == len(original) == len(bus.sent) and stats.max_late_s == 0.0
+    sent_s = np.array([t for t, _ in bus.sent]) - 1000.0
+    due_s = (original["t_mono_ns"] - original["t_mono_ns"][0]).astype(np.int64) * 1e-9 / speed
+    assert np.allclose(sent_s, due_s, rtol=0, atol=1e-9)
+    assert same_frames(_as_records([m for _, m in bus.sent]), original)
 
 
 def _collect(channel: str, stop: threading.Event, out: list) -> None:

@@ -7,6 +7,7 @@ summary (dict) besides writing the files; the single stages are re-exported from
 
 from __future__ import annotations
 
+import os
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,6 +15,7 @@ from pathlib import Path
 import pandas as pd
 
 from .pipeline import Results, RunContext, run as run_pipeline
+from .errors import UserError
 from .vehicle import Vehicle, load_vehicle
 
 
@@ -23,7 +25,8 @@ class RunResult:
 
     signals: pd.DataFrame
     summary: dict
-    out_dir: Path
+    out_dir: Path | None
+    """Where the files went (None: no ``out`` was given, none were kept)."""
     results: Results = field(default_factory=Results)
     """Each stage's typed result (``results.mass``, ``results.cycle``, ``results.simulation`` …)."""
 
@@ -39,6 +42,19 @@ class RunResult:
         return pd.DataFrame(self.results.mass.segments if self.results.mass is not None else [])
 
 
+def _paths(value, what: str) -> list[Path]:
+    """A path or a list of paths (str or `os.PathLike`); anything else is one `UserError`."""
+    items = [value] if isinstance(value, (str, os.PathLike)) else value
+    if isinstance(items, (bytes, dict)) or not hasattr(items, "__iter__"):
+        raise UserError(f"{what} must be a path or a list of paths (str or Path), got {type(value).__name__}")
+    items = list(items)
+    bad = [item for item in items if not isinstance(item, (str, os.PathLike))]
+    if bad or not items:
+        raise UserError(f"{what} must be a path or a list of paths (str or Path), got "
+                        + (f"a {type(bad[0]).__name__}" if bad else "none"))
+    return [Path(item) for item in items]
+
+
 def run(inputs, vehicle: str | Path | Vehicle, dem: str | Path | None = None, out: str | Path | None = None,
         until: str | None = None, cache: bool = True, quiet: bool = True, **options) -> RunResult:
     """Run the stages on logs, directories of logs or signals tables (``analyze run`` in memory).
@@ -52,7 +68,9 @@ def run(inputs, vehicle: str | Path | Vehicle, dem: str | Path | None = None, ou
     dem : str or Path, optional
         Directory of SRTM ``.hgt`` tiles or GeoTIFFs; without it the gradient is barometric only.
     out : str or Path, optional
-        Output directory; default a new temporary directory.
+        Output directory; without it the files go to a temporary folder that is removed before
+        this returns (it holds positions and times), the results stay in memory and
+        ``out_dir`` is None.
     until : str, optional
         Last stage to run (``"mass"``, ``"cycle"`` …); default every stage and the report.
     cache : bool
@@ -72,11 +90,18 @@ def run(inputs, vehicle: str | Path | Vehicle, dem: str | Path | None = None, ou
     ----------
     Gradient: paper equations (5)-(8); mass: (9)-(14); cycle selection: (15).
     """
-    inputs = [Path(p) for p in ([inputs] if isinstance(inputs, (str, Path)) else inputs)]
-    out_dir = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="haulprofile-"))
-    ctx = RunContext(inputs=inputs, out_dir=out_dir,
-                     vehicle=vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle),
-                     dem_dir=Path(dem) if dem is not None else None, options=options,
-                     say=(lambda _m: None) if quiet else print)
-    run_pipeline(ctx, until=until, cache=cache)
-    return RunResult(ctx.signals, ctx.summary, out_dir, ctx.results)
+    inputs = _paths(inputs, "inputs")
+    if not isinstance(vehicle, (str, os.PathLike, Vehicle)):
+        raise UserError(f"vehicle must be a vehicle file, a shipped name or a Vehicle, got {type(vehicle).__name__}")
+    if dem is not None and not isinstance(dem, (str, os.PathLike)):
+        raise UserError(f"dem must be a folder (str or Path), got {type(dem).__name__}")
+    if out is not None and not isinstance(out, (str, os.PathLike)):
+        raise UserError(f"out must be a folder (str or Path), got {type(out).__name__}")
+    with tempfile.TemporaryDirectory(prefix="haulprofile-") as scratch:
+        out_dir = Path(out) if out is not None else Path(scratch)
+        ctx = RunContext(inputs=inputs, out_dir=out_dir,
+                         vehicle=vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle),
+                         dem_dir=Path(dem) if dem is not None else None, options=options,
+                         say=(lambda _m: None) if quiet else print)
+        run_pipeline(ctx, until=until, cache=cache and out is not None)
+    return RunResult(ctx.signals, ctx.summary, out_dir if out is not None else None, ctx.results)

@@ -56,7 +56,15 @@ def _same(a: Path, b: Path) -> bool:
 
 
 def _writable_dir(path: Path, option: str) -> None:
-    """The nearest existing ancestor of ``path`` must be a directory we may write into."""
+    """The nearest existing ancestor of ``path`` must be a directory we may write into: tried by
+    making and removing a folder there (``os.access`` says yes to root on ``/proc`` and on
+    read-only mounts), and its name must be UTF-8 (the Parquet and report writers need it)."""
+    try:
+        str(path).encode("utf-8")
+    except UnicodeEncodeError as exc:
+        bad = os.fsencode(str(path))[exc.start:exc.start + 1].hex()
+        raise UserError(f"{option} {os.fsencode(str(path))!r}: the name is not UTF-8 (byte 0x{bad}); "
+                        "give a name in UTF-8") from None
     probe = path
     while not probe.exists():
         if probe.parent == probe:
@@ -66,12 +74,21 @@ def _writable_dir(path: Path, option: str) -> None:
         raise UserError(f"{option} {path}: {probe} is a file, not a directory")
     if not os.access(probe, os.W_OK | os.X_OK):
         raise UserError(f"{option} {path}: {probe} is not writable")
+    import tempfile
+
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".write-test-", dir=probe))
+    except OSError as exc:
+        raise UserError(f"{option} {path}: cannot make folders in {probe} ({exc.strerror}); "
+                        "give a folder on a writable file system") from None
 
 
 def output_file(path: str | Path, inputs=(), suffixes: set[str] | None = None, option: str = "--out",
                 what: str = "file") -> Path:
     """Where a command writes one file: not an input, not an existing log, a known suffix, writable."""
     path = Path(path)
+    if path.is_symlink():
+        raise UserError(f"{option} {path} is a symbolic link; it is never followed, give the real path")
     if suffixes is not None and path.suffix.lower() not in suffixes:
         raise UserError(f"{option} {path}: unknown suffix {path.suffix or '(none)'}; "
                         f"give a {what} ending in {', '.join(sorted(suffixes))}")
@@ -90,6 +107,8 @@ def output_dir(path: str | Path, inputs=(), option: str = "--out", names=()) -> 
     """Where a command writes its files: a directory (or one to create), writable, not an input;
     none of ``names`` (what the command writes into it) may be an input or an existing log."""
     path = Path(path)
+    if path.is_symlink():
+        raise UserError(f"{option} {path} is a symbolic link; it is never followed, give the real path")
     if path.exists() and not path.is_dir():
         raise UserError(f"{option} {path} is an existing file; give a directory")
     sources = _input_files(inputs)

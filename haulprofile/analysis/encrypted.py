@@ -1,18 +1,26 @@
 """Logs encrypted at rest (``.mcap.age``, age format): decrypted for reading with the fleet's identity.
 
 ``analyze --identity FILE …`` (or ``--identity FILE`` anywhere after the command) registers the
-identity; every ``.mcap.age`` input is then decrypted with ``pyrage`` into a private temporary
-directory (0700, files 0600, removed at exit) under its name without ``.age``, so the readers
-and the file ordering see the logger's plain names. Decryption checks age's authentication
-tags: a modified or truncated ciphertext is an error, not a silently shorter log.
+identity; every ``.mcap.age`` input is then decrypted with ``pyrage`` into memory (a ``memfd``,
+which no file system holds and which ends with the process, however it ends: SIGTERM, SIGHUP or
+SIGKILL included). The readers open it by a symbolic link under its name without ``.age`` in a
+private temporary directory (0700), so they and the file ordering see the logger's plain names;
+that directory holds no plaintext, is removed at exit and on SIGTERM/SIGHUP, and one left by a
+killed process is removed by the next run. Decryption checks age's authentication tags: a
+modified or truncated ciphertext is an error, not a silently shorter log.
 """
 
 from __future__ import annotations
 
 import atexit
+import os
 import shutil
+import signal
 import tempfile
+import threading
 from pathlib import Path
+
+from haulprofile.input_files import read_small
 
 from .errors import UserError
 
@@ -20,6 +28,8 @@ SUFFIX = ".mcap.age"
 _identities: list = []
 _decrypted: dict[Path, Path] = {}
 _directory: Path | None = None
+_open_plaintexts: list[int] = []
+"""Descriptors of the decrypted logs (memfds), open while the process runs."""
 
 
 def is_encrypted(path: str | Path) -> bool:
@@ -42,10 +52,7 @@ def use_identity_file(path: str | Path) -> int:
         import pyrage
     except ImportError:
         raise UserError("reading .mcap.age logs needs pyrage (pip install 'haulprofile[analysis]')") from None
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise UserError(f"--identity {path}: cannot read: {exc.strerror}") from None
+    data = read_small(path, "identity", UserError)
     found = []
     try:
         if data.lstrip().startswith(b"-----BEGIN OPENSSH PRIVATE KEY"):
@@ -62,11 +69,45 @@ def use_identity_file(path: str | Path) -> int:
     return len(found)
 
 
+PREFIX = "haulprofile-decrypted-"
+
+
+def _remove_left_behind() -> None:
+    """Directories of links left by killed runs (their process is gone)."""
+    for directory in Path(tempfile.gettempdir()).glob(f"{PREFIX}*-*"):
+        try:
+            pid = int(directory.name[len(PREFIX):].split("-")[0])
+            if directory.is_symlink() or directory.stat().st_uid != os.getuid() or _alive(pid):
+                continue
+        except (ValueError, OSError):
+            continue
+        shutil.rmtree(directory, ignore_errors=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _exit_on(signum, _frame) -> None:
+    raise SystemExit(128 + signum)
+
+
 def _workdir() -> Path:
     global _directory
     if _directory is None:
-        _directory = Path(tempfile.mkdtemp(prefix="haulprofile-decrypted-"))
+        _remove_left_behind()
+        _directory = Path(tempfile.mkdtemp(prefix=f"{PREFIX}{os.getpid()}-"))
         atexit.register(shutil.rmtree, _directory, True)
+        if threading.current_thread() is threading.main_thread():
+            for signum in (signal.SIGTERM, signal.SIGHUP):
+                if signal.getsignal(signum) == signal.SIG_DFL:
+                    signal.signal(signum, _exit_on)  # atexit runs: the directory goes too
     return _directory
 
 
@@ -89,15 +130,16 @@ def decrypted(path: str | Path) -> Path:
     if not _identities:
         raise UserError(f"{path} is encrypted (age): give the fleet's identity with --identity FILE")
     import pyrage
-    target_dir = Path(tempfile.mkdtemp(dir=_workdir()))
-    target = target_dir / path.name[:-len(".age")]
-    from haulprofile.private_files import open_new
+    name = path.name[:-len(".age")]
+    fd = os.memfd_create(name, os.MFD_CLOEXEC)
     try:
-        with open(path, "rb") as source, open_new(target) as sink:
+        with open(path, "rb") as source, open(os.dup(fd), "wb") as sink:
             pyrage.decrypt_io(source, sink, _identities)
-        target.chmod(0o600)
     except Exception as exc:  # pyrage.DecryptError: wrong identity, modified or cut ciphertext
-        target.unlink(missing_ok=True)
+        os.close(fd)
         raise UserError(f"{path}: cannot decrypt with the given identity ({exc})") from None
+    target = Path(tempfile.mkdtemp(dir=_workdir())) / name
+    target.symlink_to(f"/proc/{os.getpid()}/fd/{fd}")
+    _open_plaintexts.append(fd)
     _decrypted[key] = target
     return target

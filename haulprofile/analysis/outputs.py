@@ -17,15 +17,16 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from haulprofile.input_files import refuse_special
 from haulprofile.private_files import make_dirs, restrict_tree
 
 from . import checks, jsonable
+from .manifest import Manifest, refuse_link, staged_files
 from .errors import UserError
 
 SUMMARY = "summary.json"
@@ -139,11 +140,9 @@ def _stage_files(ctx, stages, staging: Path, full: bool, store) -> None:
         (staging / SUMMARY).write_text(jsonable.dumps(summary, indent=2))
 
 
-def _remove(path: Path) -> None:
-    if path.is_dir() and not path.is_symlink():
-        shutil.rmtree(path)
-    elif path.exists() or path.is_symlink():
-        path.unlink()
+def _remove(manifest: Manifest, path: Path) -> None:
+    """Remove ``path`` if this tool wrote it (a file the user put there or replaced stays)."""
+    manifest.remove(path)
 
 
 def _files_read(ctx) -> list[Path]:
@@ -154,16 +153,29 @@ def _files_read(ctx) -> list[Path]:
 
 def check(ctx, stages) -> None:
     """Before any stage runs: the output directory can be written and nothing this run may write
-    there is one of its inputs or an existing log (`checks.output_dir`)."""
+    there is one of its inputs, an existing log, a symbolic link or a file this tool did not write
+    (`checks.output_dir`, `manifest.Manifest`); no input, file named by an option or DEM is a
+    device, FIFO or socket, whose reading might never end (`input_files.refuse_special`)."""
+    for path in _files_read(ctx):
+        refuse_special(path, "input", UserError)
+    if ctx.dem_dir is not None:
+        refuse_special(ctx.dem_dir, "DEM directory", UserError)
     names = {*run_files(stages, ctx.options.output), SUMMARY}
     checks.output_dir(ctx.out_dir, _files_read(ctx), names=sorted(names))
+    manifest = Manifest(ctx.out_dir)
+    for name in sorted(names):
+        if not (ctx.out_dir / name).is_dir() or (ctx.out_dir / name).is_symlink():
+            manifest.check_target(ctx.out_dir / name)
 
 
 def write_outputs(ctx, stages, full: bool, store=None) -> list[Path]:
     """Write the files of ``stages`` that ran (and, for a ``full`` run, the report, signals table
     and summary) into ``ctx.out_dir``; ``store`` is the run's stage cache, if any. Returns the
-    paths written, the summary last."""
+    paths written (top-level files and folders), the summary last. Files are moved in one by one:
+    a folder such as ``loads/`` keeps what else it holds, and only files this tool wrote are
+    replaced or removed (`manifest.Manifest`)."""
     out = ctx.out_dir
+    refuse_link(out)
     try:
         make_dirs(out)
         staging = Path(tempfile.mkdtemp(prefix=".partial-", dir=out))
@@ -174,22 +186,27 @@ def write_outputs(ctx, stages, full: bool, store=None) -> list[Path]:
         restrict_tree(staging)
         if store is not None and store.directory.exists():
             restrict_tree(store.directory)
-        run_names = run_files(stages, ctx.options.output)
-        names = sorted(p.name for p in staging.iterdir())
-        if not names:
+        run_names = set(run_files(stages, ctx.options.output))
+        staged = staged_files(staging)
+        if not staged:
             return []
-        if full or set(names) & set(run_names):
-            (out / SUMMARY).unlink(missing_ok=True)  # the folder no longer holds one finished run
-        if full:
-            for name in run_names:
-                if name not in names:
-                    _remove(out / name)
-        moved = []
-        for name in [n for n in names if not (full and n == SUMMARY)] + ([SUMMARY] if full else []):
-            if (staging / name).is_dir():
-                _remove(out / name)
-            os.replace(staging / name, out / name)
-            moved.append(out / name)
+        manifest = Manifest(out)
+        tops = {rel.parts[0] for rel in staged}
+        drop_summary = full or bool(tops & run_names)
+        for rel in staged + ([Path(SUMMARY)] if drop_summary else []):
+            manifest.check_target(out / rel)
+        stale = [path for top in (run_names if full else set()) | {t for t in tops if (staging / t).is_dir()}
+                 for path in manifest.under(top) if path.relative_to(out) not in staged]
+        if drop_summary:
+            _remove(manifest, out / SUMMARY)  # the folder no longer holds one finished run
+        for path in stale:
+            _remove(manifest, path)
+        order = [rel for rel in staged if not (full and rel == Path(SUMMARY))] + ([Path(SUMMARY)] if full else [])
+        manifest.place(staging, order)
+        moved: list[Path] = []
+        for rel in order:
+            if out / rel.parts[0] not in moved:
+                moved.append(out / rel.parts[0])
         return moved
     finally:
         shutil.rmtree(staging, ignore_errors=True)

@@ -9,29 +9,37 @@ damaged log is refused: ``analyze recover`` first):
    is inside, or the file before ended inside; to the end when its last one is);
 2. a new file is written with the ``mcap`` library's writer: fixes inside are dropped, NMEA
    sentences received inside are cut out of their ``/gps/nmea`` batches (a batch left empty is
-   dropped), ``/time/sync`` inside loses its GPS time, and ``/privacy/zone`` records (``source =
+   dropped), J1939 Vehicle Position (PGN 65267) and Time/Date (65254) frames inside leave
+   ``/can/frames`` (as do Vehicle Position frames whose own position is in a zone), ``/time/sync``
+   inside loses its GPS time, and ``/privacy/zone`` records (``source =
    "redact"``) mark each stretch. Every other message, schema, channel, metadata and attachment
    is copied as it was (data byte for byte, times, sequence numbers); chunk indexes, statistics
    and the summary are those of the new file.
 
-Inputs are never opened for writing, and an output that would replace an input is refused.
+Inputs are never opened for writing; an output that would replace an input, or a file that
+`analyze redact` did not write itself (`manifest.Manifest`), is refused, and so is a symbolic link.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
 from haulprofile import contract
-from haulprofile.contract.privacy import Zone, in_any, zones_from_tables
+from haulprofile.contract.privacy import (POSITION_PGNS, VEHICLE_POSITION_PGN, Zone, frame_pgns, in_any,
+                                          vehicle_positions, zones_from_tables)
 from haulprofile.contract.reader import Channel, RawMessage, ReadReport, read_messages, read_windows
-from haulprofile.private_files import make_dirs, open_new
+from haulprofile.private_files import FILE_MODE, make_dirs
+
+from haulprofile.input_files import read_small
 
 from .errors import UserError
+from .manifest import Manifest, refuse_link
 
 INF = float("inf")
 
@@ -40,16 +48,17 @@ def load_zones(path: str | Path) -> list[Zone]:
     """Zones from a TOML file: ``[[zones]]`` tables, or a logger configuration's ``[[privacy.zones]]``."""
     import tomllib
     path = Path(path)
+    raw = read_small(path, "zones file", UserError)
     try:
-        data = tomllib.loads(path.read_text())
-    except OSError as exc:
-        raise UserError(f"--zones {path}: cannot read: {exc.strerror}") from None
+        data = tomllib.loads(raw.decode("utf-8-sig"))
+    except UnicodeDecodeError as exc:
+        raise UserError(f"--zones {path}: not UTF-8 text (invalid byte at offset {exc.start}); TOML is UTF-8") from None
     except tomllib.TOMLDecodeError as exc:
         raise UserError(f"--zones {path}: not valid TOML: {exc}") from None
     tables, where = data.get("zones"), "zones"
-    if tables is None:
-        tables, where = data.get("privacy", {}).get("zones"), "privacy.zones"
-    if not tables:
+    if tables is None and isinstance(data.get("privacy"), dict):
+        tables, where = data["privacy"].get("zones"), "privacy.zones"
+    if not tables or not isinstance(tables, list):
         raise UserError(f"--zones {path}: no [[zones]] (or [[privacy.zones]]) tables")
     try:
         return zones_from_tables(tables, where)
@@ -66,13 +75,15 @@ class RedactReport:
     fixes_removed: int = 0
     sentences_removed: int = 0
     gps_times_removed: int = 0
+    frames_removed: int = 0
     stretches: list[tuple[float, float]] = field(default_factory=list)
     ends_inside: bool = False
 
     def line(self) -> str:
         return (f"{self.source.name} -> {self.target}: {len(self.stretches)} stretch(es) in zones; removed "
                 f"{self.fixes_removed} fixes, {self.sentences_removed} NMEA sentences, "
-                f"{self.gps_times_removed} GPS times; {self.messages_out} of {self.messages_in} messages kept")
+                f"{self.gps_times_removed} GPS times, {self.frames_removed} J1939 position/time frames; "
+                f"{self.messages_out} of {self.messages_in} messages kept")
 
 
 def _stretches(fixes: list[tuple[int, bool]], inside_at_start: bool) -> list[tuple[float, float]]:
@@ -110,6 +121,30 @@ def _read_fixes(data: bytes, zones: list[Zone], source: Path) -> tuple[list[tupl
     if read.warning():
         raise UserError(f"{read.warning()}; run 'analyze recover' on it first")
     return fixes, read
+
+
+def _without_position_frames(payload: bytes, zones: list[Zone], stretches, report: RedactReport) -> bytes | None:
+    """A ``/can/frames`` batch without the J1939 Vehicle Position and Time/Date frames received in a
+    zone's stretch, nor Vehicle Position frames whose own position lies in a zone (a log without
+    GPS has no stretches); the batch as it was if none is dropped, None if all are."""
+    import numpy as np
+
+    frames = contract.unpack(contract.CAN_FRAMES, payload)
+    pgns = frame_pgns(frames["arbitration_id"], frames["flags"] & contract.CAN_FLAG_EXTENDED)
+    candidates = np.flatnonzero(np.isin(pgns, POSITION_PGNS))
+    if not len(candidates):
+        return payload
+    drop = np.zeros(len(frames), bool)
+    lat, lon = vehicle_positions(frames["data"][candidates])
+    for i, index in enumerate(candidates):
+        t = int(frames["t_mono_ns"][index])
+        positioned = pgns[index] == VEHICLE_POSITION_PGN and np.isfinite(lat[i]) and np.isfinite(lon[i])
+        drop[index] = _in(stretches, t) or bool(positioned and in_any(zones, float(lat[i]), float(lon[i])))
+    if not drop.any():
+        return payload
+    report.frames_removed += int(drop.sum())
+    kept = frames[~drop]
+    return contract.pack(contract.CAN_FRAMES, kept) if len(kept) else None
 
 
 def redact_bytes(data: bytes, zones: list[Zone], target_stream, inside_at_start: bool = False,
@@ -195,6 +230,10 @@ def redact_bytes(data: bytes, zones: list[Zone], target_stream, inside_at_start:
                         continue
                     payload = contract.encode_json({"t_mono_ns": keep[0][1], "sentences": [s for s, _ in keep],
                                                     "t_mono_ns_each": [t for _, t in keep]})
+            elif topic == contract.CAN_FRAMES.name:
+                payload = _without_position_frames(payload, zones, stretches, report)
+                if payload is None:
+                    continue
             elif topic == contract.TIME_SYNC.name and stretches:
                 sync = json.loads(payload)
                 if sync.get("gps_time_utc_ns") is not None and _in(stretches, int(sync["t_mono_ns"])):
@@ -214,7 +253,9 @@ def redact_files(inputs: list[Path], zones: list[Zone], out_dir: Path, read=None
     ``read(path) -> bytes`` opens a log (decrypting it where needed). A stretch that reaches the
     end of one file is carried into the next (inputs in the order given)."""
     read = read or (lambda p: Path(p).read_bytes())
+    refuse_link(out_dir, "--out")
     make_dirs(out_dir)
+    manifest = Manifest(out_dir)
     resolved_inputs = {p.resolve() for p in inputs}
     targets: dict[Path, Path] = {}
     for path in inputs:
@@ -224,17 +265,20 @@ def redact_files(inputs: list[Path], zones: list[Zone], out_dir: Path, read=None
             raise UserError(f"--out {out_dir}: {target} would replace an input log; choose another directory")
         if target in targets:
             raise UserError(f"{path} and {targets[target]} would both be written to {target}; redact them apart")
+        manifest.check_target(target)
         targets[target] = path
     reports, inside = [], False
     for target, path in targets.items():
         report = RedactReport(path, target)
-        partial = target.with_name(target.name + ".partial")
+        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".partial", dir=out_dir)
+        partial = Path(name)
         try:
-            with open_new(partial, exclusive=False) as stream:
+            os.fchmod(fd, FILE_MODE)
+            with os.fdopen(fd, "wb") as stream:
                 redact_bytes(read(path), zones, stream, inside, report)
                 stream.flush()
                 os.fsync(stream.fileno())
-            os.replace(partial, target)
+            manifest.install(target, partial)
         finally:
             partial.unlink(missing_ok=True)
         inside = report.ends_inside

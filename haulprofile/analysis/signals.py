@@ -6,6 +6,8 @@ Accepted as input wherever a log is, so data from other loggers can be analysed.
 
 from __future__ import annotations
 
+import re
+
 from pathlib import Path
 
 import numpy as np
@@ -106,7 +108,30 @@ def combine(paths, say=None) -> pd.DataFrame:
 
     paths = drop_same_content([Path(p) for p in paths], say)
     frames = sorted((read_signals(p) for p in paths), key=lambda f: float(f["time_s"].iloc[0]))
-    return validate(pd.concat(frames, ignore_index=True), ", ".join(map(str, paths)))
+    from .plausible import check_ranges
+
+    source = ", ".join(map(str, paths))
+    return shorten_silences(check_ranges(validate(pd.concat(frames, ignore_index=True), source), source, say), say)
+
+
+def shorten_silences(frame: pd.DataFrame, say=None) -> pd.DataFrame:
+    """Silences longer than the ingest's `MAX_GAP_S` shortened to `KEPT_GAP_S`, as the logs' are
+    (`ingest.align.Grid`): a table with a month between two drives would otherwise be resampled
+    over the month (gigabytes of empty rows). Wall-clock time, if the table has it, stays."""
+    from .ingest.align import KEPT_GAP_S, MAX_GAP_S
+
+    time = frame["time_s"].to_numpy(dtype=float)
+    step = np.diff(time)
+    long = step > MAX_GAP_S
+    if not long.any():
+        return frame
+    removed = np.concatenate([[0.0], np.cumsum(np.where(long, step - KEPT_GAP_S, 0.0))])
+    frame = frame.copy()
+    frame["time_s"] = time - removed
+    if say is not None:
+        say(f"signals table: {int(long.sum())} silence(s) longer than {MAX_GAP_S:g} s shortened to {KEPT_GAP_S:g} s "
+            f"({removed[-1] / 86400:.3g} days left out of time_s, as for logs)")
+    return frame
 
 
 def describe(frame: pd.DataFrame) -> dict:
@@ -158,8 +183,30 @@ POSITION_COLUMNS = ("latitude_deg", "longitude_deg", "wall_time_ns")
 distances and times since the start stay)."""
 
 
+_POSITION_WORDS = {"lat", "latitude", "lon", "lng", "longitude", "utc", "gmt", "wall", "date", "datetime",
+                   "timestamp", "epoch"}
+_CLOCK_WORDS = {"second", "seconds", "minute", "minutes", "hour", "hours", "day", "days", "month", "year",
+                "local", "offset", "of"}
+"""A column made of these words only is a wall-clock reading (J1939 Time/Date decoded by a DBC)."""
+
+
+def _words(name: str) -> list[str]:
+    return [w.lower() for w in re.findall(r"[A-Z]?[a-z]+|[A-Z]+(?![a-z])|\d+", str(name))]
+
+
+def is_position_column(name: str) -> bool:
+    """A column that tells where or when (of day): ours (`POSITION_COLUMNS`) or one a foreign table or
+    a DBC brings (``lat``, ``Longitude``, ``gps_time_utc``, ``VP_Latitude``, ``Hours``+``Minutes``)."""
+    words = _words(name)
+    if name in POSITION_COLUMNS or not words:
+        return name in POSITION_COLUMNS
+    return (bool(_POSITION_WORDS & set(words)) or words == ["long"] or {"gps", "time"} <= set(words)
+            or set(words) <= _CLOCK_WORDS)
+
+
 def without_positions(frame: pd.DataFrame) -> pd.DataFrame:
-    return frame.drop(columns=[c for c in POSITION_COLUMNS if c in frame.columns])
+    """``frame`` without every column that tells where or when (`is_position_column`)."""
+    return frame.drop(columns=[c for c in frame.columns if is_position_column(c)])
 
 
 def write_signals(frame: pd.DataFrame, path: str | Path) -> Path:

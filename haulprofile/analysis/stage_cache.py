@@ -22,8 +22,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from haulprofile.private_files import make_dirs
+from haulprofile.input_files import refuse_special
+from haulprofile.private_files import make_dirs, restrict_tree
 
+from .errors import UserError
 from .jsonable import jsonable
 
 HASH_BLOCK_BYTES = 1 << 20
@@ -40,7 +42,8 @@ def content_hash(paths: list[Path]) -> list[tuple[str, str]]:
     """(path, SHA-256 of its bytes) of every file in ``paths`` (directories walked, sorted)."""
     entries = []
     for path in paths:
-        files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+        files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [
+            refuse_special(path, "input", UserError)]
         for file in files:
             digest = hashlib.sha256()
             with open(file, "rb") as stream:
@@ -124,3 +127,4 @@ class StageCache:
             pickle.dump({"summary": self.ctx.summary, "results": self.ctx.results, "skipped": self.ctx.skipped},
                         stream, protocol=pickle.HIGHEST_PROTOCOL)
         (target / "key").write_text(self.keys[name])
+        restrict_tree(target)  # 0640 now, not only if the run gets to its output step

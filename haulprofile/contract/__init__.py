@@ -42,6 +42,9 @@ CAN_FLAG_TX = 0x08
 """Set on frames the logger transmitted itself (OBD-II and J1939 requests, CTS answers)."""
 CAN_FLAG_HW_TIMESTAMP = 0x10
 """``t_mono_ns`` came from the kernel/hardware receive timestamp, not from user space."""
+CAN_FLAG_FD = 0x20
+"""A CAN FD frame: ``dlc`` is its data length (up to 64), of which the record keeps the first 8
+bytes; the flag says so, so no decoder takes the frame for a complete classic one."""
 
 CAN_FRAME_DTYPE = np.dtype(
     [

@@ -27,9 +27,10 @@ _ZSTD_MARK = b"\x04\x00\x00\x00zstd"
 _LZ4_MARK = b"\x03\x00\x00\x00lz4"
 _MARK_AT = 9 + _CHUNK_HEAD.size - 4
 """Offset of a chunk's compression string (its length first) from the chunk record's start."""
-MAX_CHUNK_BYTES = 1 << 32
-"""Largest uncompressed chunk believed (writers use 1 MiB by default, the logger 256 KiB); a
-larger size field is a damaged one, not a reason to allocate that much."""
+MAX_CHUNK_BYTES = 1 << 28
+"""Largest uncompressed chunk believed, 256 MiB (writers use 1 MiB by default, ROS 2 4 MiB, the
+logger 256 KiB); a larger size field is a damaged one, not a reason to allocate that much. No
+chunk decompresses to more than its size field says: the decompressors are bounded by it."""
 
 
 class DamagedRecord(Exception):
@@ -213,10 +214,14 @@ def _decompress(body) -> bytes:
     import zstandard
     try:
         if compression == b"zstd":
-            data = _zstd_decompressor().decompress(raw, max_output_size=size)
+            declared = zstandard.frame_content_size(raw)
+            if declared == size:  # the frame says what the chunk says: one call, bounded by both
+                data = _zstd_decompressor().decompress(raw, max_output_size=size)
+            else:  # a frame that declares more, or nothing: read at most one byte past the size
+                data = _zstd_decompressor().stream_reader(bytes(raw)).read(size + 1)
         elif compression == b"lz4":
             import lz4.frame
-            data = lz4.frame.decompress(raw)
+            data = lz4.frame.LZ4FrameDecompressor().decompress(raw, max_length=size + 1)
         elif compression == b"":
             data = bytes(raw)
         else:

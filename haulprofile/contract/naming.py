@@ -23,7 +23,7 @@ def log_files(directory: Path, prefix: str | None = None) -> list[Path]:
     found = []
     for path in [*Path(directory).glob("*.mcap"), *Path(directory).glob("*.mcap.age")]:
         match = _NAME.match(path.name)
-        if match and (prefix is None or match["prefix"] == prefix):
+        if match and (prefix is None or match["prefix"] == prefix) and path.is_file():  # no FIFO or device
             found.append((int(match["seq"]), match["utc"], path))
     return [p for _, _, p in sorted(found)]
 

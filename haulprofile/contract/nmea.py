@@ -19,7 +19,9 @@ import pynmea2
 from . import location_fix
 
 KNOT_MPS = 1852.0 / 3600.0
-FIX_TYPES = {"RMC", "GGA", "GSA", "GST", "VTG"}
+FIX_TYPES = {"RMC", "GGA", "GSA", "GST", "VTG", "GLL", "GNS"}
+"""Sentences of an epoch; GLL and GNS add nothing to the fix but belong to their epoch by their
+time, so the logger's privacy judges their positions with it."""
 FALLBACK_TYPES = {"VTG", "GSA"}
 """Sentences only needed when RMC (speed) or GGA (HDOP) left a field empty: parsed only then."""
 

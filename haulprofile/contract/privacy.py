@@ -19,6 +19,31 @@ EARTH_RADIUS_M = 6_371_008.8
 METRES_PER_DEGREE = EARTH_RADIUS_M * math.pi / 180.0
 
 
+VEHICLE_POSITION_PGN = 65267
+"""J1939-71 Vehicle Position: SPN 584 latitude, SPN 585 longitude (1e-7 deg/bit, offset -210 deg)."""
+TIME_DATE_PGN = 65254
+"""J1939-71 Time/Date: the wall-clock time of day and date."""
+POSITION_PGNS = (VEHICLE_POSITION_PGN, TIME_DATE_PGN)
+
+
+def frame_pgns(arbitration_id, extended):
+    """J1939 PGN of PDU2 frames (29-bit identifiers); -1 for standard frames. Arrays in, array out."""
+    import numpy as np
+
+    arbitration_id = np.asarray(arbitration_id, dtype=np.int64)
+    return np.where(np.asarray(extended, dtype=bool), (arbitration_id >> 8) & 0x3FFFF, -1)
+
+
+def vehicle_positions(data):
+    """(latitude, longitude) [deg] of Vehicle Position frames (``data``: n × 8 bytes); NaN where
+    the receiver sent "not available" (above 0xFAFFFFFF)."""
+    import numpy as np
+
+    raw = np.ascontiguousarray(data, dtype=np.uint8).reshape(-1, 8).view("<u4").astype(np.float64)
+    raw[raw > 0xFAFFFFFF] = np.nan
+    return raw[:, 0] * 1e-7 - 210.0, raw[:, 1] * 1e-7 - 210.0
+
+
 @dataclass(frozen=True)
 class Zone:
     name: str
@@ -79,6 +104,7 @@ def zones_from_tables(tables: list[dict], where: str = "zones") -> list[Zone]:
             polygon = tuple((float(a), float(b)) for a, b in corners)
             for lat, lon in polygon:
                 _check_lat_lon(key, lat, lon)
+            _check_simple_polygon(key, polygon)
             zones.append(Zone(name, polygon=polygon))
             continue
         missing = [k for k in ("lat", "lon", "radius_m") if k not in table]
@@ -92,6 +118,48 @@ def zones_from_tables(tables: list[dict], where: str = "zones") -> list[Zone]:
             raise ValueError(f"{key}.radius_m must be > 0, got {radius!r}")
         zones.append(Zone(name, lat, lon, radius))
     return zones
+
+
+def _local_m(polygon) -> list[tuple[float, float]]:
+    """Corners in metres east and north of the first (equirectangular: zones are a few km)."""
+    lat0, lon0 = polygon[0]
+    scale = math.cos(math.radians(lat0))
+    return [((lon - lon0) * METRES_PER_DEGREE * scale, (lat - lat0) * METRES_PER_DEGREE) for lat, lon in polygon]
+
+
+def _crosses(a, b, c, d) -> bool:
+    """Segments ab and cd cross or touch (orientation test)."""
+    def side(p, q, r):
+        value = (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
+        return (value > 1e-9) - (value < -1e-9)
+
+    def on(p, q, r):
+        return min(p[0], q[0]) - 1e-9 <= r[0] <= max(p[0], q[0]) + 1e-9 and \
+            min(p[1], q[1]) - 1e-9 <= r[1] <= max(p[1], q[1]) + 1e-9
+
+    s1, s2, s3, s4 = side(a, b, c), side(a, b, d), side(c, d, a), side(c, d, b)
+    if s1 != s2 and s3 != s4:
+        return True
+    return any(s == 0 and on(p, q, r) for s, p, q, r in ((s1, a, b, c), (s2, a, b, d), (s3, c, d, a), (s4, c, d, b)))
+
+
+def _check_simple_polygon(key: str, polygon) -> None:
+    """A zone's polygon must enclose an area (1 m² at least) without crossing itself: the
+    even-odd test of a self-crossing one leaves holes where the zone was meant to be."""
+    points = _local_m(polygon)
+    if points[0] == points[-1] and len(points) > 3:
+        points = points[:-1]  # a closed ring's repeated first corner
+    edges = list(zip(points, points[1:] + points[:1]))
+    for i, (a, b) in enumerate(edges):
+        for j in range(i + 2, len(edges)):
+            if i == 0 and j == len(edges) - 1:
+                continue  # the first and last edge share a corner
+            if _crosses(a, b, *edges[j]):
+                raise ValueError(f"{key}.polygon crosses itself (edges {i + 1} and {j + 1}); "
+                                 "give its corners in order around the zone")
+    area = 0.5 * abs(sum(x1 * y2 - x2 * y1 for (x1, y1), (x2, y2) in zip(points, points[1:] + points[:1])))
+    if area < 1.0:
+        raise ValueError(f"{key}.polygon encloses no area ({area:.2g} m²): its corners lie on a line or repeat")
 
 
 def _is_number(value) -> bool:

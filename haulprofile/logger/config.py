@@ -7,12 +7,15 @@ Every section and key, with its default, is documented in ``docs/logger.md`` and
 from __future__ import annotations
 
 import dataclasses
+import math
+import re
 import tomllib
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from haulprofile.contract import obd
+from haulprofile.input_files import read_small
 from haulprofile.contract.privacy import zones_from_tables
 from haulprofile.toml_tables import check_typed, table_kwargs
 
@@ -199,6 +202,8 @@ def _build(cls, data: dict, prefix: str):
                 raise ConfigError(f"config: {key} must be a table [{key}]")
             return _build(hints[name], value, key)
         value = check_typed(f"config: {key}", value, hints[name], ConfigError)
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ConfigError(f"config: {key} must be a finite number, got {value!r}")
         if key in _CHOICES and value not in _CHOICES[key]:
             raise ConfigError(f"config: {key} must be one of {', '.join(_CHOICES[key])}, got {value!r}")
         if key in _POSITIVE and not value > 0:
@@ -216,7 +221,14 @@ MAX_RECEIVE_INTERVAL_S = 0.05
 (75 ms in ISO 15765-4), and frames waiting in the socket buffer must not overflow it [s]."""
 
 
+PREFIX = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
+"""A log file name's prefix: a plain name, no folder (``a/b``, ``../escape``) and no hidden file."""
+
+
 def _check(config: Config) -> None:
+    if not PREFIX.fullmatch(config.logger.prefix):
+        raise ConfigError(f"config: logger.prefix {config.logger.prefix!r} must be a plain name of letters, digits, "
+                          "'.', '_' or '-' (no '/', not starting with '.'), e.g. \"truck07\"")
     if not 0.0 <= config.can.receive_interval_s <= MAX_RECEIVE_INTERVAL_S:
         raise ConfigError(f"config: can.receive_interval_s must be 0 to {MAX_RECEIVE_INTERVAL_S:g} s "
                           f"(flow control within ISO 15765-4's N_Bs), got {config.can.receive_interval_s!r}")
@@ -282,10 +294,7 @@ def example_path() -> Path:
 def load(path: str | Path) -> Config:
     """Read and check a configuration file; raises `ConfigError` with a one-line message."""
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise ConfigError(f"config: cannot read {path}: {exc.strerror}") from None
+    raw = read_small(path, "config:", ConfigError)
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
         raise ConfigError(f"config: {path} is saved as UTF-16; save it as UTF-8 (TOML is UTF-8)")
     try:

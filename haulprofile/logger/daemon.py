@@ -23,7 +23,7 @@ from .devices import Devices
 from .diagnostics import Diagnostics, SystemdNotifier
 from .privacy import Privacy
 from .sources.base import LogItem, Source
-from .storage import BackgroundFsync, LogDirectory, StorageOptions
+from .storage import BackgroundFsync, LogDirectory, LogDirectoryLost, StorageOptions
 
 log = logging.getLogger("haulprofile.logger")
 
@@ -65,6 +65,8 @@ class Daemon:
         self._writer_task: asyncio.Task | None = None
         self._wall_offset_ns: int | None = None
         self.ready = asyncio.Event()
+        self.failed = False
+        """Set when logging had to stop (the log directory lost): the exit code is 1."""
 
     def stop(self) -> None:
         self._stop.set()
@@ -139,6 +141,20 @@ class Daemon:
         elif self.storage.rotate_if_due():
             log.info("rotated to %s", self.storage.path.name)
 
+    def _check_directory(self) -> bool:
+        """The log directory is still there (or made again); False when logging must stop."""
+        try:
+            self.storage.check_directory()
+        except LogDirectoryLost as exc:
+            self.say(str(exc))
+            self.failed = True
+            self._stop.set()
+            return False
+        finally:
+            while self.storage.messages:
+                self.say(self.storage.messages.pop(0))
+        return True
+
     async def _housekeeping(self) -> None:
         tick = 0
         next_ns = self.clock.monotonic_ns()
@@ -149,6 +165,8 @@ class Daemon:
                 next_ns = now_ns
             await self.clock.sleep_until_ns(next_ns)
             tick += 1
+            if not self._check_directory():
+                return
             try:
                 self._storage_tick()
             except OSError as exc:
@@ -228,7 +246,7 @@ class Daemon:
                     self.source_tasks = {k: t for k, t in self.source_tasks.items() if t is not task}
         self.notifier.stopping()
         await self._shutdown([housekeeping, stop_wait])
-        return exit_code
+        return 1 if self.failed else exit_code
 
     async def _shutdown(self, others: list[asyncio.Task]) -> None:
         for task in [*self.source_tasks.values(), *others]:
@@ -247,7 +265,8 @@ class Daemon:
                 if self.storage.writer is not None:
                     self.storage.writer.write(item.topic, item.payload, item.t_mono_ns, item.t_realtime_ns)
                     self.written_records[item.topic.name] = self.written_records.get(item.topic.name, 0) + item.records
-            self.storage.close()
+            if self._check_directory():
+                self.storage.close()
         except OSError as exc:
             self.storage.write_failed(exc)
         if self.encryptor is not None:

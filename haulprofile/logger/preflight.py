@@ -11,14 +11,17 @@ import os
 import tempfile
 from pathlib import Path
 
+from haulprofile.private_files import make_dirs
+
 from .config import Config, ConfigError
 
 
 def check_log_directory(directory: str | Path) -> Path:
-    """Create ``directory`` if needed and write and remove a file in it; `ConfigError` if either fails."""
+    """Create ``directory`` if needed (0750, as the parents it makes) and write and remove a file
+    in it; `ConfigError` if either fails."""
     directory = Path(directory)
     try:
-        directory.mkdir(parents=True, exist_ok=True)
+        make_dirs(directory)
         handle, probe = tempfile.mkstemp(prefix=".write-test-", dir=directory)
         os.close(handle)
         os.unlink(probe)

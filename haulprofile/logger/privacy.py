@@ -10,9 +10,35 @@ from __future__ import annotations
 import math
 import time
 
+from haulprofile.contract.nmea import nmea_checksum_ok
 from haulprofile.contract.privacy import CoarseClock, in_any, snap_position, zones_from_tables
 
 from .config import PrivacySection
+
+POSITION_TYPES = ("GGA", "RMC", "GLL", "GNS")
+"""NMEA sentences that carry a position (talker GP, GN, GL, GA, BD...)."""
+UNREADABLE = object()
+
+
+def sentence_position(text: str):
+    """(latitude, longitude) [deg] of a position sentence, read even with a bad checksum or a
+    fix quality of 0; None for a sentence without a position (or an empty one); `UNREADABLE`
+    for a position sentence whose fields cannot be read."""
+    import pynmea2
+
+    body = text.strip()
+    if len(body) < 6 or body[3:6] not in POSITION_TYPES or body.startswith("$P"):
+        return None
+    try:
+        msg = pynmea2.parse(body, check=False)
+        if not (getattr(msg, "lat", "") and getattr(msg, "lon", "")):
+            return None
+        latitude, longitude = float(msg.latitude), float(msg.longitude)
+    except (pynmea2.ParseError, ValueError, TypeError, AttributeError, IndexError):
+        return UNREADABLE
+    if not (math.isfinite(latitude) and math.isfinite(longitude) and abs(latitude) <= 90 and abs(longitude) <= 180):
+        return UNREADABLE
+    return latitude, longitude
 
 
 class Privacy:
@@ -44,6 +70,22 @@ class Privacy:
 
     def inside(self, latitude: float, longitude: float) -> bool:
         return bool(self.zones) and in_any(self.zones, latitude, longitude)
+
+    def lines_inside(self, lines) -> tuple[bool | None, set[int]]:
+        """Judge raw NMEA ``lines`` by every position they carry, whatever the sentence type
+        (`POSITION_TYPES`), fix quality or checksum: (True if one lies in a zone, False if all lie
+        outside, None if none has a position; the indexes of position sentences that cannot be
+        trusted, unreadable or with a bad checksum, which are never written)."""
+        judged, unreadable = None, set()
+        for index, text in enumerate(lines):
+            position = sentence_position(text)
+            if position is None:
+                continue
+            if position is UNREADABLE or not nmea_checksum_ok(text.strip()):
+                unreadable.add(index)
+            if position is not UNREADABLE:
+                judged = self.inside(*position) or bool(judged)
+        return judged, unreadable
 
     def coarsen_fix(self, fix: dict) -> dict:
         """A ``/gps/fix`` record outside every zone, as written: position on the grid (its

@@ -21,6 +21,10 @@ from .writer import LogWriter
 CURRENT_MARKER = ".current"
 
 
+class LogDirectoryLost(OSError):
+    """The log directory is gone and cannot be made again (a file stands in its place)."""
+
+
 def boot_id() -> str:
     """First 8 hex digits of the kernel's boot id (random per process when not on Linux)."""
     try:
@@ -182,6 +186,65 @@ class LogDirectory:
             self.open()
             return True
         return False
+
+    def check_directory(self) -> bool:
+        """Notice the log directory removed, moved away or replaced by a file while logging.
+
+        The current file, unlinked with the directory, lives on only in the open descriptor: it is
+        closed with its summary and its bytes written back under its own name into the directory,
+        made again; logging goes on in a new file. Where a file stands in the directory's place,
+        the copy goes beside it (``<directory>.rescued-<name>``) and `LogDirectoryLost` stops the
+        daemon. Returns True when something was done (lines in ``messages``)."""
+        if self.directory.is_dir() and (self._stream is None or self._still_linked_here()):
+            return False
+        blocked = self.directory.exists()
+        what = "replaced by a file" if blocked else "removed or moved away"
+        name = self.path.name if self._stream is not None else None
+        kept = None
+        if self._stream is not None:
+            fd = self._stream.fileno()
+            unlinked = os.fstat(fd).st_nlink == 0
+            self.writer.close()
+            self._stream.flush()
+            if unlinked:
+                target = (self.directory.with_name(f"{self.directory.name}.rescued-{name}") if blocked
+                          else make_dirs(self.directory) / name)
+                try:
+                    kept = f"{self._copy_open_file(fd, target)} bytes written back to {target}"
+                    if not blocked:
+                        self._closed(target)
+                except OSError as exc:
+                    kept = f"it could not be written back to {target} ({exc.strerror}): its data is lost"
+            else:
+                kept = "it stays complete where the directory was moved"
+            self._stream.close()
+            self.writer, self._stream = None, None
+            self._mark_current(None)
+        said = f"log directory {self.directory} was {what}" + (f" while {name} was being written; {kept}" if name else "")
+        if blocked:
+            raise LogDirectoryLost(f"{said}; logging stops: make it a directory again and restart")
+        make_dirs(self.directory)
+        self.messages.append(f"{said}; made again")
+        if name is not None and not self.paused:
+            self.open()
+            self.messages.append(f"logging goes on in {self.path.name}")
+        return True
+
+    def _still_linked_here(self) -> bool:
+        try:
+            here, open_file = os.stat(self.path), os.fstat(self._stream.fileno())
+        except OSError:
+            return False
+        return (here.st_dev, here.st_ino) == (open_file.st_dev, open_file.st_ino) and open_file.st_nlink > 0
+
+    @staticmethod
+    def _copy_open_file(fd: int, target: Path) -> int:
+        """Copy the whole file behind ``fd`` (write-only, unlinked) to a new ``target``."""
+        with open(f"/proc/self/fd/{fd}", "rb") as source, open_new(target) as sink:
+            copied = shutil.copyfileobj(source, sink, 1 << 20) or sink.tell()
+            sink.flush()
+            os.fsync(sink.fileno())
+        return copied
 
     def free_bytes(self) -> int:
         return self.free_space_probe(self.directory)

@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 from ..errors import UserError
+from ..plausible import known_mass_kg
 
 FLAGS = {
     "dem_dir": "--dem",
@@ -99,7 +100,7 @@ def parse_known_masses(items: list[str] | None) -> dict[int, float]:
             raise UserError(f"--known-mass {item!r}: expected SEGMENT=KG (e.g. 2=18400) or KG") from None
         if index < 0 or not mass > 0:
             raise UserError(f"--known-mass {item!r}: segment numbers start at 1 and the mass must be positive")
-        known[index] = mass
+        known[index] = known_mass_kg(mass, f"--known-mass {item!r}")
     return known
 
 
@@ -119,5 +120,5 @@ def parse_fleet_known_masses(items: list[str] | None) -> list[tuple[str, str, in
         if not truck or not log or number < 1 or not mass > 0:
             raise UserError(f"--known-mass {item!r}: give the truck (log directory), the log, a segment number "
                             f"from 1 and a positive mass in kg")
-        out.append((truck, log, number, mass))
+        out.append((truck, log, number, known_mass_kg(mass, f"--known-mass {item!r}")))
     return out

@@ -12,9 +12,14 @@ is logged in two minutes); ``--direct`` writes the log without the daemon, in se
 
 from __future__ import annotations
 
+import shutil
+import tempfile
 import time
 from pathlib import Path
 
+from haulprofile.private_files import make_dirs
+
+from ..manifest import Manifest, staged_files
 from ..pipeline import RunContext, run as run_pipeline
 from ..virtual_truck import drive, load_scenario, realism_level, scenario_vehicle, write_dem, write_mcap, write_truth
 from .arguments import printer
@@ -45,23 +50,31 @@ def run(args) -> int:
     say(f"virtual truck: scenario {scenario.name}, {vehicle.name}, seed {args.seed}, realism {level.level}")
     virtual = drive(scenario, vehicle, seed=args.seed, realism=level)
     say(f"  drove {virtual.truth['distance_m'].iloc[-1] / 1000:.1f} km in {virtual.duration_s / 60:.1f} min")
-    tiles = write_dem(virtual, out / "dem")
-    say(f"  DEM: {', '.join(p.name for p in tiles)} in {out / 'dem'}")
-    if args.direct:
-        log = write_mcap(virtual, out / "logs" / f"{scenario.name}-seed{args.seed}.mcap")
-    else:
-        from haulprofile.logger.emulators import record_streams
+    manifest = Manifest(out)
+    make_dirs(out)
+    staging = Path(tempfile.mkdtemp(prefix=".partial-demo-", dir=out))
+    try:
+        tiles = write_dem(virtual, staging / "dem")
+        say(f"  DEM: {', '.join(p.name for p in tiles)} in {out / 'dem'}")
+        if args.direct:
+            log = write_mcap(virtual, staging / "logs" / f"{scenario.name}-seed{args.seed}.mcap")
+        else:
+            from haulprofile.logger.emulators import record_streams
 
-        say(f"  logging through the daemon and the emulated devices at {args.time_scale:g}x real time "
-            f"(about {virtual.duration_s / args.time_scale:.0f} s)")
-        for old in (out / "logs").glob("*.mcap"):
-            old.unlink()
-        log = record_streams(virtual.sensors, out / "logs", time_scale=args.time_scale)
+            say(f"  logging through the daemon and the emulated devices at {args.time_scale:g}x real time "
+                f"(about {virtual.duration_s / args.time_scale:.0f} s)")
+            log = record_streams(virtual.sensors, staging / "logs", time_scale=args.time_scale)
+        truth = write_truth(virtual, staging)
+        for earlier in manifest.under("logs"):  # the demo's own earlier logs; a user's stay
+            manifest.remove(earlier)
+        manifest.place(staging, staged_files(staging))
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    log = out / log.relative_to(staging)
     say(f"  log: {log} ({log.stat().st_size / 1e6:.1f} MB)")
-    truth = write_truth(virtual, out)
     say(f"  ground truth: {', '.join(p.name for p in truth)} in {out}")
 
-    ctx = RunContext(inputs=[out / "logs"], out_dir=out, vehicle=vehicle, dem_dir=out / "dem", say=say)
+    ctx = RunContext(inputs=[log], out_dir=out, vehicle=vehicle, dem_dir=out / "dem", say=say)
     run_pipeline(ctx)
     elapsed = time.perf_counter() - started
     print(f"demo done in {elapsed:.0f} s. Look at:")

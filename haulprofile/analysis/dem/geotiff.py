@@ -29,6 +29,11 @@ def _rasterio():
     return rasterio
 
 
+MAX_PIXELS = 200_000_000
+"""Most pixels of one raster read whole (1.6 GB of float64 heights): a 25 m DEM of 350 x 350 km,
+checked from the file's header before any is read (a 6.5 MB GeoTIFF may declare 40000²)."""
+
+
 class GeoTiffDem:
     """A directory of GeoTIFF rasters; each is read into memory on first use and kept."""
 
@@ -44,6 +49,13 @@ class GeoTiffDem:
         for path in self.paths:
             try:
                 with rasterio.open(path) as src:
+                    if src.crs is None:
+                        raise UserError(f"{path}: GeoTIFF without a coordinate reference system (CRS); its "
+                                        "pixels cannot be placed (set one, e.g. gdal_edit.py -a_srs EPSG:4326)")
+                    if src.width * src.height > MAX_PIXELS:
+                        raise UserError(f"{path}: {src.width} x {src.height} pixels, more than {MAX_PIXELS:,} "
+                                        f"(~{MAX_PIXELS * 8 / 1e9:.0f} GB as heights); cut it to the route's area "
+                                        "(gdal_translate -projwin)")
                     self._meta.append((src.crs, src.transform, src.bounds, src.nodata))
             except rasterio.errors.RasterioIOError as exc:
                 raise UserError(f"{path}: not a readable GeoTIFF ({exc})") from None

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from haulprofile.private_files import make_dirs
+
 from ..markov import ClassWidths, TransitionCounts, write_cycle
 from .. import jsonable
 
@@ -71,7 +73,7 @@ def group_summary(group, spec) -> dict:
 def write_group(group, spec, out_dir: Path) -> dict:
     """Every file of one group; returns its summary (also written as ``fleet-summary.json``)."""
     group_dir = out_dir / group.name
-    group_dir.mkdir(parents=True, exist_ok=True)
+    make_dirs(group_dir)
     files = {}
     statistics = group.statistics
     if group.cycle is not None:
@@ -80,7 +82,7 @@ def write_group(group, spec, out_dir: Path) -> dict:
         if statistics.counts is not None:
             files["counts"] = write_counts(statistics.counts, group_dir / "counts.npz").name
         hist_dir = group_dir / "histograms"
-        hist_dir.mkdir(exist_ok=True)
+        make_dirs(hist_dir)
         for name, histogram in statistics.histograms.items():
             value = VALUE_NAMES.get(name, "time_s")
             histogram.frame(value).to_csv(hist_dir / f"{name}.csv", index=False)
@@ -101,7 +103,7 @@ def write_group(group, spec, out_dir: Path) -> dict:
 
 
 def write_fleet(fleet, spec, out_dir: Path, say=print) -> dict:
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_dirs(out_dir)
     groups = [write_group(group, spec, out_dir) for group in fleet.groups]
     summary = {"executor": fleet.executor, "dem_dir": spec.dem_dir, "groups": [
         {key: g.get(key) for key in ("group", "vehicle", "error", "totals", "transitions", "failed")}

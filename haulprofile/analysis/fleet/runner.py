@@ -6,10 +6,14 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
+
+from haulprofile.private_files import restrict_written
 
 from ..checks import repeated_content
 from ..errors import UserError
@@ -117,6 +121,11 @@ class FleetResult:
 
 
 DASK_CONNECT_TIMEOUT = "20s"
+DASK_CONNECT_WAIT_S = 30.0
+"""How long to wait for a Dask scheduler's answer [s]: distributed's own timeout does not cover a
+port that accepts a connection and never speaks (not a scheduler), which waited for ever."""
+DASK_WORKERS_WAIT_S = 60.0
+"""How long to wait for a scheduler's first worker [s] (a cluster without workers runs nothing)."""
 
 
 class SerialExecutor:
@@ -153,11 +162,33 @@ class DaskExecutor:
             from distributed import Client
         except ImportError:
             raise FleetError("a Dask scheduler address needs Dask: pip install 'haulprofile[fleet]'") from None
+        hint = "start it with 'dask scheduler' and workers, or give no scheduler address for the local pool"
+        outcome: dict = {}
+
+        def connect():
+            try:
+                outcome["client"] = Client(address, timeout=DASK_CONNECT_TIMEOUT)
+            except BaseException as exc:  # noqa: BLE001 - handed to the waiting thread below
+                outcome["error"] = exc
+
+        thread = threading.Thread(target=connect, name="dask-connect", daemon=True)
+        thread.start()
+        thread.join(DASK_CONNECT_WAIT_S)
+        if thread.is_alive():
+            raise FleetError(f"no Dask scheduler answered at {address} within {DASK_CONNECT_WAIT_S:.0f} s "
+                             f"(is it a scheduler's address?); {hint}")
+        error = outcome.get("error")
+        if isinstance(error, (OSError, TimeoutError, ValueError, TypeError)):
+            raise FleetError(f"cannot reach the Dask scheduler at {address} ({error}); {hint}") from None
+        if error is not None:
+            raise error
+        self.client = outcome["client"]
         try:
-            self.client = Client(address, timeout=DASK_CONNECT_TIMEOUT)
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise FleetError(f"cannot reach the Dask scheduler at {address} ({exc}); start it with "
-                             f"'dask scheduler' and workers, or give no scheduler address for the local pool") from None
+            self.client.wait_for_workers(1, timeout=DASK_WORKERS_WAIT_S)
+        except (TimeoutError, OSError) as exc:
+            self.client.close()
+            raise FleetError(f"the Dask scheduler at {address} has no worker after {DASK_WORKERS_WAIT_S:.0f} s "
+                             f"({type(exc).__name__}); start workers with 'dask worker {address}'") from None
         self.name = f"dask {address}"
 
     def map(self, fn, items):
@@ -190,6 +221,7 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
     from .output import write_fleet
 
     out_dir = Path(out_dir)
+    started_ns = time.time_ns() - 1_000_000_000  # file systems with coarse time stamps
     inside_out = out_dir.resolve()
     for group in spec.groups:
         group.logs = [log for log in group.logs if inside_out not in log.resolve().parents]
@@ -222,6 +254,7 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
         group.cycle, group.selection, group.error = cycle.cycle, cycle.selection, cycle.error
     fleet = FleetResult(groups, executor.name)
     write_fleet(fleet, spec, out_dir, say)
+    restrict_written(out_dir, started_ns)  # positions and times: 0640 whatever the umask
     return fleet
 
 

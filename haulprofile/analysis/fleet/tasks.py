@@ -7,6 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from haulprofile.private_files import make_dirs
+
 from ..errors import UserError
 from ..markov import ClassWidths, select_cycle
 from ..mass.joint import JointSettings
@@ -82,7 +84,7 @@ def map_log(task: LogTask) -> LogResult:
         if task.debug:
             raise
         result = LogResult(task.path, task.group, None, f"internal error {type(exc).__name__}: {exc}", messages)
-    task.out_dir.mkdir(parents=True, exist_ok=True)
+    make_dirs(task.out_dir)
     ending = [f"FAILED: {result.error}"] if result.error else []
     (task.out_dir / "messages.txt").write_text("\n".join([str(task.path), *result.messages, *ending]) + "\n")
     return result

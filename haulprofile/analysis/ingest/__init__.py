@@ -86,7 +86,8 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
                         f"(longest {longest / 3600:.1f} h) shortened to {align.KEPT_GAP_S:.0f} s of gap rows each: "
                         f"time_s counts recorded time, wall_time_ns keeps the real time")
     if "imu-scale" in ingest.notes:
-        warnings.append("IMU channel metadata has no accel_scale_mps2_per_lsb: accel_x/y/z_mps2 left out")
+        warnings.append("IMU channel metadata has no usable accel_scale_mps2_per_lsb (missing, or not a finite "
+                        "1e-6 to 1 m/s^2 per count): accel_x/y/z_mps2 left out")
     for line in warnings:
         say(f"warning: {line}")
     summary.update({

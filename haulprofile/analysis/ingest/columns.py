@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from .. import checks
+from ..signals import COLUMNS
 from . import align
 from .logs import LogError
 
@@ -131,7 +132,8 @@ def build_table(ingest) -> tuple[pd.DataFrame, dict]:
             break
     for key in sorted(k for k in acc.streams if k.startswith("dbc:")):
         name = key[4:]
-        column = name if name not in table and name not in columns else f"dbc_{name}"
+        ours = name in COLUMNS or name in table or name in columns  # a DBC never replaces one of our columns
+        column = f"dbc_{name}" if ours else name
         columns[column] = c.pick(column, None, key)
     if speed is not None:
         table["valid"] = c.recorded & np.isfinite(speed)

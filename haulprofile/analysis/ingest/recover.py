@@ -9,10 +9,13 @@ original is never modified.
 
 from __future__ import annotations
 
+import os
+import tempfile
 from pathlib import Path
 
 from haulprofile.contract.reader import ReadReport
 from haulprofile.contract.repair import write_recovered
+from haulprofile.private_files import FILE_MODE
 
 from .logs import LogError
 
@@ -24,9 +27,18 @@ def recover(source: str | Path, target: str | Path, chunk_size: int = 1024 * 102
         raise LogError(f"{source} not found")
     if target.resolve() == source.resolve():
         raise LogError(f"{target}: the repaired copy must not overwrite the original; choose another name")
-    with open(target, "wb") as stream:
-        report = write_recovered(source, stream, chunk_size=chunk_size, library="haulprofile-recover")
+    if target.is_symlink():
+        raise LogError(f"{target} is a symbolic link; it is never followed, give the real path")
+    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".partial", dir=target.parent)
+    partial = Path(name)
+    try:
+        os.fchmod(fd, FILE_MODE)
+        with os.fdopen(fd, "wb") as stream:
+            report = write_recovered(source, stream, chunk_size=chunk_size, library="haulprofile-recover")
+        if report.messages:
+            os.replace(partial, target)
+    finally:
+        partial.unlink(missing_ok=True)
     if report.messages == 0:
-        target.unlink()
         raise LogError(f"{source}: no message could be recovered (not an MCAP log, or damaged from the start)")
     return report

@@ -34,8 +34,12 @@ def _number(value) -> float:
     return float(value) if value.__class__ in (int, float) else np.nan
 
 
+INT64_MAX = (1 << 63) - 1
+
+
 def _clock(value) -> int:
-    return value if value.__class__ is int and value >= 0 else -1
+    """A clock reading [ns]: a non-negative int64, else -1 (absent or damaged, e.g. beyond int64)."""
+    return value if value.__class__ is int and 0 <= value <= INT64_MAX else -1
 
 
 @dataclass
@@ -61,14 +65,16 @@ class JsonTopic:
             return
         try:
             records = _decoder(self.names).decode(array)
-        except (msgspec.ValidationError, msgspec.DecodeError):
+            self._add_typed(records, offset_ns)
+        except (msgspec.ValidationError, msgspec.DecodeError, OverflowError):  # beyond int64: the slow path
             self._add_untyped(array, lengths, offset_ns)
-            return
+
+    def _add_typed(self, records, offset_ns: int) -> None:
         time_ns = _column(records, "t_mono_ns", np.int64)
         if time_ns is None:  # records without a monotonic time are not used
             records = [r for r in records if r.t_mono_ns is not None]
             time_ns = _column(records, "t_mono_ns", np.int64)
-        self.time_ns.append(time_ns + offset_ns)
+        columns = {}
         for name in self.names:
             if name.endswith("_ns"):
                 column = _column(records, name, np.int64)
@@ -80,6 +86,9 @@ class JsonTopic:
                 column = _column(records, name, np.float64)
                 if column is None:  # null or absent: NaN
                     column = np.array(list(map(operator.attrgetter(name), records)), dtype=np.float64)
+            columns[name] = column
+        self.time_ns.append(time_ns + offset_ns)  # only once every column converted (else: the slow path)
+        for name, column in columns.items():
             self.fields.setdefault(name, []).append(column)
 
     def _add_untyped(self, array, lengths: np.ndarray, offset_ns: int) -> None:
@@ -89,7 +98,7 @@ class JsonTopic:
             data = bytes(array)
             starts = 1 + np.concatenate(([0], np.cumsum(lengths[:-1] + 1)))
             records = [_loads(data[a:a + n]) for a, n in zip(starts.tolist(), lengths.tolist())]
-        keep = [k for k, r in enumerate(records) if r.__class__ is dict and r.get("t_mono_ns").__class__ is int]
+        keep = [k for k, r in enumerate(records) if r.__class__ is dict and _clock(r.get("t_mono_ns")) >= 0]
         self.time_ns.append(np.array([records[k]["t_mono_ns"] for k in keep], dtype=np.int64) + offset_ns)
         for name in self.names:
             convert, dtype = (_clock, np.int64) if name.endswith("_ns") else (_number, np.float64)
@@ -234,7 +243,10 @@ class Ingest:
         scales = {}
         for cid in ids:
             try:
-                scales[cid] = float(window.channels[cid].metadata.get(ACCEL_SCALE_KEY))
+                scale = float(window.channels[cid].metadata.get(ACCEL_SCALE_KEY))
+                if not 1e-6 <= scale <= 1.0:  # nan, inf, 0, negative: no accelerometer's LSB [m/s^2]
+                    raise ValueError(scale)
+                scales[cid] = scale
             except (TypeError, ValueError):
                 if "imu-scale" not in self.notes:
                     self.notes.append("imu-scale")

@@ -51,10 +51,20 @@ def efficiency_map(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray
     path = Path(path)
     if not path.is_file():
         raise SimulationInputError(f"efficiency map {path} not found (efficiency_map_csv in the vehicle file)")
-    frame = pd.read_csv(path)
+    try:
+        frame = pd.read_csv(path)
+    except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
+        raise SimulationInputError(f"{path}: not a CSV table ({str(exc).splitlines()[0]})") from None
     needed = {"speed_rpm", "torque_nm", "efficiency"}
     if not needed <= set(frame.columns):
         raise SimulationInputError(f"{path}: an efficiency map needs columns speed_rpm, torque_nm, efficiency")
+    for column in sorted(needed):
+        values = pd.to_numeric(frame[column], errors="coerce")
+        if values.isna().any() or not np.isfinite(values.to_numpy(float)).all():
+            row = int(np.flatnonzero(values.isna() | ~np.isfinite(values.to_numpy(float)))[0]) + 2
+            raise SimulationInputError(f"{path}: {column} must be a finite number on every row "
+                                       f"(line {row} has {frame[column].iloc[row - 2]!r})")
+        frame[column] = values.astype(float)
     table = frame.pivot_table(index="speed_rpm", columns="torque_nm", values="efficiency")
     if table.isna().any().any():
         raise SimulationInputError(f"{path}: the efficiency map must fill a regular speed x torque grid")

@@ -119,6 +119,8 @@ class CanSource(Source):
         self.section = section
         self.drop_pgns = frozenset(drop_pgns)
         self.privacy_dropped = 0
+        self.fd_truncated = 0
+        """CAN FD frames longer than the record's 8 data bytes (flagged `CAN_FLAG_FD`)."""
         self.bus = bus if bus is not None else can.Bus(interface=section.interface, channel=section.channel,
                                                        bitrate=section.bitrate)
         self._hw_stamp = section.interface in HW_TIMESTAMP_INTERFACES
@@ -205,6 +207,9 @@ class CanSource(Source):
                     flags |= contract.CAN_FLAG_REMOTE
                 if msg.is_error_frame:
                     flags |= contract.CAN_FLAG_ERROR
+                if msg.is_fd:
+                    flags |= contract.CAN_FLAG_FD
+                    self.fd_truncated += len(msg.data) > 8
                 if scaled:
                     t_ns = clock.mono_ns_from_unix_s(msg.timestamp, 0)
                 else:
@@ -303,6 +308,8 @@ class CanSource(Source):
                  "listen_only": self.section.listen_only}
         if self.drop_pgns:
             extra["privacy_dropped"] = self.privacy_dropped
+        if self.fd_truncated:
+            extra["fd_truncated"] = self.fd_truncated
         if self.obd is not None:
             extra.update(self.obd.stats())
         if self.j1939 is not None:

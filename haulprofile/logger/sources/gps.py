@@ -8,8 +8,11 @@ bytes and truncated lines are counted and skipped, never fatal.
 With privacy zones or coarsening (`..privacy.Privacy`) the raw lines of an epoch are held until
 the epoch is judged: inside a zone its fix, its NMEA (every line, checksum-valid or not) and its
 GPS time are dropped and ``/privacy/zone`` says where such a stretch begins and ends; outside,
-the fix is coarsened and the NMEA kept only if nothing is coarsened. Before the first fix, and
-while fixless epochs follow a fix inside a zone, epochs count as inside.
+the fix is coarsened and the NMEA kept only if nothing is coarsened. An epoch is judged by its fix
+and by every position its lines carry (GGA, RMC, GLL, GNS; any fix quality, bad checksums too),
+so an epoch without a complete fix cannot carry a position out of a zone; a position sentence
+that cannot be read is never written. Before the first position, and while epochs without one
+follow a position inside a zone, epochs count as inside.
 """
 
 from __future__ import annotations
@@ -131,20 +134,25 @@ class GpsSource(Source):
     def _judge(self, fix: dict | None, held: list[tuple[str, int]], t_mono_ns: int | None) -> dict | None:
         """Privacy: the fix to write (None inside a zone); the held lines go on or are dropped."""
         was = self._inside
-        inside = self.privacy.inside(fix["latitude"], fix["longitude"]) if fix is not None else (was is not False)
-        if fix is not None and inside != bool(was) and t_mono_ns is not None:
+        by_lines, unreadable = self.privacy.lines_inside(text for text, _ in held)
+        located = fix is not None or by_lines is not None
+        inside = (bool(by_lines) or (fix is not None and self.privacy.inside(fix["latitude"], fix["longitude"]))
+                  if located else (was is not False))
+        if located and inside != bool(was) and t_mono_ns is not None:
             self.emit_json(contract.PRIVACY_ZONE, {"t_mono_ns": t_mono_ns, "event": "entered" if inside else "left",
                                                    "source": "logger"}, t_mono_ns)
-        if fix is not None:
+        if located:
             self._inside = inside
         if inside:
             self.stats.extra["zone_epochs"] += t_mono_ns is not None
             self.last_gps_time = None
             return None
+        self.stats.extra["unreadable_positions"] = self.stats.extra.get("unreadable_positions", 0) + len(unreadable)
         if self.privacy.keep_nmea:
-            for text, t in held:
-                self._raw.append(text)
-                self._raw_t.append(t)
+            for index, (text, t) in enumerate(held):
+                if index not in unreadable:
+                    self._raw.append(text)
+                    self._raw_t.append(t)
         return self.privacy.coarsen_fix(fix) if fix is not None else None
 
     def flush_raw(self) -> None:

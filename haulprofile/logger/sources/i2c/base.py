@@ -22,6 +22,9 @@ LOST_AFTER_ERRORS = 3
 REPROBE_INTERVAL_S = 1.0
 """How often a lost sensor is probed (WHO_AM_I) and, once it answers, configured again [s]."""
 HANDOVER_INTERVAL_S = 0.1
+RAIL_LIMIT = 32
+"""Readings in a row with every byte 0x00 or 0xFF, or at full scale, before a sensor counts as
+stuck (a held bus, a dead sensor) or saturated: a real sensor's noise changes its low bits."""
 """How often the bus thread hands what it read to the event loop: one wake-up of the loop for
 all sensors instead of one per poll that produced a sample [s]."""
 
@@ -51,6 +54,19 @@ class Driver:
         self.address = address
         self.clock = clock
         self.overruns = 0
+        self.rail_run = 0
+        """Consecutive readings at a rail (`RAIL_LIMIT`); ``rail_why`` says which."""
+        self.rail_why = ""
+        self.railed = False
+
+    def note_reading(self, block, saturated: bool = False) -> None:
+        """Count a reading whose bytes are all 0x00 or all 0xFF, or that is at full scale."""
+        stuck = not any(block) or all(b == 0xFF for b in block)
+        if stuck or saturated:
+            self.rail_run += 1
+            self.rail_why = "every byte 0x00 or 0xFF (a held bus or a dead sensor)" if stuck else "at full scale"
+        else:
+            self.rail_run = 0
 
     def probe(self) -> None:
         try:
@@ -133,7 +149,11 @@ class I2cBusSource(Source):
                 if self._failing[driver.name] == LOST_AFTER_ERRORS:
                     event = "lost"
             overruns, driver.overruns = driver.overruns, 0
-            if out or overruns or error:
+            if event is None and not driver.railed and driver.rail_run >= RAIL_LIMIT:
+                driver.railed, event = True, "stuck"
+            elif event is None and driver.railed and driver.rail_run == 0:
+                driver.railed, event = False, "back"
+            if out or overruns or error or event:
                 results.append((driver.name, out, overruns, error, event))
         return results
 
@@ -185,9 +205,16 @@ class I2cBusSource(Source):
                 sensor["state"] = "lost"
                 self.say(f"{name}: lost after {LOST_AFTER_ERRORS} failed reads ({error}); "
                          f"probing every {REPROBE_INTERVAL_S:g} s")
+            elif event == "stuck":
+                driver = next(d for d in self.drivers if d.name == name)
+                sensor["state"] = "stuck" if driver.rail_why != "at full scale" else "saturated"
+                self.say(f"{name}: {driver.rail_run} readings in a row {driver.rail_why}; logged, but not "
+                         "trustworthy until it reads again")
             elif event == "back":
+                was = sensor["state"]
                 sensor["state"] = "running"
-                self.say(f"{name}: answers again, configured and polled")
+                self.say(f"{name}: answers again, configured and polled" if was == "lost"
+                         else f"{name}: reads plausible values again")
 
     def alive(self) -> bool:
         return self._thread is not None and self._thread.is_alive()

@@ -74,6 +74,7 @@ class Hts221(Driver):
             return []
         t_mono_ns = self.clock.monotonic_ns()
         b = self.bus.read_i2c_block_data(self.address, HUMIDITY_OUT_L | AUTO_INCREMENT, 4)
+        self.note_reading(b)
         h_raw, t_raw = s16(b[0], b[1]), s16(b[2], b[3])
         record = {"t_mono_ns": t_mono_ns, "relative_humidity_pct": self.calibration.humidity_pct(h_raw),
                   "temperature_c": self.calibration.temperature_c(t_raw), "humidity_raw": h_raw,

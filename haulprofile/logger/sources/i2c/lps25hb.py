@@ -73,6 +73,7 @@ class Lps25hb(Driver):
         out = []
         for t_mono_ns in self.sample_clock.stamps(n, before_ns, after_ns, overrun=full):
             b = self.bus.read_i2c_block_data(self.address, PRESS_OUT_XL | AUTO_INCREMENT, 5)
+            self.note_reading(b)
             p_raw = b[0] | (b[1] << 8) | (b[2] << 16)
             if p_raw & 0x800000:
                 p_raw -= 1 << 24

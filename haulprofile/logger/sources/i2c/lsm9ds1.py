@@ -115,7 +115,9 @@ class Lsm9ds1(Driver):
         for t_ns in self.sample_clock.stamps(n, before_ns, after_ns, overrun):
             gyro = read(address, OUT_X_L_G, 6)  # gyroscope first: reading OUT_Z_H_XL pops the slot
             pending += pack(t_ns)
-            pending.extend(read(address, OUT_X_L_XL, 6))
+            accel = read(address, OUT_X_L_XL, 6)
+            self.note_reading(accel + gyro, saturated=_full_scale(accel))
+            pending.extend(accel)
             pending.extend(gyro)
         self._pending_count += n
         if self._pending_count * self._period_ns >= self.batch_ns:
@@ -129,6 +131,12 @@ class Lsm9ds1(Driver):
         self._pending.clear()
         self._pending_count = 0
         return [(contract.IMU, payload, contract.first_time_ns(payload), count)]
+
+
+def _full_scale(accel: list[int]) -> bool:
+    """An accelerometer axis at the end of its range (0x7FFF or 0x8000): the truck's acceleration
+    is beyond the configured full scale (``i2c.lsm9ds1.accel_range_g``)."""
+    return any((accel[i], accel[i + 1]) in ((0xFF, 0x7F), (0x00, 0x80)) for i in (0, 2, 4))
 
 
 class Lsm9ds1Magnetometer(Driver):
@@ -152,6 +160,7 @@ class Lsm9ds1Magnetometer(Driver):
             return []
         t_mono_ns = self.clock.monotonic_ns()
         b = self.bus.read_i2c_block_data(self.address, OUT_X_L_M | AUTO_INCREMENT, 6)
+        self.note_reading(b)
         raw = [s16(b[0], b[1]), s16(b[2], b[3]), s16(b[4], b[5])]
         record = {"t_mono_ns": t_mono_ns, "magnetic_raw": raw,
                   "magnetic_field_t": [r * MAG_SENSITIVITY_GAUSS * 1e-4 for r in raw]}
