@@ -16,7 +16,7 @@ from haulprofile.analysis.markov.converge import refine, select_refined
 from haulprofile.analysis.markov.generate import run_batch
 from haulprofile.analysis.markov.load_criteria import LOAD_NAMES, evaluate_loads, load_target
 from haulprofile.analysis.markov.score_kernels import (EXPONENTS, SHARES, path_loads, rainflow_damage_sums,
-                                                       time_quantiles)
+                                                       time_quantiles, time_quantiles_sorted)
 from haulprofile.analysis.vehicle import load_vehicle
 from haulprofile.testing.drives import synthetic_drive
 
@@ -139,10 +139,25 @@ def test_time_quantiles_with_ties_and_half_seconds_at_the_ends():
     durations = np.ones(101)
     durations[[0, -1]] = 0.5
     expected = [time_quantile(values, durations, share) for share in SHARES]
-    for kernel in (time_quantiles, time_quantiles.py_func):
+    for kernel in (time_quantiles, time_quantiles.py_func, time_quantiles_sorted, time_quantiles_sorted.py_func):
         out = np.empty(3)
         kernel(values, 2, 0, 100, SHARES, out)
         np.testing.assert_array_equal(out, expected)
+
+
+def test_time_quantiles_by_selection_equal_the_sorted_reference():
+    """Ties, repeated values, one or no half sample, any ascending shares: the same values."""
+    rng = np.random.default_rng(29)
+    for trial in range(600):
+        n = int(rng.integers(3, 300))
+        values = [rng.integers(-3, 4, n).astype(float), rng.normal(size=n), np.round(rng.normal(size=n), 1),
+                  np.where(rng.random(n) < 0.9, 2.0, rng.normal(size=n))][trial % 4]
+        shares = np.sort(rng.uniform(0, 1, 3)) if trial % 2 else SHARES
+        for n_half, a, b in ((2, 0, n - 1), (1, int(rng.integers(0, n)), 0), (0, 0, 0)):
+            expected, out = np.empty(3), np.empty(3)
+            time_quantiles_sorted(values, n_half, a, b, shares, expected)
+            time_quantiles(values, n_half, a, b, shares, out)
+            np.testing.assert_array_equal(out, expected)
 
 
 def test_cli_paper_selection_writes_the_golden_cycle(drive, tmp_path):
