@@ -205,3 +205,19 @@ def test_the_reported_objective_is_that_of_the_chosen_cycle(counts, target, vehi
     assert selection.objective == pytest.approx(expected, rel=1e-9)
     for function in (kernel, kernel.py_func):
         assert function(deviation, ALLOWANCE) == pytest.approx(float(kinematic_objective(deviation)), rel=1e-12)
+
+
+def test_refined_selection_on_threads_equals_one_thread(counts, target, vehicle, monkeypatch):
+    """The pool's batches and each stage's walks run side by side; the cycles, objectives and
+    traces must be those of one thread, bit for bit."""
+    from haulprofile.analysis.markov import converge
+
+    chain = build_chain(counts)
+    run = lambda: select_refined(counts, 600, 3, chain, target, vehicle, n_cycles=2, n_pool=4500, n_moves=400)
+    threaded = run()
+    monkeypatch.setattr(converge, "_side_by_side", lambda function, items: [function(i) for i in items])
+    serial = run()
+    assert [_key(s.cycle) for s in threaded] == [_key(s.cycle) for s in serial]
+    assert [s.objective for s in threaded] == [s.objective for s in serial]
+    assert all(np.array_equal(a.trace, b.trace) and np.array_equal(a.all_scores, b.all_scores)
+               for a, b in zip(threaded, serial))
