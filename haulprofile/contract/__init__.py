@@ -240,37 +240,23 @@ MAGNETOMETER_V1 = Topic(
 """`BAROMETER_V1`, `HUMIDITY_V1`, `MAGNETOMETER_V1`: contract version 1's JSON form of these topics
 (one message per sample), read in old logs, written only by tests that make such logs."""
 
-BAROMETER = Topic(
-    name="/barometer",
-    schema_name="haulprofile.BarometerSamples",
-    encoding=PACKED_ENCODING,
-    rate_hz=25.0,
-    description="LPS25HB pressure and temperature, SI values and raw registers, batched per FIFO read.",
-    dtype=BAROMETER_SAMPLE_DTYPE,
-    units={"t_mono_ns": "ns", "pressure_pa": "Pa", "temperature_c": "degC", "pressure_raw": "LSB",
-           "temperature_raw": "LSB"},
-)
+def _packed_sensor(name: str, schema_name: str, rate_hz: float, description: str, dtype: np.dtype) -> Topic:
+    """A sensor topic packed since contract 2; units: those of its contract-1 JSON form, LSB for raw counts."""
+    units = {"t_mono_ns": "ns", **{field: "LSB" for field in dtype.names if field.endswith("_raw")}}
+    return Topic(name=name, schema_name=schema_name, encoding=PACKED_ENCODING, rate_hz=rate_hz,
+                 description=description, dtype=dtype, units=units | _V1_UNITS[name])
 
-HUMIDITY = Topic(
-    name="/humidity",
-    schema_name="haulprofile.HumiditySamples",
-    encoding=PACKED_ENCODING,
-    rate_hz=12.5,
-    description="HTS221 relative humidity and temperature (factory calibration applied) and raw counts, batched.",
-    dtype=HUMIDITY_SAMPLE_DTYPE,
-    units={"t_mono_ns": "ns", "relative_humidity_pct": "%", "temperature_c": "degC", "humidity_raw": "LSB",
-           "temperature_raw": "LSB"},
-)
 
-MAGNETOMETER = Topic(
-    name="/magnetometer",
-    schema_name="haulprofile.MagnetometerSamples",
-    encoding=PACKED_ENCODING,
-    rate_hz=10.0,
-    description="LSM9DS1 magnetometer, tesla and raw counts, batched.",
-    dtype=MAGNETOMETER_SAMPLE_DTYPE,
-    units={"t_mono_ns": "ns", "magnetic_field_t": "T", "magnetic_raw": "LSB"},
-)
+_V1_UNITS = {t.name: t.units for t in (BAROMETER_V1, HUMIDITY_V1, MAGNETOMETER_V1)}
+
+BAROMETER = _packed_sensor("/barometer", "haulprofile.BarometerSamples", 25.0,
+                           "LPS25HB pressure and temperature, SI values and raw registers, batched per FIFO read.",
+                           BAROMETER_SAMPLE_DTYPE)
+HUMIDITY = _packed_sensor("/humidity", "haulprofile.HumiditySamples", 12.5,
+                          "HTS221 relative humidity and temperature (factory calibration applied) and raw counts, "
+                          "batched.", HUMIDITY_SAMPLE_DTYPE)
+MAGNETOMETER = _packed_sensor("/magnetometer", "haulprofile.MagnetometerSamples", 10.0,
+                              "LSM9DS1 magnetometer, tesla and raw counts, batched.", MAGNETOMETER_SAMPLE_DTYPE)
 
 SENSOR_TOPICS: dict[str, Topic] = {t.name: t for t in (BAROMETER, HUMIDITY, MAGNETOMETER)}
 """Topics packed since contract version 2; a channel of theirs is packed only if its message

@@ -94,12 +94,19 @@ class RecordBatch:
         return self.flush() if self._count >= self._batch_records else []
 
     def flush(self) -> list:
-        if not self._count:
-            return []
-        payload, count = bytes(self._pending), self._count
-        self._pending.clear()
+        output = packed_output(self.topic, self._pending, self._count)
         self._count = 0
-        return [(self.topic, payload, contract.first_time_ns(payload), count)]
+        return output
+
+
+def packed_output(topic: contract.Topic, pending: bytearray, count: int) -> list:
+    """`Driver.poll`'s output of ``count`` packed records held in ``pending`` (emptied): one
+    message stamped with its first record's time, or nothing."""
+    if not count:
+        return []
+    payload = bytes(pending)
+    pending.clear()
+    return [(topic, payload, contract.first_time_ns(payload), count)]
 
 
 def s16(lo: int, hi: int) -> int:

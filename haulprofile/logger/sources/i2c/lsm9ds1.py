@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 from haulprofile import contract
-from .base import AUTO_INCREMENT, Driver, RecordBatch, s16
+from .base import AUTO_INCREMENT, Driver, RecordBatch, packed_output, s16
 from .sample_clock import FifoSampleClock
 
 WHO_AM_I_AG = 0x68
@@ -123,12 +123,9 @@ class Lsm9ds1(Driver):
         return []
 
     def flush(self) -> list:
-        if not self._pending_count:
-            return []
-        payload, count = bytes(self._pending), self._pending_count
-        self._pending.clear()
+        output = packed_output(contract.IMU, self._pending, self._pending_count)
         self._pending_count = 0
-        return [(contract.IMU, payload, contract.first_time_ns(payload), count)]
+        return output
 
 
 class Lsm9ds1Magnetometer(Driver):
