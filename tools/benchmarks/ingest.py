@@ -182,6 +182,28 @@ def _frame_sample(path: Path, count: int) -> np.ndarray:
     return np.concatenate(parts)[:count]
 
 
+def _feed_cpu_s_per_hour(path: Path, n_windows: int = 8) -> tuple[float, float]:
+    """Thread CPU of the decoding thread's `Ingest.feed_window` over the first windows of a log
+    (read beforehand; best of 3) per hour of log, and the log's messages per hour."""
+    from haulprofile.analysis.ingest.table import Ingest
+    from haulprofile.contract import reader
+
+    windows = []
+    for window in reader.read_windows(path, threads=1):
+        windows.append(window)
+        if len(windows) >= n_windows:
+            break
+    best = np.inf
+    for _ in range(3):
+        ingest = Ingest(10.0)
+        t0 = time.thread_time()
+        for window in windows:
+            ingest.feed_window(window, 0)
+        best = min(best, time.thread_time() - t0)
+    hours = (int(windows[-1].publish_times_ns.max()) - int(windows[0].publish_times_ns.min())) / 3.6e12
+    return best / hours, sum(len(w) for w in windows) / hours
+
+
 def bench_ingest(quick: bool):
     from haulprofile.analysis.ingest import j1939_decode
     from haulprofile.analysis.ingest.columns import build_table
@@ -200,6 +222,8 @@ def bench_ingest(quick: bool):
     limit_v1 = _fresh(_DECOMPRESS, old_path)
     startups.append(_fresh(_STARTUP, tiny))
     startup = min(startups, key=lambda run: run["seconds"])  # before and after: the less disturbed one
+    feed_new, messages_new = _feed_cpu_s_per_hour(path)
+    feed_old, messages_old = _feed_cpu_s_per_hour(old_path)
     frames = _frame_sample(path, DECODE_SAMPLE)
     database = _j1939_database()
     known = {m.frame_id & 0x03FFFF00 for m in database.messages}
@@ -262,6 +286,10 @@ def bench_ingest(quick: bool):
         result("ingest_reader_minus_startup_s_vs_bare_mcap", alone["seconds"] - startup["reader_s"],
                "s (contract.reader less its start-up; ratio = bare mcap / ours)", "bare mcap iteration after its import",
                bare["work_s"], hours=hours, cpu_s=alone["cpu_s"] - startup["reader_cpu_s"]),
+        result("ingest_decoding_thread_cpu_s_per_log_hour_vs_contract1", feed_new, "s CPU per hour of log "
+               "(Ingest.feed_window, windows read beforehand; ratio = contract 1 / contract 2)",
+               "the same log as contract 1 writes it", feed_old, messages_per_hour=messages_new,
+               peer_messages_per_hour=messages_old),
         result("ingest_contract1_log_s_vs_decompress_only", ours_v1["seconds"], "s (whole ingest of the same log "
                "written as contract 1: JSON sensor topics; ratio = limit / ours)", "decompress-only of that log",
                limit_v1["seconds"], hours=hours, cpu_s=ours_v1["cpu_s"], peer_cpu_s=limit_v1["cpu_s"]),
