@@ -59,8 +59,8 @@ class Devices:
             for index, channel in enumerate([config.can.channel, *config.can.more_channels]):
                 section = config.can if index == 0 else listening_section(config.can, channel)
                 try:
-                    sources.append(CanSource(queue, clock, section, self.can_bus(config, channel), say,
-                                             drop_pgns=drop, channel_index=index))
+                    bus = self.can_bus(config) if index == 0 else self.can_bus(config, channel)
+                    sources.append(CanSource(queue, clock, section, bus, say, drop_pgns=drop, channel_index=index))
                 except (OSError, ImportError, ValueError) as exc:
                     say(f"can: cannot open {config.can.interface} {channel}: {exc}; logging without it")
                 except Exception as exc:  # python-can raises CanError subclasses and others per backend

@@ -181,7 +181,8 @@ def write_log(stream: BinaryIO, duration_s: float, seed: int = 0, filler_hz: flo
     truth = make_truth(n_bins, rng, t0_mono_ns)
     writer = TopicWriter(stream, chunk_size=chunk_size, channel_metadata={
         contract.IMU.name: {"accel_scale_mps2_per_lsb": repr(ACCEL_SCALE_MPS2_PER_LSB),
-                            "gyro_scale_radps_per_lsb": repr(8.75e-3 * np.pi / 180)}})
+                            "gyro_scale_radps_per_lsb": repr(8.75e-3 * np.pi / 180)}},
+                         contract_version=contract_version)
     per_segment = int(segment_s * 1e9 / BIN_NS)
     for start in range(0, n_bins, per_segment):
         part = Truth(truth.bin_start_mono_ns[start:start + per_segment],

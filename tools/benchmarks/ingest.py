@@ -10,8 +10,9 @@ in a fresh process (seconds and peak RSS of that process), one after the other i
 our ingest (read + decode + align, table built), our reader alone (`contract.reader`, every
 chunk checked, walked and its CAN/IMU records scattered into arrays), decompress-only (zstd of
 every chunk on the same number of threads, nothing else: the limit) and the bare mcap iteration.
-A fresh process's fixed cost (imports, numba kernels loaded from their cache, measured on a 10 s
-log) is reported apart, and the figures less it, so the quick figures mean something.
+A fresh process's fixed cost (imports, then a 10 s log through the same code so numba's cached
+kernels are loaded) is timed inside the ingest's and the reader's own processes and reported apart,
+with the figures after it beside the peers' after their imports, so the quick figures mean something.
 """
 
 from __future__ import annotations
@@ -57,10 +58,15 @@ def peak_rss_mb():
         return next(int(line.split()[1]) for line in status if line.startswith("VmHWM")) / 1024
 t0 = time.perf_counter()
 from haulprofile.analysis.ingest import ingest_logs
+imported = time.perf_counter() - t0
+ingest_logs([sys.argv[2]])  # a 10 s log: numba's cached kernels loaded, the fixed cost paid
+ready, ready_cpu = time.perf_counter(), time.process_time()
 frame, summary = ingest_logs([sys.argv[1]])
 elapsed = time.perf_counter() - t0
 print(json.dumps({"seconds": elapsed, "cpu_s": time.process_time(), "rows": len(frame), "can_frames": summary["can_frames"],
                   "imu_samples": summary["imu_samples"], "valid": summary["valid_fraction"],
+                  "startup_s": ready - t0, "startup_cpu_s": ready_cpu, "import_s": imported,
+                  "work_s": time.perf_counter() - ready, "work_cpu_s": time.process_time() - ready_cpu,
                   "peak_rss_mb": peak_rss_mb()}))
 """
 
@@ -90,13 +96,18 @@ def peak_rss_mb():
         return next(int(line.split()[1]) for line in status if line.startswith("VmHWM")) / 1024
 t0 = time.perf_counter()
 from haulprofile.contract import reader
+for window in reader.read_windows(sys.argv[2]):  # a 10 s log: numba's cached kernels loaded
+    pass
+ready, ready_cpu = time.perf_counter(), time.process_time()
 records = messages = 0
 for window in reader.read_windows(sys.argv[1]):
     messages += len(window)
     for name in reader.PACKED_TOPICS:
         records += len(window.topic_records(name))
 print(json.dumps({"seconds": time.perf_counter() - t0, "cpu_s": time.process_time(), "messages": messages, "records": records,
-                  "threads": reader.default_threads(), "peak_rss_mb": peak_rss_mb()}))
+                  "startup_s": ready - t0, "startup_cpu_s": ready_cpu, "work_s": time.perf_counter() - ready,
+                  "work_cpu_s": time.process_time() - ready_cpu, "threads": reader.default_threads(),
+                  "peak_rss_mb": peak_rss_mb()}))
 """
 
 _DECOMPRESS = """
@@ -132,25 +143,9 @@ print(json.dumps({"seconds": time.perf_counter() - t0, "work_s": time.perf_count
 """
 
 
-_STARTUP = """
-import json, sys, time
-t0 = time.perf_counter()
-from haulprofile.contract import reader
-for window in reader.read_windows(sys.argv[1]):
-    pass
-reader_s, reader_cpu_s = time.perf_counter() - t0, time.process_time()
-from haulprofile.analysis.ingest import ingest_logs
-imported = time.perf_counter() - t0
-ingest_logs([sys.argv[1]])
-print(json.dumps({"seconds": time.perf_counter() - t0, "cpu_s": time.process_time(), "import_s": imported,
-                  "reader_s": reader_s, "reader_cpu_s": reader_cpu_s}))
-"""
-"""The fixed cost of a fresh process: imports, then a 10 s log read (the reader's numba kernels
-loaded) and ingested (the ingest's kernels loaded): what the quick figures carry beside the work."""
-
-
-def _fresh(code: str, path: Path) -> dict:
-    done = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, check=True)
+def _fresh(code: str, path: Path, *more: Path) -> dict:
+    done = subprocess.run([sys.executable, "-c", code, str(path), *map(str, more)], capture_output=True, text=True,
+                          check=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
@@ -211,17 +206,14 @@ def bench_ingest(quick: bool):
 
     path, hours = _log(quick)
     tiny, _ = _log(quick, hours=10 / 3600)
-    _fresh(_STARTUP, tiny)  # numba's cache filled (compiled once), so every process below only loads it
-    startups = [_fresh(_STARTUP, tiny)]
-    ours = _fresh(_OURS, path)
-    alone = _fresh(_READER, path)
+    _fresh(_OURS, tiny, tiny)  # numba's cache filled (compiled once), so every process below only loads it
+    ours = _fresh(_OURS, path, tiny)
+    alone = _fresh(_READER, path, tiny)
     limit = _fresh(_DECOMPRESS, path)
     bare = _fresh(_BARE, path)
     old_path, _ = _log(quick, contract_version=1)
-    ours_v1 = _fresh(_OURS, old_path)
+    ours_v1 = _fresh(_OURS, old_path, tiny)
     limit_v1 = _fresh(_DECOMPRESS, old_path)
-    startups.append(_fresh(_STARTUP, tiny))
-    startup = min(startups, key=lambda run: run["seconds"])  # before and after: the less disturbed one
     feed_new, messages_new = _feed_cpu_s_per_hour(path)
     feed_old, messages_old = _feed_cpu_s_per_hour(old_path)
     frames = _frame_sample(path, DECODE_SAMPLE)
@@ -276,16 +268,16 @@ def bench_ingest(quick: bool):
         result("ingest_decode_align_s_vs_decompress_only", ours["seconds"], "s (whole ingest; ratio = limit / ours)",
                "decompress-only (zstd of every chunk, same threads)", limit["seconds"], hours=hours,
                cpu_s=ours["cpu_s"], peer_cpu_s=limit["cpu_s"]),
-        result("ingest_startup_s", startup["seconds"], "s (fresh process: imports, numba kernels loaded, 10 s log "
-               "read and ingested; in every fresh-process figure above)", None, None, cpu_s=startup["cpu_s"],
-               import_s=startup["import_s"], reader_startup_s=startup["reader_s"],
-               reader_startup_cpu_s=startup["reader_cpu_s"]),
-        result("ingest_minus_startup_s_vs_decompress_only", ours["seconds"] - startup["seconds"],
-               "s (whole ingest less the start-up; ratio = limit / ours)", "decompress-only after its imports",
-               limit["work_s"], hours=hours, cpu_s=ours["cpu_s"] - startup["cpu_s"]),
-        result("ingest_reader_minus_startup_s_vs_bare_mcap", alone["seconds"] - startup["reader_s"],
-               "s (contract.reader less its start-up; ratio = bare mcap / ours)", "bare mcap iteration after its import",
-               bare["work_s"], hours=hours, cpu_s=alone["cpu_s"] - startup["reader_cpu_s"]),
+        result("ingest_startup_s", ours["startup_s"], "s (the ingest's process before the log: imports, numba's "
+               "cached kernels loaded by a 10 s log; in every fresh-process figure above)", None, None,
+               cpu_s=ours["startup_cpu_s"], import_s=ours["import_s"], reader_startup_s=alone["startup_s"],
+               reader_startup_cpu_s=alone["startup_cpu_s"]),
+        result("ingest_minus_startup_s_vs_decompress_only", ours["work_s"],
+               "s (whole ingest after the start-up; ratio = limit / ours)", "decompress-only after its imports",
+               limit["work_s"], hours=hours, cpu_s=ours["work_cpu_s"]),
+        result("ingest_reader_minus_startup_s_vs_bare_mcap", alone["work_s"],
+               "s (contract.reader after its start-up; ratio = bare mcap / ours)", "bare mcap iteration after its import",
+               bare["work_s"], hours=hours, cpu_s=alone["work_cpu_s"]),
         result("ingest_decoding_thread_cpu_s_per_log_hour_vs_contract1", feed_new, "s CPU per hour of log "
                "(Ingest.feed_window, windows read beforehand; ratio = contract 1 / contract 2)",
                "the same log as contract 1 writes it", feed_old, messages_per_hour=messages_new,

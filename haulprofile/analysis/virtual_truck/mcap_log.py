@@ -184,7 +184,7 @@ def write_mcap(drive, path: str | Path, contract_version: int = contract.CONTRAC
     start_ns = drive.scenario.start_epoch_ns
     messages = sorted(_messages(drive, contract_version), key=lambda m: (m[0], m[1]))
     with open(path, "wb") as stream:
-        writer = TopicWriter(stream, channel_metadata=metadata)
+        writer = TopicWriter(stream, channel_metadata=metadata, contract_version=contract_version)
         writer.write_metadata("haulprofile.source", {
             "generator": "haulprofile.analysis.virtual_truck", "scenario": drive.scenario.name, "seed": str(drive.seed),
             "vehicle": drive.vehicle.name})
