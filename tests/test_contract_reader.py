@@ -31,7 +31,8 @@ def _reference(data: bytes, shift_ns: int = 0) -> dict:
     out: dict = {}
     for _, channel, message in make_reader(io.BytesIO(data)).iter_messages(log_time_order=False):
         topic = contract.TOPICS.get(channel.topic)
-        if topic is not None and topic.encoding == contract.PACKED_ENCODING:
+        if topic is not None and topic.encoding == contract.PACKED_ENCODING and (
+                topic.name not in contract.SENSOR_TOPICS or channel.message_encoding == contract.PACKED_ENCODING):
             size = topic.dtype.itemsize
             records = np.frombuffer(message.data, topic.dtype, count=len(message.data) // size)
             if shift_ns:
@@ -47,13 +48,13 @@ def _reference(data: bytes, shift_ns: int = 0) -> dict:
 def _ours(source, shift_ns: int = 0, report=None, **options) -> dict:
     out: dict = {}
     for window in reader.read_windows(source, report, **options):
-        for name in (contract.CAN_FRAMES.name, contract.IMU.name):
+        for name in reader.PACKED_TOPICS:
             records = window.topic_records(name)
             if len(records):
                 out.setdefault(name, []).append(contract.shift_times(records, shift_ns))
         for cid, payload in zip(window.channel_ids.tolist(), window.payloads(np.arange(len(window)))):
             topic = window.channels[cid].topic
-            if topic not in reader.PACKED_TOPICS:
+            if cid not in window.packed_channels(topic):
                 out.setdefault(topic, []).append(payload)
     return {topic: np.concatenate(parts) if isinstance(parts[0], np.ndarray) else parts
             for topic, parts in out.items()}
@@ -89,6 +90,25 @@ def test_the_demo_log_reads_as_the_mcap_library_reads_it(tmp_path):
     report = reader.ReadReport(str(path))
     assert _same(_ours(path, report=report), _reference(path.read_bytes()))
     assert report.warning() is None
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_the_demo_log_of_either_contract_reads_as_the_mcap_library_reads_it(tmp_path, version):
+    """A shorter demo drive with JSON (contract 1) or packed (contract 2) sensor topics."""
+    from haulprofile.analysis.virtual_truck import drive, load_scenario, write_mcap
+
+    virtual = drive(load_scenario("urban-delivery"), seed=1)
+    path = write_mcap(virtual, tmp_path / "virtual.mcap", contract_version=version)
+    ours = _ours(path)
+    assert _same(ours, _reference(path.read_bytes()))
+    assert isinstance(ours[contract.BAROMETER.name], np.ndarray) == (version == 2)
+
+
+def test_the_old_loggers_log_reads_as_the_mcap_library_reads_it(data_dir):
+    path = data_dir / "logger-v1" / "haulprofile-contract-1-30s.mcap"
+    ours = _ours(path)
+    assert _same(ours, _reference(path.read_bytes()))
+    assert isinstance(ours[contract.HUMIDITY.name], list)
 
 
 def test_without_summary_the_scan_finds_the_same(log):

@@ -59,6 +59,11 @@ class Log:
         return [json.loads(data) for _, data in self.messages.get(topic, [])]
 
     def json_ns(self, topic: str) -> np.ndarray:
+        """Sample times of a topic: JSON records, or packed sensor records (contract 2)."""
+        if topic in contract.SENSOR_TOPICS:
+            parts = [contract.unpack(contract.SENSOR_TOPICS[topic], data)["t_mono_ns"] for _, data in
+                     self.messages.get(topic, [])]
+            return np.sort(np.concatenate(parts).astype(np.int64)) if parts else np.zeros(0, np.int64)
         return np.sort(np.array([r["t_mono_ns"] for r in self.json(topic)], dtype=np.int64))
 
     def said(self) -> list[str]:

@@ -3,7 +3,6 @@ datasheets' formulas written out by hand."""
 
 from __future__ import annotations
 
-import json
 import time
 
 import numpy as np
@@ -18,6 +17,16 @@ from haulprofile.logger.sources.i2c.base import SensorMissing
 from haulprofile.logger.sources.i2c.hts221 import Calibration, Hts221
 from haulprofile.logger.sources.i2c.lps25hb import Lps25hb, pressure_pa, temperature_c
 from haulprofile.logger.sources.i2c.lsm9ds1 import Lsm9ds1, Lsm9ds1Magnetometer
+
+
+def _records(out) -> list[dict]:
+    """Samples of drivers' outputs (packed sensor records, contract 2) as dicts."""
+    records = []
+    for topic, payload, t_mono_ns, count in out:
+        samples = contract.unpack(topic, payload)
+        assert len(samples) == count and t_mono_ns == int(samples["t_mono_ns"][0])
+        records += [{name: samples[name][k].tolist() for name in samples.dtype.names} for k in range(count)]
+    return records
 
 
 def board(columns=None, missing=()):
@@ -44,7 +53,8 @@ def test_lps25hb_reads_every_sample_through_the_fifo():
     driver.configure()
     time.sleep(0.5)
     out = driver.poll()
-    records = [json.loads(payload) for _, payload, _, _ in out]
+    assert len(out) == 1  # one message per FIFO read
+    records = _records(out)
     model = bus.models["lps25hb"]
     assert 10 <= len(records) == len(model.served) == model.produced
     assert records[0]["pressure_raw"] == round(95_123.0 / 100 * 4096)
@@ -71,8 +81,10 @@ def test_hts221_driver_against_the_model():
     driver.configure()
     got = []
     for _ in range(30):
-        got += [json.loads(p) for _, p, _, _ in driver.poll()]
+        got += _records(driver.poll())
         time.sleep(0.02)
+    assert not got  # less than the batch of one second
+    got = _records(driver.flush())
     assert got and got[-1]["relative_humidity_pct"] == pytest.approx(47.5, abs=0.01)
     assert got[-1]["temperature_c"] == pytest.approx(21.3, abs=0.01)
     assert [(r["humidity_raw"], r["temperature_raw"]) for r in got] == bus.models["hts221"].served
@@ -197,7 +209,7 @@ def test_lps25hb_fifo_stamps_with_late_reads():
     records = []
     for _ in range(60):
         clock.now_ns += 250_000_000
-        records += [json.loads(p) for _, p, _, _ in driver.poll()]
+        records += _records(driver.poll())
     stamps = np.array([r["t_mono_ns"] for r in records])
     model = bus.models["lps25hb"]
     assert len(records) == len(model.served) >= model.produced - 2 and model.overwritten == 0
@@ -216,11 +228,11 @@ def test_lsm9ds1_overrun_is_counted_when_polled_too_late():
 
 def test_magnetometer_and_metadata():
     bus, clock = board()
-    mag = Lsm9ds1Magnetometer(bus, 0x1E, clock, 10.0)
+    mag = Lsm9ds1Magnetometer(bus, 0x1E, clock, 10.0, batch_s=0.0)
     mag.probe()
     mag.configure()
     time.sleep(0.15)
-    record = json.loads(mag.poll()[0][1])
+    record, = _records(mag.poll())
     assert record["magnetic_field_t"][0] == pytest.approx(20e-6, abs=0.14e-7)
     metadata = Lsm9ds1(bus, 0x6B, clock).channel_metadata()["/imu"]
     assert float(metadata["gyro_scale_radps_per_lsb"]) == pytest.approx(np.radians(8.75e-3))

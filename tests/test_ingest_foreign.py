@@ -107,7 +107,7 @@ def test_stage_without_speed_says_so(tmp_path):
         writer = LogWriter(stream)
         for k in range(20):
             t = 10**9 + k * 40_000_000
-            writer.write_json(contract.BAROMETER, {"t_mono_ns": t, "pressure_pa": 98000.0, "temperature_c": 20.0,
+            writer.write_json(contract.BAROMETER_V1, {"t_mono_ns": t, "pressure_pa": 98000.0, "temperature_c": 20.0,
                                                    "pressure_raw": 0, "temperature_raw": 0}, t, t)
         writer.close()
     ctx = RunContext(inputs=[log], out_dir=tmp_path)

@@ -20,7 +20,7 @@ def _write(path, payloads: list[bytes]) -> None:
         writer = TopicWriter(stream)
         for k, payload in enumerate(payloads):
             t = T0_NS + k * PERIOD_NS
-            writer.write(contract.BAROMETER, payload, t, t)
+            writer.write(contract.BAROMETER_V1, payload, t, t)
         writer.close()
 
 

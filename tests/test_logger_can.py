@@ -287,3 +287,47 @@ def test_socketcan_vcan_frames_carry_the_kernel_timestamp():
     assert len(frames) == len(ecu.sent) > 20
     assert np.all(frames["flags"] & contract.CAN_FLAG_HW_TIMESTAMP)
     assert abs(int(frames["t_mono_ns"][-1]) - time.monotonic_ns()) < 5e9
+
+
+def test_a_second_bus_is_logged_listen_only_with_its_channel_index():
+    """``can.more_channels``: each further bus is a source of its own, its frames carry channel 1."""
+    from haulprofile.logger.config import Config
+    from haulprofile.logger.emulators.rig import EmulatedDevices, emulation_config
+    from haulprofile.logger.sources.can import listening_section
+
+    config = emulation_config("unused", 1.0, Config())
+    config.can.more_channels = ["haulprofile-test-bus-1"]
+    second = listening_section(config.can, "haulprofile-test-bus-1")
+    assert second.listen_only and not allowed_tx_ids(second) and second.more_channels == []
+    clock = Clock()
+    devices = EmulatedDevices(TimeSeries({"time_s": np.array([0.0, 100.0])}), clock)
+
+    async def run():
+        queue = asyncio.Queue()
+        devices.start(config)
+        sources = [s for s in devices.build_sources(config, queue, clock, lambda m: None) if s.name.startswith("can")]
+        other = can.Bus(interface="virtual", channel="haulprofile-test-bus-1", receive_own_messages=False)
+        tasks = [asyncio.create_task(s.run()) for s in sources]
+        await asyncio.sleep(0.1)
+        for k in range(50):
+            other.send(can.Message(arbitration_id=j1939.make_id(65262, 0x21), data=bytes([k] * 8), is_extended_id=True))
+        await asyncio.sleep(0.5)
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+        for source in sources:
+            await source.close()
+        other.shutdown()
+        devices.close()
+        items = []
+        while not queue.empty():
+            items.append(queue.get_nowait())
+        return sources, items
+
+    sources, items = asyncio.run(run())
+    assert [s.name for s in sources] == ["can", "can1"]
+    frames = np.concatenate([contract.unpack(contract.CAN_FRAMES, i.payload) for i in items if i.topic is contract.CAN_FRAMES])
+    ours = frames[frames["channel"] == 1]
+    assert len(ours) == 50 and np.array_equal(ours["data"][:, 0], np.arange(50))
+    assert not np.any(ours["flags"] & contract.CAN_FLAG_TX)
+    assert sources[1].guard.sent == 0

@@ -82,3 +82,10 @@ def test_listen_only_is_the_default_everywhere():
     line = transmit_warning(cfg.from_dict({"can": {"listen_only": False}}).can)
     assert line.startswith("TRANSMITTING on can0") and "OBD-II requests at 30 Hz" in line
     assert "PGN 65251, 65258" in line and "\n" not in line
+
+
+def test_more_can_channels_are_distinct_buses():
+    assert cfg.from_dict({"can": {"channel": "can0", "more_channels": ["can1"]}}).can.more_channels == ["can1"]
+    for bad in (["can0"], ["can1", "can1"], "can1"):
+        with pytest.raises(cfg.ConfigError, match="more_channels"):
+            cfg.from_dict({"can": {"channel": "can0", "more_channels": bad}})

@@ -16,7 +16,7 @@ from haulprofile.analysis.markov.converge import refine, select_refined
 from haulprofile.analysis.markov.generate import run_batch
 from haulprofile.analysis.markov.load_criteria import LOAD_NAMES, evaluate_loads, load_target
 from haulprofile.analysis.markov.score_kernels import (EXPONENTS, SHARES, path_loads, rainflow_damage_sums,
-                                                       time_quantiles)
+                                                       time_quantiles, time_quantiles_sorted)
 from haulprofile.analysis.vehicle import load_vehicle
 from haulprofile.testing.drives import synthetic_drive
 
@@ -139,10 +139,25 @@ def test_time_quantiles_with_ties_and_half_seconds_at_the_ends():
     durations = np.ones(101)
     durations[[0, -1]] = 0.5
     expected = [time_quantile(values, durations, share) for share in SHARES]
-    for kernel in (time_quantiles, time_quantiles.py_func):
+    for kernel in (time_quantiles, time_quantiles.py_func, time_quantiles_sorted, time_quantiles_sorted.py_func):
         out = np.empty(3)
         kernel(values, 2, 0, 100, SHARES, out)
         np.testing.assert_array_equal(out, expected)
+
+
+def test_time_quantiles_by_selection_equal_the_sorted_reference():
+    """Ties, repeated values, one or no half sample, any ascending shares: the same values."""
+    rng = np.random.default_rng(29)
+    for trial in range(600):
+        n = int(rng.integers(3, 300))
+        values = [rng.integers(-3, 4, n).astype(float), rng.normal(size=n), np.round(rng.normal(size=n), 1),
+                  np.where(rng.random(n) < 0.9, 2.0, rng.normal(size=n))][trial % 4]
+        shares = np.sort(rng.uniform(0, 1, 3)) if trial % 2 else SHARES
+        for n_half, a, b in ((2, 0, n - 1), (1, int(rng.integers(0, n)), 0), (0, 0, 0)):
+            expected, out = np.empty(3), np.empty(3)
+            time_quantiles_sorted(values, n_half, a, b, shares, expected)
+            time_quantiles(values, n_half, a, b, shares, out)
+            np.testing.assert_array_equal(out, expected)
 
 
 def test_cli_paper_selection_writes_the_golden_cycle(drive, tmp_path):
@@ -190,3 +205,19 @@ def test_the_reported_objective_is_that_of_the_chosen_cycle(counts, target, vehi
     assert selection.objective == pytest.approx(expected, rel=1e-9)
     for function in (kernel, kernel.py_func):
         assert function(deviation, ALLOWANCE) == pytest.approx(float(kinematic_objective(deviation)), rel=1e-12)
+
+
+def test_refined_selection_on_threads_equals_one_thread(counts, target, vehicle, monkeypatch):
+    """The pool's batches and each stage's walks run side by side; the cycles, objectives and
+    traces must be those of one thread, bit for bit."""
+    from haulprofile.analysis.markov import converge
+
+    chain = build_chain(counts)
+    run = lambda: select_refined(counts, 600, 3, chain, target, vehicle, n_cycles=2, n_pool=4500, n_moves=400)
+    threaded = run()
+    monkeypatch.setattr(converge, "_side_by_side", lambda function, items: [function(i) for i in items])
+    serial = run()
+    assert [_key(s.cycle) for s in threaded] == [_key(s.cycle) for s in serial]
+    assert [s.objective for s in threaded] == [s.objective for s in serial]
+    assert all(np.array_equal(a.trace, b.trace) and np.array_equal(a.all_scores, b.all_scores)
+               for a, b in zip(threaded, serial))

@@ -101,15 +101,32 @@ def test_run_kernel_python_and_numba_agree(rigid, time_based):
     args_python = args_numba[:-1] + (np.empty_like(args_numba[-1]),)
     n_numba, n_python = K.run_kernel(*args_numba), K.run_kernel.py_func(*args_python)
     assert n_numba == n_python > 100
-    np.testing.assert_allclose(args_numba[-1][:n_numba], args_python[-1][:n_python], rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(args_numba[-1][:, :n_numba], args_python[-1][:, :n_python], rtol=1e-9, atol=1e-6)
     if not time_based:
-        standstill = args_numba[-1][:n_numba, K.C_STATE] == K.STANDSTILL
+        standstill = args_numba[-1][K.C_STATE, :n_numba] == K.STANDSTILL
         assert standstill.sum() * 0.5 == pytest.approx(2 + 6.5 + 1.0)
 
 
 def test_full_out_array_and_time_budget_are_reported(rigid):
     args = kernel_arguments(distance_cycle(HILLY, 16_000.0), rigid)
-    assert K.run_kernel(*args[:-1], np.empty((10, K.N_COLUMNS))) == -1
+    assert K.run_kernel(*args[:-1], np.empty((K.N_COLUMNS, 10))) == -1
     short = args[13].copy()
     short[K.P_T_END] = 5.0
     assert K.run_kernel(*args[:13], short, *args[14:]) == -2
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_cursor_interpolation_equals_the_binary_search_bit_for_bit(compiled):
+    """The time-based run looks values up with a cursor that only moves forward; it must find what
+    ``_interp`` (searchsorted) finds, repeated knots and queries outside the table included."""
+    rng = np.random.default_rng(29)
+    interp = K._interp if compiled else K._interp.py_func
+    cursor = K._interp_cursor if compiled else K._interp_cursor.py_func
+    for n in (1, 2, 7, 300):
+        xs = np.sort(np.round(rng.uniform(0, 100, n), 1))
+        ys = rng.normal(size=n)
+        queries = np.sort(np.concatenate([rng.uniform(-5, 105, 400), xs, xs + 1e-12]))
+        at = 0
+        for x in queries:
+            value, at = cursor(x, xs, ys, at)
+            assert value == interp(x, xs, ys)

@@ -149,12 +149,12 @@ def test_imu_counts_and_scales(log, virtual):
 
 def test_barometer_values_come_from_raw_counts_and_follow_the_road(log, virtual):
     _, _, messages = log
-    records = [json.loads(m.data) for m, _ in _topic(messages, "/barometer")]
-    raw = np.array([r["pressure_raw"] for r in records])
-    pressure = np.array([r["pressure_pa"] for r in records])
+    records = np.concatenate([contract.unpack(contract.BAROMETER, m.data) for m, _ in _topic(messages, "/barometer")])
+    raw = records["pressure_raw"]
+    pressure = records["pressure_pa"]
     assert np.array_equal(pressure, raw * 100 / 4096)
-    temp = np.array([r["temperature_c"] for r in records])
-    assert np.array_equal(temp, 42.5 + np.array([r["temperature_raw"] for r in records]) / 480)
+    temp = records["temperature_c"]
+    assert np.array_equal(temp, 42.5 + records["temperature_raw"] / 480)
     height = 44330.8 * (1 - (pressure / 101325.0) ** (1 / 5.255))   # eq. (6)
     truth = np.interp(virtual.sensors["barometer"]["time_s"], virtual.states["time_s"], virtual.states["road_height_m"])
     change = (height - height[0]) - (truth - truth[0])

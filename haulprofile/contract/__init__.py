@@ -8,7 +8,8 @@ Both the logger and the analysis import this module; nobody re-types a topic nam
   the message was handed to the writer; MCAP ``log_time`` is CLOCK_REALTIME (so Foxglove shows
   dates). ``/time/sync`` pairs both clocks (and GPS UTC once the receiver has a fix) once per
   second, so analysis maps monotonic time to wall-clock and GPS time, across clock jumps.
-* High-rate topics (CAN frames, IMU) are *packed*: a message is a little-endian array of
+* High-rate topics (CAN frames, IMU, and since contract version 2 barometer, humidity and
+  magnetometer) are *packed*: a message is a little-endian array of
   fixed-size records described by a NumPy dtype (``encoding = "haulprofile.packed"``), a few
   hundred records per message, each starting with its ``t_mono_ns``. This module is their only
   codec: `Topic.record_struct` packs one record (the logger), `unpack` and `shift_times` read
@@ -32,7 +33,9 @@ PACKED_ENCODING = "haulprofile.packed"
 JSON_ENCODING = "json"
 JSON_SCHEMA_ENCODING = "jsonschema"
 
-CONTRACT_VERSION = 1
+CONTRACT_VERSION = 2
+"""1: barometer, humidity and magnetometer as one JSON message per sample; 2: packed like CAN and
+IMU (`SENSOR_TOPICS`). Readers read both; the logger writes the current one."""
 
 # CAN record flags (bit field in ``flags``).
 CAN_FLAG_EXTENDED = 0x01
@@ -71,6 +74,42 @@ IMU_SAMPLE_DTYPE = np.dtype(
 Physical values: ``accel_raw * accel_scale_mps2_per_lsb`` and ``gyro_raw *
 gyro_scale_radps_per_lsb`` from the channel metadata (set by the configured full scale).
 """
+
+
+BAROMETER_SAMPLE_DTYPE = np.dtype(
+    [
+        ("t_mono_ns", "<u8"),
+        ("pressure_pa", "<f8"),
+        ("temperature_c", "<f8"),
+        ("pressure_raw", "<i4"),
+        ("temperature_raw", "<i2"),
+        ("reserved", "<u2"),
+    ]
+)
+"""One LPS25HB sample, 32 bytes: the driver's SI values (float64, as contract 1's JSON held them)
+beside the raw registers (PRESS_OUT 24-bit signed, 4096 LSB/hPa; TEMP_OUT, 42.5 + raw/480 degC)."""
+
+HUMIDITY_SAMPLE_DTYPE = np.dtype(
+    [
+        ("t_mono_ns", "<u8"),
+        ("relative_humidity_pct", "<f8"),
+        ("temperature_c", "<f8"),
+        ("humidity_raw", "<i2"),
+        ("temperature_raw", "<i2"),
+        ("reserved", "<u4"),
+    ]
+)
+"""One HTS221 sample, 32 bytes: factory calibration applied (float64), raw counts beside."""
+
+MAGNETOMETER_SAMPLE_DTYPE = np.dtype(
+    [
+        ("t_mono_ns", "<u8"),
+        ("magnetic_field_t", "<f8", (3,)),
+        ("magnetic_raw", "<i2", (3,)),
+        ("reserved", "<u2"),
+    ]
+)
+"""One LSM9DS1 magnetometer sample, 40 bytes: field [T] (x, y, z) and raw counts."""
 
 
 @dataclass(frozen=True)
@@ -146,7 +185,7 @@ IMU = Topic(
     units={"t_mono_ns": "ns", "accel_raw": "LSB", "gyro_raw": "LSB"},
 )
 
-BAROMETER = Topic(
+BAROMETER_V1 = Topic(
     name="/barometer",
     schema_name="haulprofile.Barometer",
     encoding=JSON_ENCODING,
@@ -165,7 +204,7 @@ BAROMETER = Topic(
     units={"pressure_pa": "Pa", "temperature_c": "degC"},
 )
 
-HUMIDITY = Topic(
+HUMIDITY_V1 = Topic(
     name="/humidity",
     schema_name="haulprofile.Humidity",
     encoding=JSON_ENCODING,
@@ -184,7 +223,7 @@ HUMIDITY = Topic(
     units={"relative_humidity_pct": "%", "temperature_c": "degC"},
 )
 
-MAGNETOMETER = Topic(
+MAGNETOMETER_V1 = Topic(
     name="/magnetometer",
     schema_name="haulprofile.Magnetometer",
     encoding=JSON_ENCODING,
@@ -200,6 +239,31 @@ MAGNETOMETER = Topic(
     ),
     units={"magnetic_field_t": "T"},
 )
+
+"""`BAROMETER_V1`, `HUMIDITY_V1`, `MAGNETOMETER_V1`: contract version 1's JSON form of these topics
+(one message per sample), read in old logs, written only by tests that make such logs."""
+
+def _packed_sensor(name: str, schema_name: str, rate_hz: float, description: str, dtype: np.dtype) -> Topic:
+    """A sensor topic packed since contract 2; units: those of its contract-1 JSON form, LSB for raw counts."""
+    units = {"t_mono_ns": "ns", **{field: "LSB" for field in dtype.names if field.endswith("_raw")}}
+    return Topic(name=name, schema_name=schema_name, encoding=PACKED_ENCODING, rate_hz=rate_hz,
+                 description=description, dtype=dtype, units=units | _V1_UNITS[name])
+
+
+_V1_UNITS = {t.name: t.units for t in (BAROMETER_V1, HUMIDITY_V1, MAGNETOMETER_V1)}
+
+BAROMETER = _packed_sensor("/barometer", "haulprofile.BarometerSamples", 25.0,
+                           "LPS25HB pressure and temperature, SI values and raw registers, batched per FIFO read.",
+                           BAROMETER_SAMPLE_DTYPE)
+HUMIDITY = _packed_sensor("/humidity", "haulprofile.HumiditySamples", 12.5,
+                          "HTS221 relative humidity and temperature (factory calibration applied) and raw counts, "
+                          "batched.", HUMIDITY_SAMPLE_DTYPE)
+MAGNETOMETER = _packed_sensor("/magnetometer", "haulprofile.MagnetometerSamples", 10.0,
+                              "LSM9DS1 magnetometer, tesla and raw counts, batched.", MAGNETOMETER_SAMPLE_DTYPE)
+
+SENSOR_TOPICS: dict[str, Topic] = {t.name: t for t in (BAROMETER, HUMIDITY, MAGNETOMETER)}
+"""Topics packed since contract version 2; a channel of theirs is packed only if its message
+encoding says so (else it is contract 1's JSON)."""
 
 GPS_FIX = Topic(
     name="/gps/fix",

@@ -6,12 +6,21 @@ from typing import Iterator, NamedTuple
 
 import numpy as np
 
-from . import CAN_FRAMES, IMU, Topic, join_records, unpack
+from . import CAN_FRAMES, IMU, PACKED_ENCODING, SENSOR_TOPICS, Topic, join_records, unpack
 from . import chunk_walk
 from .mcap_records import Channel, RawMessage
 
-PACKED_TOPICS: dict[str, Topic] = {CAN_FRAMES.name: CAN_FRAMES, IMU.name: IMU}
-"""Topics whose records are scattered into arrays (by topic name, whatever the channel says)."""
+PACKED_TOPICS: dict[str, Topic] = {CAN_FRAMES.name: CAN_FRAMES, IMU.name: IMU, **SENSOR_TOPICS}
+"""Topics whose records are scattered into arrays (CAN and IMU by topic name, whatever the channel
+says; the sensor topics packed since contract version 2 only where the channel's encoding is packed)."""
+
+
+def packed_topic(channel: Channel) -> Topic | None:
+    """The packed topic a channel's messages hold, or None (JSON, other topics)."""
+    topic = PACKED_TOPICS.get(channel.topic)
+    if topic is not None and topic.name in SENSOR_TOPICS and channel.message_encoding != PACKED_ENCODING:
+        return None
+    return topic
 
 
 class _Part(NamedTuple):
@@ -60,7 +69,7 @@ class Window:
     def _scatter_all(self, use_numba: bool) -> None:
         scatter = chunk_walk.kernels(use_numba)["scatter"]
         for channel_id in np.unique(self.channel_ids).tolist():
-            topic = PACKED_TOPICS.get(self.channels[channel_id].topic)
+            topic = packed_topic(self.channels[channel_id])
             if topic is None:
                 continue
             itemsize = topic.dtype.itemsize

@@ -28,13 +28,15 @@ class TopicWriter:
         Chunk compression: ``"zstd"``, ``"lz4"`` or ``"none"``.
     channel_metadata : dict, optional
         Per topic name, the channel's metadata (e.g. the IMU's scale factors).
+    contract_version : int
+        The version the header names (an older one only for test logs of that version's topics).
     """
 
     def __init__(self, stream: BinaryIO, chunk_size: int = 256 * 1024, compression: str = "zstd",
-                 channel_metadata: dict[str, dict[str, str]] | None = None):
+                 channel_metadata: dict[str, dict[str, str]] | None = None, contract_version: int = CONTRACT_VERSION):
         self._stream = stream
         self._writer = Writer(stream, chunk_size=chunk_size, compression=CompressionType[compression.upper()])
-        self._writer.start(profile=PROFILE, library=f"haulprofile-contract-{CONTRACT_VERSION}")
+        self._writer.start(profile=PROFILE, library=f"haulprofile-contract-{contract_version}")
         self._channels: dict[str, int] = {}
         self._channel_metadata = channel_metadata or {}
         self._sequence: dict[str, int] = {}

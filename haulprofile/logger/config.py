@@ -78,6 +78,9 @@ class CanSection:
     """Transmit nothing (the default): OBD-II polling and J1939 requests need ``listen_only = false``."""
     receive_interval_s: float = 0.02
     batch_interval_s: float = 0.2
+    more_channels: list[str] = field(default_factory=list)
+    """Further buses of the same interface and bitrate (a truck's second J1939 bus), listened to
+    only, their frames logged with ``channel`` 1, 2, … in the record (``channel`` above is 0)."""
     obd: ObdSection = field(default_factory=ObdSection)
     j1939: J1939Section = field(default_factory=J1939Section)
 
@@ -232,6 +235,10 @@ def _check(config: Config) -> None:
     if not 0.0 <= config.can.receive_interval_s <= MAX_RECEIVE_INTERVAL_S:
         raise ConfigError(f"config: can.receive_interval_s must be 0 to {MAX_RECEIVE_INTERVAL_S:g} s "
                           f"(flow control within ISO 15765-4's N_Bs), got {config.can.receive_interval_s!r}")
+    channels = [config.can.channel, *config.can.more_channels]
+    if len(set(channels)) != len(channels) or len(channels) > 255:
+        raise ConfigError(f"config: can.more_channels must name up to 254 buses other than can.channel, "
+                          f"each once, got {config.can.more_channels!r}")
     if not 1 <= config.can.obd.pids_per_request <= 6:
         raise ConfigError("config: can.obd.pids_per_request must be 1 to 6 (SAE J1979)")
     for pid in config.can.obd.pids:

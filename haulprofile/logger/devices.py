@@ -16,10 +16,11 @@ log = logging.getLogger("haulprofile.logger")
 
 
 class Devices:
-    def can_bus(self, config: Config):
+    def can_bus(self, config: Config, channel: str | None = None):
+        """The python-can bus of ``channel`` (default ``can.channel``)."""
         import can
         section = config.can
-        kwargs = {"interface": section.interface, "channel": section.channel}
+        kwargs = {"interface": section.interface, "channel": channel or section.channel}
         if section.interface != "virtual":
             kwargs["bitrate"] = section.bitrate
         return can.Bus(**kwargs)
@@ -53,14 +54,17 @@ class Devices:
         ``privacy``: the daemon's `..privacy.Privacy` (zones, coarsening) for the GPS and CAN."""
         sources: list[Source] = []
         if config.can.enabled:
-            from .sources.can import CanSource
-            try:
-                sources.append(CanSource(queue, clock, config.can, self.can_bus(config), say,
-                                         drop_pgns=privacy.can_drop_pgns if privacy is not None else frozenset()))
-            except (OSError, ImportError, ValueError) as exc:
-                say(f"can: cannot open {config.can.interface} {config.can.channel}: {exc}; logging without CAN")
-            except Exception as exc:  # python-can raises CanError subclasses and others per backend
-                say(f"can: cannot open {config.can.interface} {config.can.channel}: {exc!r}; logging without CAN")
+            from .sources.can import CanSource, listening_section
+            drop = privacy.can_drop_pgns if privacy is not None else frozenset()
+            for index, channel in enumerate([config.can.channel, *config.can.more_channels]):
+                section = config.can if index == 0 else listening_section(config.can, channel)
+                try:
+                    bus = self.can_bus(config) if index == 0 else self.can_bus(config, channel)
+                    sources.append(CanSource(queue, clock, section, bus, say, drop_pgns=drop, channel_index=index))
+                except (OSError, ImportError, ValueError) as exc:
+                    say(f"can: cannot open {config.can.interface} {channel}: {exc}; logging without it")
+                except Exception as exc:  # python-can raises CanError subclasses and others per backend
+                    say(f"can: cannot open {config.can.interface} {channel}: {exc!r}; logging without it")
         if config.i2c.enabled:
             from .sources.i2c.base import I2cBusSource, SensorMissing
             try:

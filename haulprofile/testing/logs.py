@@ -168,28 +168,57 @@ def imu_samples(truth: Truth, rate_hz: float = 952.0) -> np.ndarray:
 
 def write_log(stream: BinaryIO, duration_s: float, seed: int = 0, filler_hz: float = 0.0,
               segment_s: float = 60.0, chunk_size: int = 256 * 1024, t0_mono_ns: int = T0_MONO_NS,
-              realtime_offset_ns: int = REALTIME_OFFSET_NS) -> Truth:
+              realtime_offset_ns: int = REALTIME_OFFSET_NS, contract_version: int = contract.CONTRACT_VERSION) -> Truth:
     """Write a synthetic log of ``duration_s`` [s] into ``stream``; return its truth.
 
     ``t0_mono_ns`` (a multiple of 100 ms) is the logger's monotonic clock at the start;
-    ``realtime_offset_ns`` its realtime minus monotonic clock (GPS UTC is 0.25 s ahead of it).
+    ``realtime_offset_ns`` its realtime minus monotonic clock (GPS UTC is 0.25 s ahead of it);
+    ``contract_version`` 1 writes barometer, humidity and magnetometer as one JSON message per
+    sample (the old logger), 2 packed as today's logger does (the same values either way).
     """
     rng = np.random.default_rng(seed)
     n_bins = int(round(duration_s * 1e9 / BIN_NS))
     truth = make_truth(n_bins, rng, t0_mono_ns)
     writer = TopicWriter(stream, chunk_size=chunk_size, channel_metadata={
         contract.IMU.name: {"accel_scale_mps2_per_lsb": repr(ACCEL_SCALE_MPS2_PER_LSB),
-                            "gyro_scale_radps_per_lsb": repr(8.75e-3 * np.pi / 180)}})
+                            "gyro_scale_radps_per_lsb": repr(8.75e-3 * np.pi / 180)}},
+                         contract_version=contract_version)
     per_segment = int(segment_s * 1e9 / BIN_NS)
     for start in range(0, n_bins, per_segment):
         part = Truth(truth.bin_start_mono_ns[start:start + per_segment],
                      {k: v[start:start + per_segment] for k, v in truth.values.items()})
-        _write_segment(writer, part, filler_hz, rng, realtime_offset_ns)
+        _write_segment(writer, part, filler_hz, rng, realtime_offset_ns, contract_version)
     writer.close()
     return truth
 
 
-def _write_segment(writer: TopicWriter, truth: Truth, filler_hz: float, rng, realtime_offset_ns: int) -> None:
+def _sensor_events(truth: Truth) -> list:
+    """(t_mono_ns, topic, payload) of the barometer (3 samples a bin, 8 to a message as a FIFO read),
+    humidity and magnetometer (one per second) as today's logger packs them."""
+    v, t0 = truth.values, truth.bin_start_mono_ns
+    events = []
+    baro = np.zeros(3 * len(t0), contract.BAROMETER.dtype)  # 25 Hz: samples at 1, 41, 81 ms of every bin
+    baro["t_mono_ns"] = (t0[:, None] + np.array([1_000_000, 41_000_000, 81_000_000])).ravel()
+    baro["pressure_pa"] = np.repeat(v["pressure_pa"], 3)
+    baro["temperature_c"] = np.repeat(v["air_temperature_c"], 3)
+    humidity = np.zeros(len(t0), contract.HUMIDITY.dtype)
+    humidity["t_mono_ns"] = t0 + 2_000_000
+    humidity["relative_humidity_pct"] = v["relative_humidity_pct"]
+    humidity["temperature_c"] = v["air_temperature_c"]
+    magnetic = np.zeros(len(t0), contract.MAGNETOMETER.dtype)
+    magnetic["t_mono_ns"] = t0 + 5_000_000
+    magnetic["magnetic_field_t"] = [2e-5, 0.0, 4e-5]
+    magnetic["magnetic_raw"] = [700, 0, 1400]
+    for topic, records, per_message in ((contract.BAROMETER, baro, 8), (contract.HUMIDITY, humidity, 10),
+                                        (contract.MAGNETOMETER, magnetic, 10)):
+        for start in range(0, len(records), per_message):
+            batch = records[start:start + per_message]
+            events.append((int(batch["t_mono_ns"][0]), topic, contract.pack(topic, batch)))
+    return events
+
+
+def _write_segment(writer: TopicWriter, truth: Truth, filler_hz: float, rng, realtime_offset_ns: int,
+                   contract_version: int) -> None:
     events = []
     frames = can_frames(truth, filler_hz, rng)
     for start in range(0, len(frames), 512):
@@ -200,22 +229,27 @@ def _write_segment(writer: TopicWriter, truth: Truth, filler_hz: float, rng, rea
         batch = imu[start:start + 32]
         events.append((int(batch["t_mono_ns"][-1]), contract.IMU, contract.pack(contract.IMU, batch)))
     v, t0 = truth.values, truth.bin_start_mono_ns
+    packed = contract_version >= 2
+    if packed:
+        events += _sensor_events(truth)
     for k in range(len(t0)):
         t = int(t0[k])
-        for j in range(0, 10, 4):  # barometer 25 Hz: samples at 0, 40, 80 ms of every 100 ms
-            events.append((t + j * 10_000_000 + 1_000_000, contract.BAROMETER, contract.encode_json({
-                "t_mono_ns": t + j * 10_000_000 + 1_000_000, "pressure_pa": float(v["pressure_pa"][k]),
-                "temperature_c": float(v["air_temperature_c"][k]), "pressure_raw": 0, "temperature_raw": 0})))
-        events.append((t + 2_000_000, contract.HUMIDITY, contract.encode_json({
-            "t_mono_ns": t + 2_000_000, "relative_humidity_pct": float(v["relative_humidity_pct"][k]),
-            "temperature_c": float(v["air_temperature_c"][k]), "humidity_raw": 0, "temperature_raw": 0})))
+        if not packed:
+            for j in range(0, 10, 4):  # barometer 25 Hz: samples at 0, 40, 80 ms of every 100 ms
+                events.append((t + j * 10_000_000 + 1_000_000, contract.BAROMETER_V1, contract.encode_json({
+                    "t_mono_ns": t + j * 10_000_000 + 1_000_000, "pressure_pa": float(v["pressure_pa"][k]),
+                    "temperature_c": float(v["air_temperature_c"][k]), "pressure_raw": 0, "temperature_raw": 0})))
+            events.append((t + 2_000_000, contract.HUMIDITY_V1, contract.encode_json({
+                "t_mono_ns": t + 2_000_000, "relative_humidity_pct": float(v["relative_humidity_pct"][k]),
+                "temperature_c": float(v["air_temperature_c"][k]), "humidity_raw": 0, "temperature_raw": 0})))
         gps_ns = t + realtime_offset_ns + GPS_MINUS_REALTIME_NS
         events.append((t + 7_000_000, contract.GPS_FIX, contract.encode_json(contract.location_fix(
             t + 7_000_000, gps_ns + 7_000_000, float(v["latitude_deg"][k]), float(v["longitude_deg"][k]),
             float(v["gps_altitude_m"][k]), float(v["gps_h_acc_m"][k]), float(v["gps_v_acc_m"][k]),
             gps_time_utc_ns=gps_ns + 7_000_000, fix_quality=1, satellites=9))))
-        events.append((t + 5_000_000, contract.MAGNETOMETER, contract.encode_json({
-            "t_mono_ns": t + 5_000_000, "magnetic_field_t": [2e-5, 0.0, 4e-5], "magnetic_raw": [700, 0, 1400]})))
+        if not packed:
+            events.append((t + 5_000_000, contract.MAGNETOMETER_V1, contract.encode_json({
+                "t_mono_ns": t + 5_000_000, "magnetic_field_t": [2e-5, 0.0, 4e-5], "magnetic_raw": [700, 0, 1400]})))
         if t % 1_000_000_000 == 0:
             events.append((t + 9_000_000, contract.TIME_SYNC, contract.encode_json({
                 "t_mono_ns": t + 9_000_000, "t_realtime_ns": t + 9_000_000 + realtime_offset_ns,

@@ -22,6 +22,7 @@ frame the logger sends into every other bus's queue (the kernel's work on socket
 from __future__ import annotations
 
 import asyncio
+import os
 import resource
 import tempfile
 import threading
@@ -42,6 +43,12 @@ from haulprofile.logger.emulators.rig import EmulatedDevices, emulation_config, 
 from haulprofile.logger.emulators.signals import TimeSeries, synthetic_drive
 
 TARGET_FRAMES_PER_S = 1500.0
+SATURATED_FRAMES_PER_S = 3500.0
+"""A 500 kbit/s bus at 100 % load: 29-bit 8-byte frames of 128-131 bits with stuffing, some 3800/s;
+3100-3800 by the stuffing of the data (issue 29)."""
+PI4_SLOWDOWN = 4.0
+"""Assumed slow-down of a Raspberry Pi 4 core (Cortex-A72, 1.5 GHz) against this machine's for
+CPython: an estimate (pyperformance-type figures put it at 3-5x), not a measurement."""
 
 
 def _thread_cpu_s(thread: threading.Thread) -> float:
@@ -111,12 +118,12 @@ def _timing_overhead_ns(calls: int = 200_000) -> float:
     return max(0.0, (wrapped_ns - counted_ns - direct_ns) / calls)
 
 
-def _traffic() -> list:
+def _traffic(bus: int = 0) -> list:
     """Other ECUs' J1939 broadcasts (engine temperature, ambient, dash...), built before the run."""
     import can
-    rng = np.random.default_rng(1500)
+    rng = np.random.default_rng(1500 + bus)
     pgns = [65262, 65269, 65276, 65263, 65270, 61443, 65132, 65217, 64917, 65256]
-    return [can.Message(arbitration_id=j1939.make_id(pgns[i % len(pgns)], 0x10 + i % 7, 6),
+    return [can.Message(arbitration_id=j1939.make_id(pgns[i % len(pgns)], 0x10 + 0x10 * bus + i % 7, 6),
                         data=bytes(rng.integers(0, 256, 8, dtype=np.uint8)), is_extended_id=True)
             for i in range(1000)]
 
@@ -138,12 +145,43 @@ def _ecu_rate() -> float:
 
 
 def logger_full_load(quick: bool) -> list[dict]:
+    return _full_load(quick, TARGET_FRAMES_PER_S, buses=1)
+
+
+def logger_two_saturated_buses(quick: bool) -> list[dict]:
+    """Two 500 kbit/s J1939 buses at 100 % load (`SATURATED_FRAMES_PER_S` each) plus all sensors;
+    then the same pinned to one core (a Pi-class budget: one core for logger, emulators and peer)."""
+    lines = _full_load(quick, SATURATED_FRAMES_PER_S, buses=2)
+    lines += _full_load(quick, SATURATED_FRAMES_PER_S, buses=2, cores={min(os.sched_getaffinity(0))})
+    return lines
+
+
+def _pi_estimate(us_per_frame: float, frames_per_s: float, logger_cpu_share: float) -> dict:
+    """An estimate, not a measurement: this machine's CPU figures × `PI4_SLOWDOWN`."""
+    return {"pi4_slowdown_assumed": PI4_SLOWDOWN, "pi4_us_per_frame_estimate": us_per_frame * PI4_SLOWDOWN,
+            "pi4_percent_of_one_core_estimate": 100 * logger_cpu_share * PI4_SLOWDOWN,
+            "pi4_note": f"estimate: measured CPU on this machine x {PI4_SLOWDOWN:g} (a Raspberry Pi 4 core runs "
+                        "CPython some 3-5x slower than a current x86 server core); not measured on a Pi"}
+
+
+def _full_load(quick: bool, frames_per_s: float, buses: int = 1, cores: set | None = None) -> list[dict]:
     import can
     duration_s = 10.0 if quick else 60.0
+    affinity = os.sched_getaffinity(0)
+    if cores:
+        os.sched_setaffinity(0, cores)  # threads started from here on inherit it
+    try:
+        return _measure(can, quick, duration_s, frames_per_s, buses, cores)
+    finally:
+        os.sched_setaffinity(0, affinity)
+
+
+def _measure(can, quick: bool, duration_s: float, frames_per_s: float, buses: int, cores) -> list[dict]:
     out_dir = Path(tempfile.mkdtemp(prefix="logger-", dir=CACHE_DIR))
     import pyrage
     identity = pyrage.x25519.Identity.generate()
     config = emulation_config(out_dir / "ours", 1.0, Config())
+    config.can.more_channels = [f"{config.can.channel}-{k}" for k in range(1, buses)]
     config.can.j1939.request_interval_s = 10.0
     config.encryption.recipients = [str(identity.to_public())]
     config.storage.rotate_interval_s = 4.0 if quick else 20.0
@@ -155,31 +193,39 @@ def logger_full_load(quick: bool) -> list[dict]:
         sensors.EmulatedSMBus = original
     daemon = Daemon(config, devices, clock)
 
-    peer_bus = can.Bus(interface="virtual", channel=config.can.channel)
+    channels = [config.can.channel, *config.can.more_channels]
+    peer_buses = [can.Bus(interface="virtual", channel=channel) for channel in channels]
     blf_path = out_dir / "peer.blf"
     peer_writer = can.BLFWriter(blf_path)
-    notifier = can.Notifier(peer_bus, [peer_writer], timeout=0.5)
+    notifier = can.Notifier(peer_buses, [peer_writer], timeout=0.5)
     stop, generated = threading.Event(), []
     # the other ECUs send through the engine ECU's bus object: all are on the same wire, and a bus
-    # of their own would collect every frame of the run in a queue nobody reads
-    generator = threading.Thread(target=_generator, name="j1939-generator", daemon=True,
-                                 args=(devices.ecu.bus, _traffic(), TARGET_FRAMES_PER_S - _ecu_rate(), stop, generated))
+    # of their own would collect every frame of the run in a queue nobody reads; on a further bus
+    # the generator's bus is the only sender
+    senders = [devices.ecu.bus] + [can.Bus(interface="virtual", channel=c, receive_own_messages=False)
+                                   for c in channels[1:]]
+    generators = [threading.Thread(target=_generator, name=f"j1939-generator-{k}", daemon=True,
+                                   args=(bus, _traffic(k), frames_per_s - (_ecu_rate() if k == 0 else 0.0), stop,
+                                         generated))
+                  for k, bus in enumerate(senders)]
     measured: dict[str, float] = {}
     overhead_ns = min(_timing_overhead_ns() for _ in range(3))
 
     async def main():
         task = asyncio.create_task(run_daemon_for(daemon, devices, duration_s + 1.5))
         await daemon.ready.wait()
-        generator.start()
+        for generator in generators:
+            generator.start()
         await asyncio.sleep(0.5)
         logger_threads = [threading.main_thread()] + [
-            t for t in threading.enumerate() if t.name in ("can-reader", "i2c-bus") or t.name.startswith("fsync")]
+            t for t in threading.enumerate() if t.name.endswith("-reader") and t.name.startswith("can")
+            or t.name == "i2c-bus" or t.name.startswith("fsync")]
         peer_threads = list(notifier._readers) if hasattr(notifier, "_readers") else []
         before = {t: _thread_cpu_s(t) for t in logger_threads + peer_threads}
         wakeups_before = {t: _thread_wakeups(t) for t in logger_threads + peer_threads}
         smbus_before, calls_before = _TimedSMBus.cpu_ns, _TimedSMBus.calls
-        can_reader = next(t for t in logger_threads if t.name == "can-reader")
-        peer_thread = peer_threads[0]
+        can_readers = [t for t in logger_threads if t.name.startswith("can")]
+        assert len(can_readers) == buses and len(peer_threads) == buses
         await asyncio.sleep(duration_s)
         after = {t: _thread_cpu_s(t) for t in before if t.is_alive()}
         measured["wakeups_per_s"] = {t.name: round((_thread_wakeups(t) - wakeups_before[t]) / duration_s)
@@ -188,8 +234,8 @@ def logger_full_load(quick: bool) -> list[dict]:
         measured["timing_overhead_s"] = calls * overhead_ns * 1e-9
         measured["logger_cpu_s"] = sum(after[t] - before[t] for t in after if t not in peer_threads) - \
             (_TimedSMBus.cpu_ns - smbus_before) * 1e-9 - measured["timing_overhead_s"]
-        measured["can_reader_cpu_s"] = after[can_reader] - before[can_reader]
-        measured["peer_cpu_s"] = after[peer_thread] - before[peer_thread]
+        measured["can_reader_cpu_s"] = sum(after[t] - before[t] for t in can_readers)
+        measured["peer_cpu_s"] = sum(after[t] - before[t] for t in peer_threads)
         measured["threads"] = {t.name: round(after[t] - before[t], 3) for t in after if t not in peer_threads}
         measured["threads"]["smbus_emulator"] = round((_TimedSMBus.cpu_ns - smbus_before) * 1e-9, 3)
         measured["threads"]["smbus_timing_overhead"] = round(measured["timing_overhead_s"], 3)
@@ -198,9 +244,11 @@ def logger_full_load(quick: bool) -> list[dict]:
         return await task
 
     asyncio.run(main())
-    generator.join(2)
+    for generator in generators:
+        generator.join(2)
     notifier.stop()
-    peer_bus.shutdown()
+    for bus in peer_buses + senders[1:]:
+        bus.shutdown()
 
     encrypt_s = daemon.encryptor.cpu_s
     measured["threads"]["encrypt (whole run)"] = round(encrypt_s, 3)
@@ -222,7 +270,7 @@ def logger_full_load(quick: bool) -> list[dict]:
                 frames_logged += int(np.count_nonzero(frames["flags"] & contract.CAN_FLAG_TX == 0))
             elif isinstance(record, Message) and topics[record.channel_id] == "/imu":
                 imu_logged += len(contract.unpack(contract.IMU, record.data))
-    frames_on_bus = generated[0] + len(devices.ecu.sent)
+    frames_on_bus = sum(generated) + len(devices.ecu.sent)
     peer_frames = sum(1 for _ in can.BLFReader(blf_path))
     source_drops = sum(s.stats.drops for s in daemon.sources if s.name != "i2c")
     sensor_losses = sum(m.overwritten for m in devices.board.models.values())
@@ -232,7 +280,10 @@ def logger_full_load(quick: bool) -> list[dict]:
     ours_per_frame_us = measured["can_reader_cpu_s"] / frames_on_bus * 1e6
     peer_per_frame_us = measured["peer_cpu_s"] / peer_frames * 1e6
     size_mb = sum(p.stat().st_size for p in encrypted) / 1e6
-    tag = "quick" if quick else "60s"
+    tag = ("quick" if quick else "60s") + ("" if buses == 1 else f"_{buses}_buses_{frames_per_s:g}_each") + \
+        ("" if not cores else f"_pinned_{len(cores)}_core")
+    load = os.getloadavg()
+    pi = _pi_estimate(ours_per_frame_us, frames_on_bus / run_s, measured["logger_cpu_s"] / duration_s)
     return [
         result(f"logger_full_load_{tag}_cpu_s_per_hour", measured["logger_cpu_s"] / duration_s * 3600, "s/h",
                percent_of_one_core=100 * measured["logger_cpu_s"] / duration_s, thread_cpu_s=measured["threads"],
@@ -242,7 +293,9 @@ def logger_full_load(quick: bool) -> list[dict]:
         result(f"logger_full_load_{tag}_can_cpu_per_frame (ratio = peer/ours, >1: we are cheaper)",
                ours_per_frame_us, "us/frame", "python-can Notifier+BLFWriter", peer_per_frame_us,
                frames_on_bus=frames_on_bus, frames_logged=frames_logged, peer_frames=peer_frames,
-               whole_logger_us_per_frame=measured["logger_cpu_s"] / frames_on_bus * 1e6),
+               frames_per_s=round(frames_on_bus / duration_s), buses=buses, load_average=load,
+               cores=sorted(cores) if cores else "all",
+               whole_logger_us_per_frame=measured["logger_cpu_s"] / frames_on_bus * 1e6, **pi),
         result(f"logger_full_load_{tag}_dropped_samples", dropped, "samples", source_drops=source_drops,
                sensor_overruns=sensor_losses, imu_samples=imu_logged),
         result(f"logger_full_load_{tag}_peak_rss", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "MiB",
@@ -252,4 +305,4 @@ def logger_full_load(quick: bool) -> list[dict]:
     ]
 
 
-BENCHMARKS = [logger_full_load]
+BENCHMARKS = [logger_full_load, logger_two_saturated_buses]

@@ -151,11 +151,18 @@ class LogArrays:
     channel_metadata: dict[str, dict]
     timeline: Timeline
     clock_pairs: tuple[np.ndarray, np.ndarray]
+    sensors: dict[str, np.ndarray] = field(default_factory=dict)
+    """Packed sensor records per topic (contract 2 on: barometer, humidity, magnetometer)."""
 
     def json_table(self, topic: str):
-        """One JSON topic as a DataFrame (a column per field; ``t_mono_ns`` on the continuous line)."""
+        """One JSON topic, or a packed sensor topic, as a DataFrame (a column per field, a
+        sub-array field as arrays; ``t_mono_ns`` on the continuous line)."""
         import pandas as pd
 
+        if topic in self.sensors:
+            records = self.sensors[topic]
+            return pd.DataFrame({name: records[name] if records[name].ndim == 1 else list(records[name])
+                                 for name in records.dtype.names if name != "reserved"})
         return pd.DataFrame.from_records(self.json.get(topic, []))
 
 
@@ -166,6 +173,7 @@ def read_frames(paths) -> LogArrays:
     """
     timeline = Timeline()
     can_parts, imu_parts = [], []
+    sensor_parts: dict[str, list[np.ndarray]] = {}
     json_records: dict[str, list[dict]] = {}
     metadata: dict[str, dict] = {}
     mono_pairs, wall_pairs = [], []
@@ -178,6 +186,10 @@ def read_frames(paths) -> LogArrays:
             records = window.topic_records(topic)
             if len(records):
                 parts.append(contract.shift_times(records, offset))
+        for topic in contract.SENSOR_TOPICS:
+            records = window.topic_records(topic)
+            if len(records):
+                sensor_parts.setdefault(topic, []).append(contract.shift_times(records, offset))
         json_ids = [cid for cid, c in window.channels.items()
                     if c.message_encoding == contract.JSON_ENCODING and c.topic not in (contract.CAN_FRAMES.name,
                                                                                         contract.IMU.name)]
@@ -194,8 +206,10 @@ def read_frames(paths) -> LogArrays:
             can_parts.append(frames)
     can = contract.join_records(can_parts, contract.CAN_FRAME_DTYPE)
     imu = contract.join_records(imu_parts, contract.IMU_SAMPLE_DTYPE)
+    sensors = {topic: contract.join_records(parts, contract.SENSOR_TOPICS[topic].dtype)
+               for topic, parts in sensor_parts.items()}
     return LogArrays(can, imu, json_records, metadata, timeline,
-                     (np.array(mono_pairs, dtype=np.int64), np.array(wall_pairs, dtype=np.int64)))
+                     (np.array(mono_pairs, dtype=np.int64), np.array(wall_pairs, dtype=np.int64)), sensors)
 
 
 def _first_seen(values: np.ndarray) -> list:

@@ -46,7 +46,8 @@ def _clock(value) -> int:
 class JsonTopic:
     """Fields of one JSON topic; clock readings (``*_ns``) stay exact integers, -1 when absent.
 
-    Records arrive as one JSON array per window (`contract.window.Window.json_array`), decoded by
+    Contract 2's packed sensor records (barometer, humidity) come in by `add_records`, as arrays.
+    JSON records arrive as one JSON array per window (`contract.window.Window.json_array`), decoded by
     msgspec into structs of just the wanted fields (numbers or null; other keys skipped unparsed),
     some ten times faster than ``json.loads``. Anything typed decoding refuses (a string, a boolean
     or ``NaN`` where a number belongs, a record that is not an object, bytes that are not JSON)
@@ -104,6 +105,14 @@ class JsonTopic:
             convert, dtype = (_clock, np.int64) if name.endswith("_ns") else (_number, np.float64)
             column = np.array([convert(records[k].get(name)) for k in keep], dtype=dtype)
             self.fields.setdefault(name, []).append(column)
+
+    def add_records(self, records: np.ndarray, offset_ns: int) -> None:
+        """Packed records of the topic (contract 2 on): the same fields, no parsing."""
+        if len(records) == 0:
+            return
+        self.time_ns.append(records["t_mono_ns"].astype(np.int64) + offset_ns)
+        for name in self.names:
+            self.fields.setdefault(name, []).append(records[name].astype(np.int64 if name.endswith("_ns") else np.float64))
 
     def add_payloads(self, payloads: list[bytes], offset_ns: int = 0) -> None:
         """Records given one payload each."""
@@ -205,11 +214,15 @@ class Ingest:
         self._pend_can(window, offset_ns)
         self._pend_imu(window, offset_ns)
         for topic in seen:
-            ids = [cid for cid, channel in window.channels.items() if channel.topic == topic]
+            packed = window.packed_channels(topic)
+            ids = [cid for cid, channel in window.channels.items() if channel.topic == topic and cid not in packed]
             stream = self.json.get(topic)
             if stream is None:
                 stream = self.json[topic] = JsonTopic(JSON_FIELDS[topic])
-            stream.add(*window.json_array(np.flatnonzero(np.isin(window.channel_ids, ids))), offset_ns)
+            if packed:
+                stream.add_records(window.topic_records(topic), offset_ns)
+            if ids:
+                stream.add(*window.json_array(np.flatnonzero(np.isin(window.channel_ids, ids))), offset_ns)
 
     def _pend_can(self, window, offset_ns: int) -> None:
         """CAN records into blocks of at least `BLOCK_FRAMES`, cut only between messages."""

@@ -6,9 +6,16 @@ Here the pool only provides starting points: the ``n_chains`` walks closest to v
 kinematic part of the objective) are refined (`refine.refine_walk`) towards the fifteen criteria
 and, when a vehicle and the measured drive's loads are given (`load_criteria.LoadTarget`), the
 load criteria. The fifteen stay the validity gate; the objective adds the loads to the score.
+
+The pool's batches and the walks of each refinement stage are independent (each its own seed
+stream), so they run on threads side by side (the kernels release the GIL): the result is the one
+a single thread gives, bit for bit, on every number of cores.
 """
 
 from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -31,6 +38,15 @@ TEMPERATURE = 0.1
 """Start temperature of the annealing, in objective units (a tenth of one allowance, averaged)."""
 
 
+def _side_by_side(function, items: list) -> list:
+    """``[function(item) for item in items]``, on as many threads as there are usable cores."""
+    workers = min(len(items), len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+    if workers <= 1:
+        return [function(item) for item in items]
+    with ThreadPoolExecutor(workers, thread_name_prefix="cycle-walks") as pool:
+        return list(pool.map(function, items))
+
+
 def kinematic_objective(deviation: np.ndarray) -> np.ndarray:
     """The objective without loads of pool candidates (…, 15): `score_kernels.kinematic_objective`
     for many candidates at once."""
@@ -42,9 +58,11 @@ def _pool(chain, counts, duration_s, n_pool, seed, update_counts):
     measured = counts.statistics
     all_scores, objective = np.empty(n_pool), np.empty(n_pool)
     valid, valid_without_mass = np.empty(n_pool, bool), np.empty(n_pool, bool)
-    for first in range(0, n_pool, BATCH):
-        size = min(BATCH, n_pool - first)
-        stats, _ = run_batch(chain, duration_s, size, seed, first, update_counts)
+    firsts = list(range(0, n_pool, BATCH))
+    batches = _side_by_side(lambda first: run_batch(chain, duration_s, min(BATCH, n_pool - first), seed, first,
+                                                    update_counts)[0], firsts)
+    for first, stats in zip(firsts, batches):
+        size = len(stats)
         deviation = deviations(stats, measured, counts.widths)
         all_scores[first:first + size] = scores(deviation)
         objective[first:first + size] = kinematic_objective(deviation)
@@ -110,22 +128,28 @@ def select_refined(counts: TransitionCounts, duration_s: float = 1800.0, seed: i
     n_pool = max(int(n_pool), n_chains)
     all_scores, objective, valid, valid_without_mass = _pool(chain, counts, duration_s, n_pool, seed, update_counts)
     starts = _starts(chain, counts, duration_s, seed, update_counts, objective, target, n_chains)
-    walks = []
     first_moves = n_moves if not survivors else n_moves // 4
-    for stream, index in enumerate(starts):
+
+    def first_stage(stream_index):
+        stream, index = stream_index
         _, path = run_batch(chain, duration_s, 1, seed, int(index), update_counts, keep_paths=True)
         refined, trace, best = refine(chain, counts, path[0], target, first_moves, seed, stream, max_window_s,
                                       temperature)
-        walks.append((best, int(index), refined, trace))
+        return best, int(index), refined, trace
+
+    walks = _side_by_side(first_stage, list(enumerate(starts)))
     if survivors:
         keep = max(int(survivors), n_cycles)
         walks.sort(key=lambda w: w[0])
         more = (len(walks) * (n_moves - first_moves)) // keep
-        for i, (_, index, path, trace) in enumerate(walks[:keep]):
+
+        def second_stage(i):
+            _, index, path, trace = walks[i]
             refined, more_trace, best = refine(chain, counts, path, target, more, seed, len(walks) + i,
                                                max_window_s, temperature * 0.3)
-            walks[i] = (best, index, refined, np.concatenate([trace, more_trace]))
-        walks = walks[:keep]
+            return best, index, refined, np.concatenate([trace, more_trace])
+
+        walks = _side_by_side(second_stage, list(range(keep)))
     results = []
     for best, index, refined, trace in walks:
         cycle = cycle_frame(chain, refined)

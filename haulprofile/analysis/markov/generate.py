@@ -130,7 +130,7 @@ def path_statistics_reference(path, speed, gradient, mass) -> np.ndarray:
     return np.array([[x.mean(), x.std(), x.min(), x.max()] for x in series])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def batch(row_ptr, dest, count, cum_count, start_state, start_cum, speed, gradient, mass, seed, first_index,
            n_steps, update, stats, paths):
     """Candidates ``first_index …`` : statistics into ``stats[i]``; paths into ``paths[i]`` when

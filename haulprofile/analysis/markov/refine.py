@@ -111,7 +111,7 @@ def _propose(current, n, row_ptr, dest, cum_count, start_state, start_cum, max_w
                    window + window // 2, mark, proposal)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def refine_walk(path, row_ptr, dest, cum_count, start_state, start_cum, speed, gradient, mass, measured, kin_scale, q_index, s_index,
                 kin_allowance, use_loads, resistance, radius, speed_edges, torque_edges, share, range_scale,
                 load_measured, load_scale, load_allowance, n_moves, max_window, temperature, seed, stream, trace):

@@ -93,11 +93,76 @@ def rainflow_damage_sums(series, exponents, scale, out):
 
 
 @numba.njit(cache=True)
+def _kth_smallest(work, k):
+    """The ``k``-th smallest (0-based) of ``work``, which it reorders (Hoare's selection, O(n))."""
+    lo, hi = 0, work.shape[0] - 1
+    while lo < hi:
+        pivot = work[(lo + hi) // 2]
+        i, j = lo, hi
+        while i <= j:
+            while work[i] < pivot:
+                i += 1
+            while work[j] > pivot:
+                j -= 1
+            if i <= j:
+                work[i], work[j] = work[j], work[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            break
+    return work[k]
+
+
+@numba.njit(cache=True)
 def time_quantiles(values, n_half, half_a, half_b, shares, out):
+    """Time-weighted quantiles as `time_quantiles_sorted` gives them (``shares`` ascending), found
+    by selection instead of a sort: the time up to a value v, F(v) = #(values ≤ v) − ½ #(half
+    samples ≤ v), grows with v, so the quantile of share p is the smallest value with F ≥ p·T,
+    which lies at the order statistic of rank ⌈p·T⌉ − 1 or a value or two above it. Three
+    selections and counts of 1800 values cost a fifth of the sort (13 against 62 µs; every move of
+    the refinement scores one walk)."""
+    n = values.shape[0]
+    for k in range(n):
+        if np.isnan(values[k]):
+            time_quantiles_sorted(values, n_half, half_a, half_b, shares, out)
+            return
+    total = n - 0.5 * n_half
+    a = values[half_a]
+    b = values[half_b]
+    work = values.copy()
+    for q in range(shares.shape[0]):
+        target = shares[q] * total
+        v = _kth_smallest(work, min(max(int(np.ceil(target)) - 1, 0), n - 1))
+        while True:
+            count = 0
+            above = np.inf
+            for k in range(n):
+                x = values[k]
+                if x <= v:
+                    count += 1
+                elif x < above:
+                    above = x
+            halves = 0
+            if n_half > 0 and a <= v:
+                halves += 1
+            if n_half > 1 and b <= v:
+                halves += 1
+            if count - 0.5 * halves >= target or above == np.inf:
+                out[q] = v
+                break
+            v = above
+
+
+@numba.njit(cache=True)
+def time_quantiles_sorted(values, n_half, half_a, half_b, shares, out):
     """Time-weighted quantiles as `analysis.loads.summary.time_quantile` for 1 s samples of which
     the two at ``half_a`` and ``half_b`` stand for 0.5 s (a walk's ends). The value at the first
     sorted position whose cumulative time reaches the share does not depend on the order of tied
-    values, so a plain sort gives the stable order's answer."""
+    values, so a plain sort gives the stable order's answer. The reference of `time_quantiles`."""
     ordered = np.sort(values)
     n = values.shape[0]
     total = n - 0.5 * n_half

@@ -46,7 +46,7 @@ COAST_HOLD = 0.5
 needed is at least this share of the coasting deceleration; below it (the lower target is far or
 the truck already slow) the driver drives again instead of rolling down to it."""
 
-# --- output columns, one row per step (values at the step's start, energies over the step)
+# --- output rows of ``out``, one column per step (values at the step's start, energies over the step)
 C_TIME, C_DIST, C_SPEED, C_TARGET, C_ACCEL, C_STATE, C_GEAR = 0, 1, 2, 3, 4, 5, 6
 C_F_TRAC, C_F_FRIC, C_F_ROLL, C_F_CLIMB, C_F_AERO = 7, 8, 9, 10, 11
 C_M_SPEED, C_M_TORQUE, C_LIMITED, C_SOC, C_CURRENT, C_P_BATT = 12, 13, 14, 15, 16, 17
@@ -153,6 +153,30 @@ def _interp(x, xs, ys):
 
 
 @numba.njit(cache=True)
+def _bracket(x, xs, i):
+    """``_interp``'s interval for ``x`` (``xs[i] < x <= xs[i + 1]``, ``xs[0] < x < xs[-1]``),
+    searched forward from ``i``: a run's query times never decrease, so each step moves the
+    cursor by a row or two instead of a binary search over the whole cycle."""
+    while xs[i + 1] < x:
+        i += 1
+    return i
+
+
+@numba.njit(cache=True)
+def _interp_cursor(x, xs, ys, i):
+    """(``_interp(x, xs, ys)``, cursor): the same value, bit for bit, found from cursor ``i``
+    (an interval below ``x`` of an earlier, smaller query; 0 at first)."""
+    n = xs.shape[0]
+    if n == 1 or x <= xs[0]:
+        return ys[0], i
+    if x >= xs[n - 1]:
+        return ys[n - 1], i
+    i = _bracket(x, xs, i)
+    w = (x - xs[i]) / (xs[i + 1] - xs[i])
+    return ys[i] + w * (ys[i + 1] - ys[i]), i
+
+
+@numba.njit(cache=True)
 def _look_ahead_decel(s, v, k, row_pos, row_target, stop_pos, next_stop, horizon_m):
     """Deceleration [m/s^2] needed to reach the next lower target speed or the next stop ahead,
     and whether that constraint is the stop."""
@@ -178,8 +202,9 @@ def _look_ahead_decel(s, v, k, row_pos, row_target, stop_pos, next_stop, horizon
 def run_kernel(time_based, row_pos, row_target, row_gradient, row_f_roll, row_f_climb, row_mass,
                stop_pos, stop_time, load_time, aux_w, epto_w, obc_w,
                p, ratios, map_speed, map_torque, map_eff, out):
-    """Simulate the whole cycle into ``out`` (rows = steps, columns C_*); return the number of
-    steps, -1 when ``out`` is too short, -2 when the time ``P_T_END`` ran out first.
+    """Simulate the whole cycle into ``out`` (rows C_*, a column per step: each quantity
+    contiguous, so the trace frame takes them without a copy); return the number of steps, -1
+    when ``out`` is too short, -2 when the time ``P_T_END`` ran out first.
 
     Distance-based (``time_based`` False): rows are segments starting at ``row_pos`` [m] with a
     constant target speed [m/s], gradient and mass; the truck stops at ``stop_pos`` [m] for
@@ -196,6 +221,7 @@ def run_kernel(time_based, row_pos, row_target, row_gradient, row_f_roll, row_f_
         v = row_target[0]
     k, next_stop, state, timer = 0, 0, DRIVE, 0.0
     n = 0
+    at_mid, at_start, at_end, at_load = 0, 0, 0, 0  # interpolation cursors (times only grow)
     while True:
         if time_based:
             if t >= end_pos - 1e-9:
@@ -203,19 +229,18 @@ def run_kernel(time_based, row_pos, row_target, row_gradient, row_f_roll, row_f_
         else:
             if s >= end_pos - 1e-6 and next_stop >= stop_pos.shape[0]:
                 break
-        if n >= out.shape[0]:
+        if n >= out.shape[1]:
             return -1
         if t >= p[P_T_END]:
             return -2
-        row = out[n]
         if time_based:
             tm = t + 0.5 * dt
-            f_roll = _interp(tm, row_pos, row_f_roll)
-            f_climb = _interp(tm, row_pos, row_f_climb)
-            mass = _interp(tm, row_pos, row_mass)
-            grad = _interp(tm, row_pos, row_gradient)
-            target = _interp(t, row_pos, row_target)
-            target_next = _interp(t + dt, row_pos, row_target)
+            f_roll, at_mid = _interp_cursor(tm, row_pos, row_f_roll, at_mid)
+            f_climb, at_mid = _interp_cursor(tm, row_pos, row_f_climb, at_mid)
+            mass, at_mid = _interp_cursor(tm, row_pos, row_mass, at_mid)
+            grad, at_mid = _interp_cursor(tm, row_pos, row_gradient, at_mid)
+            target, at_start = _interp_cursor(t, row_pos, row_target, at_start)
+            target_next, at_end = _interp_cursor(t + dt, row_pos, row_target, at_end)
         else:
             while k + 1 < n_rows and row_pos[k + 1] <= s + 1e-9:
                 k += 1
@@ -292,22 +317,23 @@ def run_kernel(time_based, row_pos, row_target, row_gradient, row_f_roll, row_f_
         eta_m = machine_efficiency(omega, torque, p, map_speed, map_torque, map_eff)
         e_elec = e_mech / eta_m if e_mech >= 0.0 else e_mech * eta_m
         e_inv = e_elec / p[P_INV_EFF] if e_elec >= 0.0 else e_elec * p[P_INV_EFF]
-        aux = _interp(t + 0.5 * dt, load_time, aux_w)
-        epto = _interp(t + 0.5 * dt, load_time, epto_w)
-        obc = _interp(t + 0.5 * dt, load_time, obc_w)
+        aux, at_load = _interp_cursor(t + 0.5 * dt, load_time, aux_w, at_load)
+        epto, at_load = _interp_cursor(t + 0.5 * dt, load_time, epto_w, at_load)
+        obc, at_load = _interp_cursor(t + 0.5 * dt, load_time, obc_w, at_load)
         p_dc = e_inv / dt + aux + epto - obc
         current = battery_current_a(p_dc, p)
 
-        row[C_TIME], row[C_DIST], row[C_SPEED], row[C_TARGET] = t, s, v, target
-        row[C_ACCEL], row[C_STATE], row[C_GEAR], row[C_GRADIENT] = a, state, gear, grad
-        row[C_F_TRAC], row[C_F_FRIC], row[C_F_ROLL], row[C_F_CLIMB], row[C_F_AERO] = f_trac, f_fric, f_roll, f_climb, f_aero
-        row[C_M_SPEED], row[C_M_TORQUE], row[C_LIMITED], row[C_SOC] = omega, torque, limited, soc
-        row[C_CURRENT], row[C_P_BATT], row[C_DS] = current, p_dc, ds
-        row[C_E_TRAC], row[C_E_FRIC] = e_wheel, -f_fric * ds
-        row[C_E_GEAR_LOSS], row[C_E_MACHINE_LOSS] = e_mech - e_wheel, e_elec - e_mech
-        row[C_E_INV_LOSS], row[C_E_BATT_LOSS] = e_inv - e_elec, current * current * p[P_RESISTANCE] * dt
-        row[C_E_BATT] = p[P_OCV] * current * dt
-        row[C_E_AUX], row[C_E_EPTO], row[C_E_OBC] = aux * dt, epto * dt, obc * dt
+        out[C_TIME, n], out[C_DIST, n], out[C_SPEED, n], out[C_TARGET, n] = t, s, v, target
+        out[C_ACCEL, n], out[C_STATE, n], out[C_GEAR, n], out[C_GRADIENT, n] = a, state, gear, grad
+        out[C_F_TRAC, n], out[C_F_FRIC, n], out[C_F_ROLL, n] = f_trac, f_fric, f_roll
+        out[C_F_CLIMB, n], out[C_F_AERO, n] = f_climb, f_aero
+        out[C_M_SPEED, n], out[C_M_TORQUE, n], out[C_LIMITED, n], out[C_SOC, n] = omega, torque, limited, soc
+        out[C_CURRENT, n], out[C_P_BATT, n], out[C_DS, n] = current, p_dc, ds
+        out[C_E_TRAC, n], out[C_E_FRIC, n] = e_wheel, -f_fric * ds
+        out[C_E_GEAR_LOSS, n], out[C_E_MACHINE_LOSS, n] = e_mech - e_wheel, e_elec - e_mech
+        out[C_E_INV_LOSS, n], out[C_E_BATT_LOSS, n] = e_inv - e_elec, current * current * p[P_RESISTANCE] * dt
+        out[C_E_BATT, n] = p[P_OCV] * current * dt
+        out[C_E_AUX, n], out[C_E_EPTO, n], out[C_E_OBC, n] = aux * dt, epto * dt, obc * dt
 
         soc -= current * dt / p[P_CHARGE_C]
         t += dt

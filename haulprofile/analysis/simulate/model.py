@@ -141,7 +141,7 @@ def kernel_arguments(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, ept
     steps = _expected_steps(cycle, settings.time_step_s)
     checks.rows(steps, f"simulating {cycle.name} at {settings.time_step_s:g} s steps",
                 "is the cycle's time or distance in the right unit?")
-    out = np.empty((steps, K.N_COLUMNS))
+    out = np.empty((K.N_COLUMNS, steps))
     return (cycle.time_based, cycle.position, cycle.target_speed_mps, cycle.gradient_pct, f_roll, f_climb,
             cycle.mass_kg, cycle.stop_distance_m, cycle.stop_time_s, load_time, aux, epto, obc,
             p, ratios, map_speed, map_torque, map_eff, out)
@@ -177,12 +177,12 @@ def simulate_cycle(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, epto_
                             obc_power_w=obc_power_w, settings=settings)
     n = K.run_kernel(*args)
     while n == -1:
-        args = args[:-1] + (np.empty((2 * args[-1].shape[0], K.N_COLUMNS)),)
+        args = args[:-1] + (np.empty((K.N_COLUMNS, 2 * args[-1].shape[1])),)
         n = K.run_kernel(*args)
     if n < 0:
         raise SimulationInputError(f"{cycle.name}: the truck did not finish the cycle within "
                                    f"{args[13][K.P_T_END]:.0f} s (stalled on a gradient it cannot climb?)")
-    return summarise(trace_frame(args[-1][:n]), cycle, vehicle, settings)
+    return summarise(trace_frame(args[-1][:, :n]), cycle, vehicle, settings)
 
 
 def _expected_steps(cycle: SimCycle, dt: float) -> int:
@@ -217,9 +217,10 @@ COLUMNS = {
 STATE_NAMES = {K.STANDSTILL: "standstill", K.DRIVE: "drive", K.COAST: "coast", K.BRAKE: "brake"}
 
 
-def trace_frame(rows: np.ndarray) -> pd.DataFrame:
-    """The kernel's output rows as a named DataFrame (one row per step)."""
-    frame = pd.DataFrame({name: rows[:, column] for name, column in COLUMNS.items()})
+def trace_frame(out: np.ndarray) -> pd.DataFrame:
+    """The kernel's output (a row per quantity, a column per step) as a named DataFrame (one row
+    per step); the columns are views of ``out``, not copies."""
+    frame = pd.DataFrame({name: out[column] for name, column in COLUMNS.items()}, copy=False)
     for column in ("driver_state", "gear", "traction_limited"):
         frame[column] = frame[column].astype(np.int8)
     frame["machine_speed_rpm"] = frame["machine_speed_radps"] * RPM_PER_RADPS

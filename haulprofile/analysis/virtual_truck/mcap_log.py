@@ -28,6 +28,9 @@ BAM_PACKET_GAP_S = 0.05
 MAX_FRAMES_PER_MESSAGE = 512
 MAX_BATCH_S = 0.2
 IMU_BATCH_S = 0.1
+BAROMETER_BATCH_S = 0.32
+"""The logger reads the LPS25HB's FIFO every 8 samples at 25 Hz: one message per read."""
+HUMIDITY_BATCH_S = 1.0
 
 ENGINE_ADDRESS = 0x00
 TRANSMISSION_ADDRESS = 0x03
@@ -96,7 +99,20 @@ def _batches(t_ns: np.ndarray, max_count: int, max_span_ns: int):
         start = stop
 
 
-def _messages(drive):
+def _packed_sensor(table, topic: contract.Topic, order: int, batch_s: float, fields: tuple[str, ...]):
+    """(t_mono_ns, order, topic, payload) of a sensor's samples packed as the logger packs them
+    (contract 2): one message per ``batch_s`` of samples, stamped with its first sample."""
+    records = np.zeros(len(table), dtype=topic.dtype)
+    records["t_mono_ns"] = BOOT_OFFSET_NS + np.round(table["time_s"].to_numpy() * 1e9).astype(np.int64)
+    for name in fields:
+        records[name] = table[name].to_numpy()
+    window = np.floor(table["time_s"].to_numpy() / batch_s).astype(np.int64)
+    for part in np.split(records, np.flatnonzero(np.diff(window)) + 1):
+        if len(part):
+            yield int(part["t_mono_ns"][0]), order, topic, contract.pack(topic, part)
+
+
+def _messages(drive, contract_version: int = contract.CONTRACT_VERSION):
     """(t_mono_ns, order, topic, payload) of every message in the log."""
     start_ns = drive.scenario.start_epoch_ns
     frames = can_frames(drive)
@@ -113,17 +129,23 @@ def _messages(drive):
     for part in np.split(samples, edges):
         yield int(part["t_mono_ns"][-1]), 1, contract.IMU, contract.pack(contract.IMU, part)
 
-    for row in drive.sensors["barometer"].itertuples(index=False):
-        t = BOOT_OFFSET_NS + int(round(row.time_s * 1e9))
-        yield t, 2, contract.BAROMETER, contract.encode_json({
-            "t_mono_ns": t, "pressure_pa": float(row.pressure_pa), "temperature_c": float(row.temperature_c),
-            "pressure_raw": int(row.pressure_raw), "temperature_raw": int(row.temperature_raw)})
-    for row in drive.sensors["humidity"].itertuples(index=False):
-        t = BOOT_OFFSET_NS + int(round(row.time_s * 1e9))
-        yield t, 3, contract.HUMIDITY, contract.encode_json({
-            "t_mono_ns": t, "relative_humidity_pct": float(row.relative_humidity_pct),
-            "temperature_c": float(row.temperature_c), "humidity_raw": int(row.humidity_raw),
-            "temperature_raw": int(row.temperature_raw)})
+    if contract_version >= 2:
+        yield from _packed_sensor(drive.sensors["barometer"], contract.BAROMETER, 2, BAROMETER_BATCH_S,
+                                  ("pressure_pa", "temperature_c", "pressure_raw", "temperature_raw"))
+        yield from _packed_sensor(drive.sensors["humidity"], contract.HUMIDITY, 3, HUMIDITY_BATCH_S,
+                                  ("relative_humidity_pct", "temperature_c", "humidity_raw", "temperature_raw"))
+    else:
+        for row in drive.sensors["barometer"].itertuples(index=False):
+            t = BOOT_OFFSET_NS + int(round(row.time_s * 1e9))
+            yield t, 2, contract.BAROMETER_V1, contract.encode_json({
+                "t_mono_ns": t, "pressure_pa": float(row.pressure_pa), "temperature_c": float(row.temperature_c),
+                "pressure_raw": int(row.pressure_raw), "temperature_raw": int(row.temperature_raw)})
+        for row in drive.sensors["humidity"].itertuples(index=False):
+            t = BOOT_OFFSET_NS + int(round(row.time_s * 1e9))
+            yield t, 3, contract.HUMIDITY_V1, contract.encode_json({
+                "t_mono_ns": t, "relative_humidity_pct": float(row.relative_humidity_pct),
+                "temperature_c": float(row.temperature_c), "humidity_raw": int(row.humidity_raw),
+                "temperature_raw": int(row.temperature_raw)})
 
     gps = drive.sensors["gps"]
     for row in gps[gps["fix_quality"] > 0].itertuples(index=False):
@@ -145,8 +167,9 @@ def _messages(drive):
             "gps_time_utc_ns": start_ns + elapsed_ns if recent else None})
 
 
-def write_mcap(drive, path: str | Path) -> Path:
-    """Write the drive's sensor streams as one MCAP log (deterministic bytes for a drive)."""
+def write_mcap(drive, path: str | Path, contract_version: int = contract.CONTRACT_VERSION) -> Path:
+    """Write the drive's sensor streams as one MCAP log (deterministic bytes for a drive);
+    ``contract_version`` 1 writes barometer and humidity as contract 1's JSON messages."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     metadata = {
@@ -159,9 +182,9 @@ def write_mcap(drive, path: str | Path) -> Path:
         contract.CAN_FRAMES.name: {"channel_0": "can0", "bitrate": "250000", "protocol": "j1939"},
     }
     start_ns = drive.scenario.start_epoch_ns
-    messages = sorted(_messages(drive), key=lambda m: (m[0], m[1]))
+    messages = sorted(_messages(drive, contract_version), key=lambda m: (m[0], m[1]))
     with open(path, "wb") as stream:
-        writer = TopicWriter(stream, channel_metadata=metadata)
+        writer = TopicWriter(stream, channel_metadata=metadata, contract_version=contract_version)
         writer.write_metadata("haulprofile.source", {
             "generator": "haulprofile.analysis.virtual_truck", "scenario": drive.scenario.name, "seed": str(drive.seed),
             "vehicle": drive.vehicle.name})

@@ -78,9 +78,11 @@ class EmulatedDevices(Devices):
         if self.gps is not None:
             self.gps.stop()
 
-    def can_bus(self, config: Config):
+    def can_bus(self, config: Config, channel: str | None = None):
+        """The ECU's virtual bus; another channel (``can.more_channels``) is a virtual bus of that name."""
         import can
-        return can.Bus(interface="virtual", channel=self._channel, receive_own_messages=False)
+        name = self._channel if channel in (None, config.can.channel) else channel
+        return can.Bus(interface="virtual", channel=name, receive_own_messages=False)
 
     def smbus(self, config: Config):
         return self.board

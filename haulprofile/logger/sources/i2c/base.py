@@ -12,6 +12,7 @@ import asyncio
 import threading
 from typing import Protocol
 
+from haulprofile import contract
 from ...clock import Clock
 from ..base import Source
 
@@ -89,6 +90,39 @@ class Driver:
 
     def channel_metadata(self) -> dict[str, dict[str, str]]:
         return {}
+
+
+class RecordBatch:
+    """Packed records of one sensor topic (contract 2), handed out as one message once they
+    span ``batch_s`` of samples: a message per second instead of one per sample."""
+
+    def __init__(self, topic: contract.Topic, period_ns: int, batch_s: float):
+        self.topic = topic
+        self._pack = contract.record_struct(topic).pack
+        self._batch_records = max(1, round(batch_s * 1e9 / period_ns))
+        self._pending = bytearray()
+        self._count = 0
+
+    def add(self, *fields) -> list:
+        """One record (the dtype's fields in order); `flush`'s output once the batch is full."""
+        self._pending += self._pack(*fields)
+        self._count += 1
+        return self.flush() if self._count >= self._batch_records else []
+
+    def flush(self) -> list:
+        output = packed_output(self.topic, self._pending, self._count)
+        self._count = 0
+        return output
+
+
+def packed_output(topic: contract.Topic, pending: bytearray, count: int) -> list:
+    """`Driver.poll`'s output of ``count`` packed records held in ``pending`` (emptied): one
+    message stamped with its first record's time, or nothing."""
+    if not count:
+        return []
+    payload = bytes(pending)
+    pending.clear()
+    return [(topic, payload, contract.first_time_ns(payload), count)]
 
 
 def s16(lo: int, hi: int) -> int:

@@ -1,7 +1,8 @@
 """ST HTS221 humidity sensor (datasheet DocID026333 rev 4, TN1218): factory calibration applied.
 
 Relative humidity and temperature are linear interpolations between the two factory calibration
-points stored in registers 0x30-0x3F (H0/H1 at T0/T1).
+points stored in registers 0x30-0x3F (H0/H1 at T0/T1). Samples go out as packed ``/humidity``
+records, one message per ``batch_s``.
 """
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from haulprofile import contract
-from .base import AUTO_INCREMENT, Driver, s16
+from .base import AUTO_INCREMENT, Driver, RecordBatch, s16
 
 WHO_AM_I_VALUE = 0xBC
 CTRL_REG1 = 0x20
@@ -57,11 +58,12 @@ class Hts221(Driver):
     name = "hts221"
     who_am_i = WHO_AM_I_VALUE
 
-    def __init__(self, bus, address: int, clock, odr_hz: float = 12.5):
+    def __init__(self, bus, address: int, clock, odr_hz: float = 12.5, batch_s: float = 1.0):
         super().__init__(bus, address, clock)
         self.odr_hz = odr_hz
         self.poll_interval_s = 0.25 / odr_hz
         self.calibration: Calibration | None = None
+        self.batch = RecordBatch(contract.HUMIDITY, int(1e9 / odr_hz), batch_s)
 
     def configure(self) -> None:
         self.calibration = Calibration.from_registers(
@@ -76,7 +78,8 @@ class Hts221(Driver):
         b = self.bus.read_i2c_block_data(self.address, HUMIDITY_OUT_L | AUTO_INCREMENT, 4)
         self.note_reading(b)
         h_raw, t_raw = s16(b[0], b[1]), s16(b[2], b[3])
-        record = {"t_mono_ns": t_mono_ns, "relative_humidity_pct": self.calibration.humidity_pct(h_raw),
-                  "temperature_c": self.calibration.temperature_c(t_raw), "humidity_raw": h_raw,
-                  "temperature_raw": t_raw}
-        return [(contract.HUMIDITY, contract.encode_json(record), t_mono_ns, 1)]
+        return self.batch.add(t_mono_ns, self.calibration.humidity_pct(h_raw), self.calibration.temperature_c(t_raw),
+                              h_raw, t_raw, 0)
+
+    def flush(self) -> list:
+        return self.batch.flush()

@@ -2,7 +2,7 @@
 
 Read through its 32-slot FIFO in stream mode: each poll reads FIFO_STATUS for the number of
 unread samples and then that many PRESS_OUT/TEMP_OUT blocks, so a late poll loses nothing; stamps
-from the continuous sample clock (`FifoSampleClock`).
+from the continuous sample clock (`FifoSampleClock`). One packed ``/barometer`` message per FIFO read.
 """
 
 from __future__ import annotations
@@ -70,7 +70,8 @@ class Lps25hb(Driver):
             n = FIFO_DEPTH
         else:
             n = status & FIFO_STATUS_FSS
-        out = []
+        pack = contract.record_struct(contract.BAROMETER).pack
+        payload = bytearray()
         for t_mono_ns in self.sample_clock.stamps(n, before_ns, after_ns, overrun=full):
             b = self.bus.read_i2c_block_data(self.address, PRESS_OUT_XL | AUTO_INCREMENT, 5)
             self.note_reading(b)
@@ -80,7 +81,8 @@ class Lps25hb(Driver):
             t_raw = b[3] | (b[4] << 8)
             if t_raw & 0x8000:
                 t_raw -= 1 << 16
-            record = {"t_mono_ns": t_mono_ns, "pressure_pa": pressure_pa(p_raw),
-                      "temperature_c": temperature_c(t_raw), "pressure_raw": p_raw, "temperature_raw": t_raw}
-            out.append((contract.BAROMETER, contract.encode_json(record), t_mono_ns, 1))
-        return out
+            payload += pack(t_mono_ns, pressure_pa(p_raw), temperature_c(t_raw), p_raw, t_raw, 0)
+        if not payload:
+            return []
+        count = len(payload) // contract.BAROMETER.dtype.itemsize
+        return [(contract.BAROMETER, bytes(payload), contract.first_time_ns(payload), count)]

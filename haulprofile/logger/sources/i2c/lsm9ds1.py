@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 from haulprofile import contract
-from .base import AUTO_INCREMENT, Driver, s16
+from .base import AUTO_INCREMENT, Driver, RecordBatch, packed_output, s16
 from .sample_clock import FifoSampleClock
 
 WHO_AM_I_AG = 0x68
@@ -125,12 +125,9 @@ class Lsm9ds1(Driver):
         return []
 
     def flush(self) -> list:
-        if not self._pending_count:
-            return []
-        payload, count = bytes(self._pending), self._pending_count
-        self._pending.clear()
+        output = packed_output(contract.IMU, self._pending, self._pending_count)
         self._pending_count = 0
-        return [(contract.IMU, payload, contract.first_time_ns(payload), count)]
+        return output
 
 
 def _full_scale(accel: list[int]) -> bool:
@@ -143,10 +140,11 @@ class Lsm9ds1Magnetometer(Driver):
     name = "lsm9ds1_mag"
     who_am_i = WHO_AM_I_M
 
-    def __init__(self, bus, address: int, clock, odr_hz: float = 10.0):
+    def __init__(self, bus, address: int, clock, odr_hz: float = 10.0, batch_s: float = 1.0):
         super().__init__(bus, address, clock)
         self.odr_hz = odr_hz
         self.poll_interval_s = 0.25 / odr_hz
+        self.batch = RecordBatch(contract.MAGNETOMETER, int(1e9 / odr_hz), batch_s)
 
     def configure(self) -> None:
         w = self.bus.write_byte_data
@@ -162,6 +160,7 @@ class Lsm9ds1Magnetometer(Driver):
         b = self.bus.read_i2c_block_data(self.address, OUT_X_L_M | AUTO_INCREMENT, 6)
         self.note_reading(b)
         raw = [s16(b[0], b[1]), s16(b[2], b[3]), s16(b[4], b[5])]
-        record = {"t_mono_ns": t_mono_ns, "magnetic_raw": raw,
-                  "magnetic_field_t": [r * MAG_SENSITIVITY_GAUSS * 1e-4 for r in raw]}
-        return [(contract.MAGNETOMETER, contract.encode_json(record), t_mono_ns, 1)]
+        return self.batch.add(t_mono_ns, *[r * MAG_SENSITIVITY_GAUSS * 1e-4 for r in raw], *raw, 0)
+
+    def flush(self) -> list:
+        return self.batch.flush()
