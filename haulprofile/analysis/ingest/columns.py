@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from .. import checks, kinematics
+from ..units import UNITS_KEY
 from . import align
 from .logs import LogError
 
@@ -129,10 +130,14 @@ def build_table(ingest) -> tuple[pd.DataFrame, dict]:
         columns["air_temperature_c"] = c.pick("air_temperature_c", None, key)
         if columns["air_temperature_c"] is not None:
             break
+    dbc_units = ({s.name: s.unit or "" for m in ingest.database.messages for s in m.signals}
+                 if ingest.database is not None else {})
+    units = {}
     for key in sorted(k for k in acc.streams if k.startswith("dbc:")):
         name = key[4:]
         column = name if name not in table and name not in columns else f"dbc_{name}"
         columns[column] = c.pick(column, None, key)
+        units[column] = dbc_units.get(name, "")
     if speed is not None:
         table["valid"] = c.recorded & np.isfinite(speed)
         table["speed_mps"] = speed
@@ -144,6 +149,7 @@ def build_table(ingest) -> tuple[pd.DataFrame, dict]:
         accel = kinematics.acceleration_mps2(table["time_s"], speed)
         table["accel_mps2"] = np.where(table["valid"], accel, np.nan)
     frame = pd.DataFrame(table)
+    frame.attrs[UNITS_KEY] = {k: v for k, v in units.items() if k in frame.columns}
     return frame, _summary(ingest, c, frame)
 
 
