@@ -18,10 +18,12 @@ def add_arguments(parser) -> None:
                         help="generated cycle CSV (time_s, speed_mps, accel_mps2, gradient_pct, mass_kg) to compare")
     parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("loads-out"),
                         help="output directory")
+    parser.add_argument("--load-bins", type=Path, help="TOML file of bin edges replacing the vehicle class's")
 
 
 def run(args) -> int:
     from ..loads import NEEDED
+    from ..loads.bins import read_overrides
     from ..loads.stage import LoadsOptions
     from ..pipeline import Options, RunContext, run as run_pipeline
 
@@ -31,7 +33,8 @@ def run(args) -> int:
         raise UserError(f"{args.signals}: the measured drive lacks {', '.join(missing)}; run 'analyze run' first "
                         f"to estimate them")
     ctx = RunContext(inputs=[], out_dir=args.out, vehicle=load_vehicle(args.vehicle), signals=signals,
-                     options=Options(loads=LoadsOptions(generated_file=args.cycle)), subdirs={"loads": ""},
+                     options=Options(loads=LoadsOptions(generated_file=args.cycle, bin_overrides=read_overrides(args.load_bins)
+                                                      if args.load_bins else ())), subdirs={"loads": ""},
                      say=lambda _msg: None)
     ctx = run_pipeline(ctx, start="loads", until="loads")
     result = ctx.summary["loads"]
