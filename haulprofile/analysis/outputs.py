@@ -30,7 +30,7 @@ from .errors import UserError
 
 SUMMARY = "summary.json"
 RUN_FILES = ("gradient.csv", "gradient.png", "mass.png", "cycle.csv", "cycle.parquet", "cycle.vdri", "cycle.png",
-             "cycle-scores.png", "cycles", "loads", "simulation", "report.html", "signals.parquet")
+             "cycle.fastsim.csv", "cycle-scores.png", "cycles", "loads", "simulation", "report.html", "signals.parquet")
 """What a full run may write besides the summary; what it did not write this time is removed."""
 
 
