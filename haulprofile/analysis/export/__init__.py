@@ -116,7 +116,7 @@ def export_logs(paths, to: str, out_dir: Path, private: bool = False, rate_hz: f
     make_dirs(out_dir)
     done = []
     for path, target in zip(files, targets):
-        content = source.load(path, private=private)
+        content = source.load(path, private=private, everything=to == "foxglove")
         table, rows = _decoded(path, content, rate_hz, dbc, private, say) if to in DECODED else (None, None)
         handle, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".partial" + FORMATS[to], dir=out_dir)
         os.close(handle)

@@ -21,7 +21,7 @@ from haulprofile import contract
 from haulprofile.contract import CAN_FLAG_EXTENDED
 
 from ..ingest import foreign
-from ..ingest.logs import is_mcap, read_frames
+from ..ingest.logs import decode_json, is_mcap, iter_log_windows
 
 PRIVATE_PGNS = (65267, 65254)
 """J1939 Vehicle Position and Time/Date: what a telematics unit broadcasts about where and when
@@ -83,21 +83,46 @@ def _mcap_offset(json_records: dict[str, list[dict]], clock_pairs) -> int:
     return clock_offset_ns(*clock_pairs)
 
 
-def load(path: Path, private: bool = False) -> LogContent:
-    """The content of one MCAP log or foreign CAN log for export."""
+def _read_mcap(path: Path, everything: bool):
+    """CAN records, IMU records (``everything``), JSON records (all topics with ``everything``, else
+    the time sync only), IMU channel metadata and (monotonic, log time) pairs of one MCAP log."""
+    can_parts, imu_parts, records, imu_meta, mono, wall = [], [], {}, {}, [], []
+    for _, _, window in iter_log_windows([path]):
+        mono.extend(window.publish_times_ns[window.batch_starts].astype(np.int64).tolist())
+        wall.extend(window.log_times_ns[window.batch_starts].astype(np.int64).tolist())
+        can_parts.append(window.topic_records(contract.CAN_FRAMES.name))
+        if everything:
+            imu_parts.append(window.topic_records(contract.IMU.name))
+        wanted = {cid: c.topic for cid, c in window.channels.items() if c.message_encoding == contract.JSON_ENCODING
+                  and (everything or c.topic == contract.TIME_SYNC.name)}
+        for cid, channel in window.channels.items():
+            if channel.topic == contract.IMU.name and not imu_meta:
+                imu_meta = dict(channel.metadata)
+        rows = np.flatnonzero(np.isin(window.channel_ids, list(wanted)))
+        for cid, data in zip(window.channel_ids[rows].tolist(), window.payloads(rows)):
+            record = decode_json(data)
+            if record is not None:
+                records.setdefault(wanted[cid], []).append(record)
+    can = contract.join_records([p for p in can_parts if len(p)], contract.CAN_FRAME_DTYPE)
+    imu = contract.join_records([p for p in imu_parts if len(p)], contract.IMU_SAMPLE_DTYPE)
+    return can, imu, records, imu_meta, (np.array(mono, np.int64), np.array(wall, np.int64))
+
+
+def load(path: Path, private: bool = False, everything: bool = True) -> LogContent:
+    """The content of one MCAP log or foreign CAN log for export (without ``everything``: the CAN
+    frames only, what the bus-log formats hold)."""
     path = Path(path)
     if is_mcap(path):
-        arrays = read_frames([path])
-        offset = 0 if private else _mcap_offset(arrays.json, arrays.clock_pairs)
-        meta = arrays.channel_metadata.get(contract.IMU.name, {})
-        content = LogContent(path, arrays.can, offset, json=dict(arrays.json))
-        if len(arrays.imu) and "accel_scale_mps2_per_lsb" in meta:
-            content.imu_time_ns = arrays.imu["t_mono_ns"].astype(np.int64)
-            content.accel_mps2 = arrays.imu["accel_raw"] * float(meta["accel_scale_mps2_per_lsb"])
+        can, imu, records, meta, pairs = _read_mcap(path, everything)
+        offset = 0 if private else _mcap_offset(records, pairs)
+        content = LogContent(path, can, offset, json=records if everything else {})
+        if len(imu) and "accel_scale_mps2_per_lsb" in meta:
+            content.imu_time_ns = imu["t_mono_ns"].astype(np.int64)
+            content.accel_mps2 = imu["accel_raw"] * float(meta["accel_scale_mps2_per_lsb"])
             if "gyro_scale_radps_per_lsb" in meta:
-                content.gyro_radps = arrays.imu["gyro_raw"] * float(meta["gyro_scale_radps_per_lsb"])
+                content.gyro_radps = imu["gyro_raw"] * float(meta["gyro_scale_radps_per_lsb"])
             else:
-                content.gyro_radps = np.full((len(arrays.imu), 3), np.nan)
+                content.gyro_radps = np.full((len(imu), 3), np.nan)
     else:
         frames, (mono, wall) = foreign.read_can_log(path)
         offset = clock_offset_ns(mono, wall)
