@@ -7,7 +7,8 @@ VECTO's files are JSON (``{"Header": …, "Body": …}``, UTF-8 with a byte-orde
 * ``.vveh``: ``CurbWeight`` + ``CurbWeightExtra`` [kg] → ``curb_mass_kg``; ``MassMax`` (t in
   current files, kg in old ones: below 100 it is t) minus the curb mass → ``max_payload_kg``;
   ``Cd``, ``CrossSecArea`` [m²] (from file version 7 only their product ``CdA``: then a nominal
-  10 m² and c_d = CdA / 10, the product being all that equation (1) uses); ``rdyn`` [mm] (old files ``WheelsDiaEff`` [m], the diameter) →
+  10 m² and c_d = CdA / 10, the product being all that equation (1) uses); ``rdyn`` [mm] (old
+  files ``WheelsDiaEff`` [m], the diameter) →
   ``wheel_radius_m``; the axles' ``RRCISO`` and ``FzISO`` [N] with ``AxleWeightShare`` → the
   rolling resistance coefficient as VECTO forms it, c_r = Σ share_i · RRC_i · (F_z,i / FzISO_i)^(β−1),
   β = 0.9, F_z,i = share_i · (curb + ``Loading``) · g. A declaration-mode file has no shares

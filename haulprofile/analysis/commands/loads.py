@@ -32,9 +32,10 @@ def run(args) -> int:
     if missing:
         raise UserError(f"{args.signals}: the measured drive lacks {', '.join(missing)}; run 'analyze run' first "
                         f"to estimate them")
+    overrides = read_overrides(args.load_bins) if args.load_bins else ()
     ctx = RunContext(inputs=[], out_dir=args.out, vehicle=load_vehicle(args.vehicle), signals=signals,
-                     options=Options(loads=LoadsOptions(generated_file=args.cycle, bin_overrides=read_overrides(args.load_bins)
-                                                      if args.load_bins else ())), subdirs={"loads": ""},
+                     options=Options(loads=LoadsOptions(generated_file=args.cycle, bin_overrides=overrides)),
+                     subdirs={"loads": ""},
                      say=lambda _msg: None)
     ctx = run_pipeline(ctx, start="loads", until="loads")
     result = ctx.summary["loads"]

@@ -47,7 +47,8 @@ def add_arguments(parser) -> None:
                              "first): calibrates the engine torque gain for every segment (repeatable)")
     parser.add_argument("--gradient-method", choices=("smoother", "paper"), default="smoother",
                         help="gradient_pct from the Kalman smoother (default) or the paper's fusion (8)")
-    parser.add_argument("--load-bins", type=Path, help="TOML file of load-collective bin edges (default: the vehicle class's)")
+    parser.add_argument("--load-bins", type=Path,
+                        help="TOML file of load-collective bin edges (default: those of the vehicle class)")
     parser.add_argument("--private", action="store_true",
                         help="keep positions and wall-clock time out of signals.parquet and the report (they are "
                              "used in memory for the DEM; heights and gradients stay); no stage cache is written")
