@@ -18,7 +18,10 @@ import numpy as np
 
 from haulprofile.private_files import FILE_MODE, make_dirs
 
+from haulprofile.contract import CAN_FRAMES
+
 from ..errors import UserError
+from ..ingest.logs import is_mcap
 from . import source
 
 FORMATS = {"mf4": ".mf4", "blf": ".blf", "asc": ".asc", "candump": ".log", "foxglove": ".foxglove.mcap"}
@@ -116,20 +119,62 @@ def export_logs(paths, to: str, out_dir: Path, private: bool = False, rate_hz: f
     make_dirs(out_dir)
     done = []
     for path, target in zip(files, targets):
-        content = source.load(path, private=private, everything=to == "foxglove")
-        table, rows = _decoded(path, content, rate_hz, dbc, private, say) if to in DECODED else (None, None)
         handle, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".partial" + FORMATS[to], dir=out_dir)
         os.close(handle)
         partial = Path(name)
         try:
-            _write(content, partial, to, table, rows)
+            if to == "mf4" and is_mcap(path):
+                partial.unlink()  # asammdf's save renames rather than replaces an existing file
+                frames, rows = _stream_mf4(path, partial, private, rate_hz, dbc, say)
+            else:
+                frames, rows = _export(path, partial, to, private, rate_hz, dbc, say)
             os.chmod(partial, FILE_MODE)
             _publish(partial, target)
         finally:
             partial.unlink(missing_ok=True)
-        done.append(Exported(path, target, len(content.frames), 0 if table is None else len(table)))
+        done.append(Exported(path, target, frames, rows))
         say(done[-1].line())
     return done
+
+
+def _export(path: Path, partial: Path, to: str, private: bool, rate_hz: float, dbc, say) -> tuple[int, int]:
+    """One log, read whole, written as ``to``; (frames, decoded rows) written."""
+    content = source.load(path, private=private, everything=to == "foxglove")
+    table, rows = _decoded(path, content, rate_hz, dbc, private, say) if to in DECODED else (None, None)
+    _write(content, partial, to, table, rows)
+    return len(content.frames), 0 if table is None else len(table)
+
+
+def _stream_mf4(path: Path, partial: Path, private: bool, rate_hz: float, dbc, say) -> tuple[int, int]:
+    """An MCAP log as MF4 in one read: each window's frames go to asammdf while the ingest decodes
+    it; the decoded signals and the clock's offset are added at the end."""
+    from ..ingest import ingest_logs
+    from ..signals import without_positions
+    from .mf4 import Mf4Writer
+
+    state: dict = {}
+    clock = source.Clock()
+
+    def on_window(_index, _shift, window) -> None:
+        frames = window.topic_records(CAN_FRAMES.name)
+        if "writer" not in state:
+            firsts = [int(frames["t_mono_ns"].min())] if len(frames) else []
+            state["writer"] = Mf4Writer(min(firsts + [int(window.publish_times_ns.min())]))
+        clock.add(window)
+        state["writer"].add(source.without_private_frames(frames) if private else frames)
+
+    try:
+        table, summary = ingest_logs([path], rate_hz=rate_hz, dbc=dbc, on_window=on_window)
+        rows = row_times_ns(table, summary)
+    except UserError as exc:
+        if "writer" not in state:
+            raise
+        say(f"warning: {path}: no decoded signals in the export ({exc})")
+        table = rows = None
+    writer = state.get("writer") or Mf4Writer()
+    writer.finish(partial, 0 if private else clock.offset_ns(),
+                  without_positions(table) if private and table is not None else table, rows)
+    return writer.frames, 0 if table is None else len(table)
 
 
 def _write(content: source.LogContent, partial: Path, to: str, table, rows) -> None:

@@ -60,28 +60,70 @@ def _bus_source():
     return Source(name="CAN", path="CAN", comment="", source_type=SOURCE_BUS, bus_type=BUS_TYPE_CAN)
 
 
-def _append_frames(mdf, name: str, frames: np.ndarray, dtype: np.dtype, start_ns: int) -> None:
-    from asammdf import Signal
+class Mf4Writer:
+    """An MF4 written as frames come (a window of a log at a time): times relative to the whole
+    second before ``first_ns`` (else the first frame), the header's start time (that second on the
+    exported clock) set at `finish`, when the log's clock offset is known. A decoded row earlier
+    than that second gets a negative time (MDF allows it)."""
 
-    if len(frames) == 0:
-        return
-    source = _bus_source()
-    group = None
-    for first in range(0, len(frames), BLOCK_FRAMES):
-        block = frames[first:first + BLOCK_FRAMES]
-        seconds = (block["t_mono_ns"].astype(np.int64) - start_ns) / 1e9
-        records = bus_records(block, dtype)
-        if group is None:
-            group = mdf.append(Signal(records, seconds, name=name, source=source), acq_name=name, acq_source=source,
-                               comment="haulprofile export")
+    def __init__(self, first_ns: int | None = None):
+        from asammdf import MDF
+
+        self.mdf = MDF(version="4.11")
+        self.origin_ns: int | None = None if first_ns is None else int(first_ns) - int(first_ns) % NS_PER_S
+        """The whole second before the first sample, on the log's own clock [ns]."""
+        self.groups: dict[str, int] = {}
+        self.frames = 0
+
+    def add(self, frames: np.ndarray) -> None:
+        """CAN records (contract dtype, the log's own clock); error frames are left out."""
+        frames = frames[(frames["flags"] & CAN_FLAG_ERROR) == 0]
+        if len(frames) == 0:
+            return
+        if self.origin_ns is None:
+            first = int(frames["t_mono_ns"].min())
+            self.origin_ns = first - first % NS_PER_S
+        remote = (frames["flags"] & CAN_FLAG_REMOTE) != 0
+        for first in range(0, len(frames), BLOCK_FRAMES):
+            block, block_remote = frames[first:first + BLOCK_FRAMES], remote[first:first + BLOCK_FRAMES]
+            self._append("CAN_DataFrame", block[~block_remote], DATA_DTYPE)
+            self._append("CAN_RemoteFrame", block[block_remote], REMOTE_DTYPE)
+        self.frames += len(frames)
+
+    def _append(self, name: str, frames: np.ndarray, dtype: np.dtype) -> None:
+        from asammdf import Signal
+
+        if len(frames) == 0:
+            return
+        seconds = (frames["t_mono_ns"].astype(np.int64) - self.origin_ns) / 1e9
+        records = bus_records(frames, dtype)
+        if name not in self.groups:
+            source = _bus_source()
+            self.groups[name] = self.mdf.append(Signal(records, seconds, name=name, source=source), acq_name=name,
+                                                acq_source=source, comment="haulprofile export")
         else:
-            mdf.extend(group, [(seconds, None), (records, None)])
+            self.mdf.extend(self.groups[name], [(seconds, None), (records, None)])
+
+    def finish(self, target, wall_offset_ns: int, table=None, row_mono_ns=None) -> None:
+        """Append the decoded ``table`` (rows at ``row_mono_ns`` [ns], the log's clock), set the
+        start time (``wall_offset_ns``: whole seconds) and save to ``target`` (a path)."""
+        try:
+            if self.origin_ns is None:
+                first = int(row_mono_ns[0]) if row_mono_ns is not None and len(row_mono_ns) else 0
+                self.origin_ns = first - first % NS_PER_S
+            if table is not None and len(table):
+                _append_signals(self.mdf, table, np.asarray(row_mono_ns, np.int64), self.origin_ns)
+            start_s = (self.origin_ns + wall_offset_ns) // NS_PER_S
+            self.mdf.header.start_time = datetime.fromtimestamp(start_s, timezone.utc)
+            self.mdf.save(target, overwrite=False, compression=2)
+        finally:
+            self.mdf.close()
 
 
-def _append_signals(mdf, table, row_mono_ns: np.ndarray, start_ns: int) -> None:
+def _append_signals(mdf, table, row_mono_ns: np.ndarray, origin_ns: int) -> None:
     from asammdf import Signal
 
-    seconds = (row_mono_ns - start_ns) / 1e9
+    seconds = (row_mono_ns - origin_ns) / 1e9
     known = table.attrs.get("units", {})
     signals = []
     for column in table.columns:
@@ -99,25 +141,10 @@ def _append_signals(mdf, table, row_mono_ns: np.ndarray, start_ns: int) -> None:
 
 
 def write(content: LogContent, target, table=None, row_mono_ns=None) -> None:
-    """Write ``content`` (and the decoded ``table``, rows at ``row_mono_ns`` [ns]) as MF4 to ``target``
-    (a path or a binary file object)."""
-    from asammdf import MDF
-
-    frames = content.frames[(content.frames["flags"] & CAN_FLAG_ERROR) == 0].copy()
-    frames["t_mono_ns"] = content.times_ns(frames["t_mono_ns"]).astype(np.uint64)
-    first = [int(frames["t_mono_ns"][0])] if len(frames) else []
+    """Write ``content`` (and the decoded ``table``, rows at ``row_mono_ns`` [ns]) as MF4 to ``target``."""
+    firsts = [int(content.frames["t_mono_ns"].min())] if len(content.frames) else []
     if row_mono_ns is not None and len(row_mono_ns):
-        first.append(int(content.times_ns(row_mono_ns[:1])[0]))
-    start_ns = min(first) if first else 0
-    start_ns -= start_ns % NS_PER_S
-    mdf = MDF(version="4.11")
-    mdf.header.start_time = datetime.fromtimestamp(start_ns // NS_PER_S, timezone.utc)
-    try:
-        remote = (frames["flags"] & CAN_FLAG_REMOTE) != 0
-        _append_frames(mdf, "CAN_DataFrame", frames[~remote], DATA_DTYPE, start_ns)
-        _append_frames(mdf, "CAN_RemoteFrame", frames[remote], REMOTE_DTYPE, start_ns)
-        if table is not None:
-            _append_signals(mdf, table, content.times_ns(row_mono_ns), start_ns)
-        mdf.save(target, overwrite=False, compression=2)
-    finally:
-        mdf.close()
+        firsts.append(int(row_mono_ns[0]))
+    writer = Mf4Writer(min(firsts) if firsts else None)
+    writer.add(content.frames)
+    writer.finish(target, content.wall_offset_ns, table, row_mono_ns)

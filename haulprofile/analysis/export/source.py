@@ -64,6 +64,11 @@ def pgn_of(frames: np.ndarray) -> np.ndarray:
     return np.where(frames["flags"] & CAN_FLAG_EXTENDED != 0, pgn, -1)
 
 
+def without_private_frames(frames: np.ndarray) -> np.ndarray:
+    """The frames but those of `PRIVATE_PGNS`."""
+    return frames[~np.isin(pgn_of(frames), PRIVATE_PGNS)]
+
+
 def clock_offset_ns(mono_ns, wall_ns) -> int:
     """Median of wall − monotonic over the pairs, floored to whole seconds [ns] (0 without pairs)."""
     mono, wall = np.asarray(mono_ns, np.int64), np.asarray(wall_ns, np.int64)
@@ -83,29 +88,55 @@ def _mcap_offset(json_records: dict[str, list[dict]], clock_pairs) -> int:
     return clock_offset_ns(*clock_pairs)
 
 
+def json_records(window, topics) -> dict[str, list[dict]]:
+    """The JSON records of a window's channels of ``topics`` (None: every JSON topic), per topic."""
+    wanted = {cid: c.topic for cid, c in window.channels.items() if c.message_encoding == contract.JSON_ENCODING
+              and (topics is None or c.topic in topics)}
+    records: dict[str, list[dict]] = {}
+    rows = np.flatnonzero(np.isin(window.channel_ids, list(wanted)))
+    for cid, data in zip(window.channel_ids[rows].tolist(), window.payloads(rows)):
+        record = decode_json(data)
+        if record is not None:
+            records.setdefault(wanted[cid], []).append(record)
+    return records
+
+
+class Clock:
+    """What a log's clock offset is taken from, gathered a window at a time: its time-sync records
+    and the (publish time, log time) of its messages."""
+
+    def __init__(self):
+        self.sync: list[dict] = []
+        self.mono: list[int] = []
+        self.wall: list[int] = []
+
+    def add(self, window) -> None:
+        self.mono.extend(window.publish_times_ns[window.batch_starts].astype(np.int64).tolist())
+        self.wall.extend(window.log_times_ns[window.batch_starts].astype(np.int64).tolist())
+        self.sync.extend(json_records(window, {contract.TIME_SYNC.name}).get(contract.TIME_SYNC.name, []))
+
+    def offset_ns(self) -> int:
+        return _mcap_offset({contract.TIME_SYNC.name: self.sync},
+                            (np.array(self.mono, np.int64), np.array(self.wall, np.int64)))
+
+
 def _read_mcap(path: Path, everything: bool):
-    """CAN records, IMU records (``everything``), JSON records (all topics with ``everything``, else
-    the time sync only), IMU channel metadata and (monotonic, log time) pairs of one MCAP log."""
-    can_parts, imu_parts, records, imu_meta, mono, wall = [], [], {}, {}, [], []
+    """CAN records, IMU records and JSON records (with ``everything``), IMU channel metadata and the
+    clock offset [ns] of one MCAP log."""
+    can_parts, imu_parts, records, imu_meta, clock = [], [], {}, {}, Clock()
     for _, _, window in iter_log_windows([path]):
-        mono.extend(window.publish_times_ns[window.batch_starts].astype(np.int64).tolist())
-        wall.extend(window.log_times_ns[window.batch_starts].astype(np.int64).tolist())
+        clock.add(window)
         can_parts.append(window.topic_records(contract.CAN_FRAMES.name))
         if everything:
             imu_parts.append(window.topic_records(contract.IMU.name))
-        wanted = {cid: c.topic for cid, c in window.channels.items() if c.message_encoding == contract.JSON_ENCODING
-                  and (everything or c.topic == contract.TIME_SYNC.name)}
-        for cid, channel in window.channels.items():
+            for topic, found in json_records(window, None).items():
+                records.setdefault(topic, []).extend(found)
+        for channel in window.channels.values():
             if channel.topic == contract.IMU.name and not imu_meta:
                 imu_meta = dict(channel.metadata)
-        rows = np.flatnonzero(np.isin(window.channel_ids, list(wanted)))
-        for cid, data in zip(window.channel_ids[rows].tolist(), window.payloads(rows)):
-            record = decode_json(data)
-            if record is not None:
-                records.setdefault(wanted[cid], []).append(record)
     can = contract.join_records([p for p in can_parts if len(p)], contract.CAN_FRAME_DTYPE)
     imu = contract.join_records([p for p in imu_parts if len(p)], contract.IMU_SAMPLE_DTYPE)
-    return can, imu, records, imu_meta, (np.array(mono, np.int64), np.array(wall, np.int64))
+    return can, imu, records, imu_meta, clock.offset_ns()
 
 
 def load(path: Path, private: bool = False, everything: bool = True) -> LogContent:
@@ -113,8 +144,8 @@ def load(path: Path, private: bool = False, everything: bool = True) -> LogConte
     frames only, what the bus-log formats hold)."""
     path = Path(path)
     if is_mcap(path):
-        can, imu, records, meta, pairs = _read_mcap(path, everything)
-        offset = 0 if private else _mcap_offset(records, pairs)
+        can, imu, records, meta, offset = _read_mcap(path, everything)
+        offset = 0 if private else offset
         content = LogContent(path, can, offset, json=records if everything else {})
         if len(imu) and "accel_scale_mps2_per_lsb" in meta:
             content.imu_time_ns = imu["t_mono_ns"].astype(np.int64)
@@ -130,6 +161,6 @@ def load(path: Path, private: bool = False, everything: bool = True) -> LogConte
             offset = -clock_offset_ns([0], mono[:1] + offset)
         content = LogContent(path, frames, offset, ingest_shift_ns=int(wall[0] - mono[0]) if len(wall) else 0)
     if private:
-        content.frames = content.frames[~np.isin(pgn_of(content.frames), PRIVATE_PGNS)]
+        content.frames = without_private_frames(content.frames)
         content.json = {topic: records for topic, records in content.json.items() if topic not in POSITION_TOPICS}
     return content
