@@ -218,3 +218,9 @@ def test_export_never_writes_over_a_file(tmp_path, log, capsys):
 def test_unknown_or_missing_input_is_one_line(tmp_path, capsys):
     assert cli.main(["export", str(tmp_path / "nothing.mcap"), "--to", "mf4", "-o", str(tmp_path)]) == 2
     assert "not found" in capsys.readouterr().err
+    table = tmp_path / "signals.csv"
+    pd.DataFrame({"time_s": [0.0, 0.1], "speed_mps": [1.0, 1.0]}).to_csv(table, index=False)
+    assert cli.main(["export", str(table), "--to", "blf", "-o", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "no CAN frames to export" in error
+    assert not (tmp_path / "out").exists()

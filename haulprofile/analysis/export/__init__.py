@@ -21,6 +21,7 @@ from haulprofile.private_files import FILE_MODE, make_dirs
 from haulprofile.contract import CAN_FRAMES
 
 from ..errors import UserError
+from ..ingest import foreign
 from ..ingest.logs import is_mcap
 from . import source
 
@@ -114,6 +115,10 @@ def export_logs(paths, to: str, out_dir: Path, private: bool = False, rate_hz: f
     if to not in FORMATS:
         raise ExportError(f"unknown export format {to!r}; one of {', '.join(FORMATS)}")
     files = expand(paths)
+    for path in files:
+        if not is_mcap(path) and foreign.kind(path) not in ("can", "blf", "mf4"):
+            raise ExportError(f"{path}: not an MCAP log or another logger's CAN log (candump, ASC, BLF, TRC, "
+                              f"python-can CSV, MF4); a signals table or GPS log has no CAN frames to export")
     out_dir = Path(out_dir)
     targets = _check_targets(files, out_dir, to)
     make_dirs(out_dir)
