@@ -4,6 +4,7 @@ mcap + jsonschema) and by our own ingest, whose signals table must equal the ori
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import can
 import numpy as np
@@ -12,7 +13,7 @@ import pytest
 
 from haulprofile import contract
 from haulprofile.analysis import cli
-from haulprofile.analysis.export import export_logs, row_times_ns, source
+from haulprofile.analysis.export import FORMATS, export_logs, row_times_ns, source
 from haulprofile.analysis.ingest import ingest_logs, read_frames
 from haulprofile.testing import logs as synthetic
 
@@ -224,3 +225,59 @@ def test_unknown_or_missing_input_is_one_line(tmp_path, capsys):
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "no CAN frames to export" in error
     assert not (tmp_path / "out").exists()
+
+
+def _flag_frames() -> source.LogContent:
+    """Data frames (standard and extended id), a remote frame, a frame the logger sent, an error frame."""
+    from haulprofile.contract import CAN_FLAG_ERROR, CAN_FLAG_EXTENDED, CAN_FLAG_REMOTE, CAN_FLAG_TX, CAN_FRAME_DTYPE
+
+    frames = np.zeros(5, CAN_FRAME_DTYPE)
+    frames["t_mono_ns"] = 7_000_000_000 + np.arange(5) * 1_000_000
+    frames["arbitration_id"] = [0x123, 0x18FEF100, 0x7DF, 0x18EAFFF9, 0]
+    frames["flags"] = [0, CAN_FLAG_EXTENDED, CAN_FLAG_REMOTE, CAN_FLAG_EXTENDED | CAN_FLAG_TX, CAN_FLAG_ERROR]
+    frames["dlc"] = [2, 8, 8, 3, 0]
+    frames["channel"] = [0, 1, 0, 1, 0]
+    frames["data"][0, :2] = [1, 2]
+    frames["data"][1] = np.arange(8) + 10
+    frames["data"][3, :3] = [0xEC, 0xFE, 0x00]
+    return source.LogContent(Path("flags.log"), frames, 1_700_000_000 * 10**9)
+
+
+@pytest.mark.parametrize("kind", ["blf", "asc", "candump"])
+def test_flags_and_buses_survive_python_can(tmp_path, kind):
+    from haulprofile.analysis.export import bus_logs
+
+    content = _flag_frames()
+    target = tmp_path / f"flags{FORMATS[kind]}"
+    bus_logs.write(content, target, kind)
+    with can.LogReader(str(target)) as reader:
+        back = [m for m in reader if m.is_error_frame or m.arbitration_id or m.dlc]
+    assert [m.is_error_frame for m in back] == [False, False, False, False, True]
+    assert [m.is_remote_frame for m in back[:4]] == [False, False, True, False]
+    assert [m.is_extended_id for m in back[:4]] == [False, True, False, True]
+    assert [m.is_rx for m in back[:4]] == [True, True, True, False]
+    assert [m.arbitration_id for m in back[:4]] == [0x123, 0x18FEF100, 0x7DF, 0x18EAFFF9]
+    assert [bytes(m.data) for m in back[:4] if not m.is_remote_frame] == [b"\x01\x02", bytes(range(10, 18)),
+                                                                          b"\xec\xfe\x00"]
+    buses = [m.channel for m in back[:4]]
+    assert buses == (["can0", "can1", "can0", "can1"] if kind == "candump" else [0, 1, 0, 1])
+
+
+def test_mf4_keeps_remote_frames_apart(tmp_path):
+    from asammdf import MDF
+
+    from haulprofile.analysis.export import mf4
+
+    mf4.write(_flag_frames(), tmp_path / "flags.mf4")
+    with MDF(str(tmp_path / "flags.mf4")) as mdf:
+        groups = {g.channel_group.acq_name: i for i, g in enumerate(mdf.groups)}
+        assert set(groups) == {"CAN_DataFrame", "CAN_RemoteFrame"}  # the error frame is left out
+        data = groups["CAN_DataFrame"]
+        np.testing.assert_array_equal(mdf.get("CAN_DataFrame.ID", group=data).samples,
+                                      [0x123, 0x18FEF100, 0x18EAFFF9])
+        np.testing.assert_array_equal(mdf.get("CAN_DataFrame.BusChannel", group=data).samples, [0, 1, 1])
+        np.testing.assert_array_equal(mdf.get("CAN_DataFrame.Dir", group=data).samples, [0, 0, 1])
+        remote = groups["CAN_RemoteFrame"]
+        assert mdf.get("CAN_RemoteFrame.ID", group=remote).samples.tolist() == [0x7DF]
+        assert mdf.get("CAN_RemoteFrame.DLC", group=remote).samples.tolist() == [8]
+        assert mdf.start_time.timestamp() == 1_700_000_007.0
