@@ -7,20 +7,18 @@ import sys
 from pathlib import Path
 
 from .. import checks
+from .arguments import add_inputs, add_out, add_rate
 
 
 def add_arguments(parser) -> None:
     from ..export import FORMATS
 
-    parser.add_argument("inputs", nargs="+", type=Path,
-                        help="MCAP logs, directories of them, or other loggers' CAN logs (never modified)")
+    add_inputs(parser, "MCAP logs, directories of them, or other loggers' CAN logs (never modified)")
     parser.add_argument("--to", required=True, choices=list(FORMATS),
                         help="mf4 (CANedge/asammdf bus logging + decoded signals), blf, asc (Vector), "
                              "candump (-L log), foxglove (MCAP with JSON schemas: signals, IMU, map)")
-    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, required=True,
-                        help="directory for the exported files (one per log, named after it; none is overwritten)")
-    parser.add_argument("--rate-hz", "--rate", dest="rate_hz", type=float, default=10.0,
-                        help="rate of the decoded signals in mf4 and foxglove exports [Hz] (default 10)")
+    add_out(parser, what="directory for the exported files (one per log, named after it; none is overwritten)")
+    add_rate(parser)
     parser.add_argument("--dbc", type=Path, help="DBC file whose signals are decoded too (mf4, foxglove)")
     parser.add_argument("--private", action="store_true",
                         help="no wall-clock time, positions, NMEA or J1939 position/date frames in the exports")
