@@ -27,7 +27,8 @@ def truth_and_messages():
 
 
 @pytest.mark.parametrize("suffix,writer", [(".log", can.CanutilsLogWriter), (".asc", can.ASCWriter),
-                                           (".blf", can.BLFWriter)])
+                                           (".blf", can.BLFWriter), (".trc", can.TRCWriter),
+                                           (".csv", can.CSVWriter)])
 def test_python_can_formats(tmp_path, truth_and_messages, suffix, writer):
     truth, messages = truth_and_messages
     path = tmp_path / f"foreign{suffix}"

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from haulprofile.analysis import outputs, pipeline
+from haulprofile.analysis import pipeline
 from haulprofile.analysis.errors import UserError
 from haulprofile.analysis.pipeline import RunContext, run
 from haulprofile.testing.drives import synthetic_drive

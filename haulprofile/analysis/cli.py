@@ -19,6 +19,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "signals": ("haulprofile.analysis.commands.signals", "decode and align logs into a signals table"),
     "recover": ("haulprofile.analysis.commands.recover", "write a repaired, indexed copy of a cut MCAP log"),
     "redact": ("haulprofile.analysis.commands.redact", "copies of logs without positions, NMEA and GPS times in zones"),
+    "export": ("haulprofile.analysis.commands.export", "copies of logs as MF4, BLF, ASC, candump or Foxglove MCAP"),
+    "vehicle": ("haulprofile.analysis.commands.vehicle", "a VECTO job or vehicle file as a vehicle file (TOML)"),
     "gradient": ("haulprofile.analysis.commands.gradient", "road height and gradient (DEM, barometer, IMU, fused)"),
     "mass": ("haulprofile.analysis.commands.mass", "vehicle mass per segment (LS, RLS, Levenberg-Marquardt)"),
     "cycle": ("haulprofile.analysis.commands.cycle", "representative driving cycle (Markov chain, Monte Carlo)"),

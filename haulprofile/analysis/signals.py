@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from . import units
 from .errors import UserError
 
 REQUIRED = {"time_s": "time since the start of the log [s]", "speed_mps": "vehicle speed [m/s]"}
@@ -175,6 +176,8 @@ def read_signals(path: str | Path) -> pd.DataFrame:
             frame = pd.read_parquet(path)
     except Exception as exc:  # pandas/pyarrow raise many types for unreadable files
         raise SignalsError(f"{path}: cannot read as {path.suffix[1:]} table: {exc}") from None
+    known = units.read_sidecar(path) if path.suffix.lower() == ".csv" else units.parquet_units(path)
+    frame.attrs[units.UNITS_KEY] = {c: u for c, u in known.items() if c in frame.columns and u != units.unit_of(c)}
     return validate(frame, str(path))
 
 
@@ -231,10 +234,23 @@ def write_signals(frame: pd.DataFrame, path: str | Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".csv":
         frame.to_csv(path, index=False)
+        units.write_sidecar(frame, path)
     else:
-        frame.to_parquet(path, index=False)
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        table = pa.Table.from_pandas(frame, preserve_index=False)
+        pq.write_table(units.parquet_schema(table, units.column_units(frame)), path)
     return path
 
 
 def is_signals_path(path: str | Path) -> bool:
-    return Path(path).suffix.lower() in SIGNALS_SUFFIXES
+    """A table by its suffix; a ``.csv`` that python-can wrote (its CAN log header) is a log, not a table."""
+    path = Path(path)
+    if path.suffix.lower() not in SIGNALS_SUFFIXES:
+        return False
+    if path.suffix.lower() == ".csv" and path.is_file():
+        from .ingest.foreign import kind
+
+        return kind(path) is None
+    return True

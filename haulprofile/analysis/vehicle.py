@@ -167,7 +167,8 @@ def load_vehicle(path_or_name: str | Path) -> Vehicle:
     Parameters
     ----------
     path_or_name : str or Path
-        A TOML vehicle file (docs/vehicle-file.md) or ``"rigid-18t"`` / ``"tractor-40t"``.
+        A TOML vehicle file (docs/vehicle-file.md), ``"rigid-18t"`` / ``"tractor-40t"``, or a VECTO
+        job (``.vecto``) or vehicle (``.vveh``) file (`analysis.vecto_vehicle`).
 
     Returns
     -------
@@ -180,6 +181,10 @@ def load_vehicle(path_or_name: str | Path) -> Vehicle:
     The parameters of paper equations (1)-(4).
     """
     name = str(path_or_name)
+    if Path(name).suffix.lower() in (".vecto", ".vveh"):  # a VECTO job or vehicle file, converted
+        from .vecto_vehicle import vehicle_tables
+
+        return vehicle_from_dict(vehicle_tables(name)[0], name)
     if name in EXAMPLES:
         text = resources.files("haulprofile.analysis.data.vehicles").joinpath(EXAMPLES[name]).read_text()
         source = name

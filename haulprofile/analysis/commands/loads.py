@@ -18,10 +18,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--cycle", type=Path,
                         help="generated cycle CSV (time_s, speed_mps, accel_mps2, gradient_pct, mass_kg) to compare")
     add_out(parser, Path("loads-out"))
+    parser.add_argument("--load-bins", type=Path, help="TOML file of bin edges replacing the vehicle class's")
 
 
 def run(args) -> int:
     from ..loads import NEEDED
+    from ..loads.bins import read_overrides
     from ..loads.stage import LoadsOptions
     from ..outputs import OutputOptions
     from ..pipeline import Options, RunContext, run as run_pipeline
@@ -31,8 +33,9 @@ def run(args) -> int:
     if missing:
         raise UserError(f"{args.signals}: the measured drive lacks {', '.join(missing)}; run 'analyze run' first "
                         f"to estimate them")
+    overrides = read_overrides(args.load_bins) if args.load_bins else ()
     ctx = RunContext(inputs=[], out_dir=args.out, vehicle=load_vehicle(args.vehicle), signals=signals,
-                     options=Options(loads=LoadsOptions(generated_file=args.cycle),
+                     options=Options(loads=LoadsOptions(generated_file=args.cycle, bin_overrides=overrides),
                                      output=OutputOptions(flat=("loads",))), say=lambda _msg: None)
     ctx = run_pipeline(ctx, start="loads", until="loads")
     result = ctx.summary["loads"]

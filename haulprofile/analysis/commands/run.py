@@ -15,6 +15,8 @@ from ..errors import UserError
 from ..gradient import GradientSettings
 from ..gradient.stage import GradientOptions
 from ..ingest.stage import IngestOptions
+from ..loads.bins import read_overrides
+from ..loads.stage import LoadsOptions
 from ..markov.stage import CycleOptions
 from ..mass.stage import MassOptions
 from ..outputs import OutputOptions
@@ -41,6 +43,8 @@ def add_arguments(parser) -> None:
                              "first): calibrates the engine torque gain for every segment (repeatable)")
     parser.add_argument("--gradient-method", choices=("smoother", "paper"), default="smoother",
                         help="gradient_pct from the Kalman smoother (default) or the paper's fusion (8)")
+    parser.add_argument("--load-bins", type=Path,
+                        help="TOML file of load-collective bin edges (default: those of the vehicle class)")
     parser.add_argument("--private", action="store_true",
                         help="keep positions and wall-clock time out of signals.parquet and the report (they are "
                              "used in memory for the DEM; heights and gradients stay); no stage cache is written")
@@ -55,6 +59,7 @@ def options_from(args) -> Options:
                    mass=MassOptions(weighed_masses_kg=tuple(parse_known_masses(args.known_mass).items())),
                    cycle=CycleOptions(duration_s=args.cycle_duration, n_candidates=args.candidates, seed=args.seed),
                    simulation=SimulateOptions(payload_kg=args.payload_kg),
+                   loads=LoadsOptions(bin_overrides=read_overrides(args.load_bins) if args.load_bins else ()),
                    output=OutputOptions(private=args.private))
 
 

@@ -16,6 +16,7 @@ import pandas as pd
 
 from ..loads import NEEDED as LOAD_COLUMNS
 from ..loads import loads_of, resample_mean
+from ..loads.bins import WIDTHS
 from ..loads.collectives import (EQUIVALENT_FREQUENCY_HZ, QUANTITIES, WOEHLER_EXPONENTS, level_crossings,
                                  rainflow_cycles, sample_durations_s)
 from ..markov import ClassWidths, TransitionCounts, count_transitions
@@ -32,16 +33,17 @@ TOTALS = ("duration_s", "valid_s", "driving_s", "distance_km", "mass_known_s", "
 
 @dataclass(frozen=True)
 class LoadBins:
-    """Fixed bin widths of the wheel-load histograms, and the averaging period the loads are
-    counted on **[choice: 1 s, the generated cycle's rate; rainflow counts depend on the rate]**."""
+    """Fixed bin widths of the wheel-load histograms (those of a single drive's collectives,
+    `loads.bins.WIDTHS`, so a truck's sum and a drive compare bin by bin), and the averaging period
+    the loads are counted on **[choice: 1 s, the generated cycle's rate; rainflow counts depend on the rate]**."""
 
-    wheel_force_n: float = 1000.0
-    wheel_torque_nm: float = 500.0
-    wheel_speed_rpm: float = 10.0
-    wheel_power_w: float = 10_000.0
-    residence_speed_rpm: float = 25.0
-    residence_torque_nm: float = 1000.0
-    rainflow_nm: float = 1000.0
+    wheel_force_n: float = WIDTHS["wheel_force_n"]
+    wheel_torque_nm: float = WIDTHS["wheel_torque_nm"]
+    wheel_speed_rpm: float = WIDTHS["wheel_speed_rpm"]
+    wheel_power_w: float = WIDTHS["wheel_power_w"]
+    residence_speed_rpm: float = WIDTHS["residence_speed_rpm"]
+    residence_torque_nm: float = WIDTHS["residence_torque_nm"]
+    rainflow_nm: float = WIDTHS["rainflow_range_nm"]
     period_s: float = 1.0
 
     def as_dict(self) -> dict:

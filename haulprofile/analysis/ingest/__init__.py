@@ -38,8 +38,11 @@ def _progress(total: int, enabled: bool):
 
 
 def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, progress: bool = False,
-                say: Callable[[str], None] | None = None) -> tuple[pd.DataFrame, dict]:
-    """Signals table [SI units, one row per 1/rate_hz s] and summary of logs or signals tables."""
+                say: Callable[[str], None] | None = None, on_window: Callable | None = None
+                ) -> tuple[pd.DataFrame, dict]:
+    """Signals table [SI units, one row per 1/rate_hz s] and summary of logs or signals tables;
+    ``on_window(file index, time shift, window)`` sees each MCAP window before it is decoded (an
+    export that writes while the ingest reads)."""
     say = say or (lambda _msg: None)
     checks.rate_hz(rate_hz)
     files = expand(paths)
@@ -65,7 +68,7 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
     timeline = Timeline()
     with _progress(sum(p.stat().st_size for p in files), progress) as bar:
         if mcap_files:
-            _feed_mcap(ingest, mcap_files, timeline, bar)
+            _feed_mcap(ingest, mcap_files, timeline, bar, on_window)
         for path in other:
             if kinds[path] == "gnss":
                 _feed_gnss(ingest, path, bar)
@@ -101,9 +104,11 @@ def ingest_logs(paths, rate_hz: float = 10.0, dbc: str | Path | None = None, pro
     return frame, summary
 
 
-def _feed_mcap(ingest: Ingest, files: list[Path], timeline: Timeline, bar) -> None:
+def _feed_mcap(ingest: Ingest, files: list[Path], timeline: Timeline, bar, on_window=None) -> None:
     done = 0
     for index, offset, window in iter_log_windows(files, timeline):
+        if on_window is not None:
+            on_window(index, offset, window)
         ingest.feed_window(window, offset)
         position = sum(r.file_bytes for r in timeline.reports[:-1]) + timeline.reports[index].read_bytes
         if position - done > 1 << 24:

@@ -13,6 +13,7 @@ import pandas as pd
 
 from .. import checks
 from ..signals import COLUMNS
+from ..units import UNITS_KEY
 from . import align
 from .logs import LogError
 
@@ -130,11 +131,15 @@ def build_table(ingest) -> tuple[pd.DataFrame, dict]:
         columns["air_temperature_c"] = c.pick("air_temperature_c", None, key)
         if columns["air_temperature_c"] is not None:
             break
+    dbc_units = ({s.name: s.unit or "" for m in ingest.database.messages for s in m.signals}
+                 if ingest.database is not None else {})
+    units = {}
     for key in sorted(k for k in acc.streams if k.startswith("dbc:")):
         name = key[4:]
         ours = name in COLUMNS or name in table or name in columns  # a DBC never replaces one of our columns
         column = f"dbc_{name}" if ours else name
         columns[column] = c.pick(column, None, key)
+        units[column] = dbc_units.get(name, "")
     if speed is not None:
         table["valid"] = c.recorded & np.isfinite(speed)
         table["speed_mps"] = speed
@@ -142,6 +147,7 @@ def build_table(ingest) -> tuple[pd.DataFrame, dict]:
         table["valid"] = c.recorded
     table.update({k: v for k, v in columns.items() if v is not None})
     frame = pd.DataFrame(table)
+    frame.attrs[UNITS_KEY] = {k: v for k, v in units.items() if k in frame.columns}
     return frame, _summary(ingest, c, frame)
 
 

@@ -1,7 +1,8 @@
 """CAN logs of other loggers as raw CAN record arrays (contract dtype), ready for the same decoding;
 which kind of log a file is, by its content (`kind`), GPS-only receiver logs included (`gnss`).
 
-candump ``.log``, Vector ``.asc`` and ``.blf`` through python-can's readers; CSS Electronics
+candump ``.log``, Vector ``.asc`` and ``.blf``, PEAK ``.trc`` and python-can's own ``.csv`` through
+python-can's readers; CSS Electronics
 CANedge ``.mf4`` through asammdf, whole columns at a time. Timestamps become nanoseconds on the
 record's ``t_mono_ns``; the wall clock is returned beside them as (time, wall) pairs when the
 format knows it (epoch timestamps, MF4 start time).
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import gc
 import logging
+import re
 import sys
 from pathlib import Path
 
@@ -20,7 +22,9 @@ from haulprofile.contract import CAN_FLAG_ERROR, CAN_FLAG_EXTENDED, CAN_FLAG_REM
 
 from ..errors import UserError
 
-PYTHON_CAN_SUFFIXES = {".log", ".asc", ".blf"}
+PYTHON_CAN_SUFFIXES = {".log", ".asc", ".blf", ".trc"}
+PYTHON_CAN_CSV_HEADER = b"timestamp,arbitration_id,extended,remote,error,dlc,data"
+"""The header line of python-can's ``CSVWriter``: a ``.csv`` that starts with it is a CAN log, not a table."""
 MF4_SUFFIXES = {".mf4"}
 GNSS_SUFFIXES = {".nmea", ".ubx"}
 SUFFIXES = PYTHON_CAN_SUFFIXES | MF4_SUFFIXES | GNSS_SUFFIXES
@@ -50,6 +54,8 @@ def kind(path: str | Path) -> str | None:
     if looks_like_gnss(head):
         return "gnss"
     suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return "can" if head.lstrip(b"\xef\xbb\xbf").startswith(PYTHON_CAN_CSV_HEADER) else None
     if suffix in MF4_SUFFIXES:
         return "mf4"
     if suffix in PYTHON_CAN_SUFFIXES:
@@ -96,7 +102,7 @@ def read_python_can(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarra
                          | (CAN_FLAG_ERROR if msg.is_error_frame else 0)
                          | (0 if msg.is_rx else CAN_FLAG_TX))
                 data = bytes(msg.data[:8])
-                channel = msg.channel if isinstance(msg.channel, int) else 0
+                channel = _channel_number(msg.channel)
                 rows.append((int(round(msg.timestamp * 1e9)), msg.arbitration_id, flags, min(msg.dlc, 8),
                              channel & 0xFF, 0, tuple(data.ljust(8, b"\x00"))))
     except Exception as exc:  # noqa: BLE001 - python-can's parsers raise many types on damaged files
@@ -105,6 +111,14 @@ def read_python_can(path: Path) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarra
         # keep what was read before the damage, as for a cut MCAP log
     frames = np.array(rows, dtype=CAN_FRAME_DTYPE) if rows else np.zeros(0, CAN_FRAME_DTYPE)
     return frames, _epoch_pairs(frames)
+
+
+def _channel_number(channel) -> int:
+    """Bus index of a python-can channel: an int as it is, ``can1``/``vcan1`` its trailing number, else 0."""
+    if isinstance(channel, int):
+        return channel
+    digits = re.search(r"(\d+)$", channel) if isinstance(channel, str) else None
+    return int(digits.group(1)) if digits else 0
 
 
 def _epoch_pairs(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -11,7 +11,8 @@ import pandas as pd
 
 from ..vehicle import Vehicle
 from .collectives import wheel_loads
-from .summary import Collectives, compare, compute, shared_edges
+from .bins import LoadEdges, default_edges
+from .summary import Collectives, compare, compute
 
 __all__ = ["Collectives", "NEEDED", "collectives_of", "compare", "wheel_loads"]
 
@@ -46,8 +47,9 @@ def resample_mean(frame: pd.DataFrame, period_s: float) -> pd.DataFrame:
 
 
 def collectives_of(drives: dict[str, pd.DataFrame], vehicle: Vehicle,
-                   common_rate: bool = True) -> dict[str, Collectives]:
-    """Collectives of each named drive, on bins shared by all of them; with ``common_rate`` every
+                   common_rate: bool = True, edges: LoadEdges | None = None) -> dict[str, Collectives]:
+    """Collectives of each named drive, on fixed bins (``edges``, by default the vehicle class's,
+    `loads.bins`) so any drives sum and compare bin by bin; with ``common_rate`` every
     drive is first averaged onto the coarsest drive's sample interval [choice: rainflow and level
     crossings depend on the sampling rate, so only equal rates compare].
 
@@ -60,6 +62,8 @@ def collectives_of(drives: dict[str, pd.DataFrame], vehicle: Vehicle,
         Wheel radius, driving resistances and rotating masses of the one vehicle model.
     common_rate : bool
         Average every drive onto the coarsest drive's sample interval first.
+    edges : LoadEdges, optional
+        The bins; `loads.bins.default_edges` of the vehicle when None.
 
     Returns
     -------
@@ -77,5 +81,5 @@ def collectives_of(drives: dict[str, pd.DataFrame], vehicle: Vehicle,
         drives = {name: (resample_mean(frame, period) if median_step_s(frame) < 0.99 * period else frame)
                   for name, frame in drives.items()}
     loads = {name: loads_of(frame, vehicle) for name, frame in drives.items()}
-    edges = shared_edges(*loads.values())
-    return {name: compute(load, name, edges) for name, load in loads.items()}
+    arrays = (edges or default_edges(vehicle)).arrays()
+    return {name: compute(load, name, arrays) for name, load in loads.items()}

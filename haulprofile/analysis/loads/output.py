@@ -12,6 +12,7 @@ from matplotlib.colors import LogNorm  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from ..units import unit_of  # noqa: E402
 from .collectives import QUANTITIES  # noqa: E402
 from .summary import Collectives  # noqa: E402
 
@@ -24,8 +25,16 @@ FILES = (*(f"{drive}_{what}.csv" for drive in DRIVES for what in COLLECTIVES), "
 """Every file the loads stage may write into its folder."""
 
 
-def _bin_labels(edges) -> list[str]:
-    return [f"{a:.6g}..{b:.6g}" for a, b in zip(edges[:-1], edges[1:])]
+def _bin_labels(edges, unit: str) -> list[str]:
+    return [f"{a:.6g}..{b:.6g} {unit}" for a, b in zip(edges[:-1], edges[1:])]
+
+
+def _matrix(values, row_axis: str, column_axis: str, row_edges, column_edges) -> pd.DataFrame:
+    """A matrix with its bins as row and column labels (``0..25 rpm``); the index header names both
+    axes (``wheel_speed_rpm \\ wheel_torque_nm``), units by their names' suffix."""
+    return pd.DataFrame(values, index=pd.Index(_bin_labels(row_edges, unit_of(row_axis)),
+                                               name=f"{row_axis} \\ {column_axis}"),
+                        columns=_bin_labels(column_edges, unit_of(column_axis)))
 
 
 def write_csvs(c: Collectives, out_dir: Path) -> list[Path]:
@@ -41,13 +50,14 @@ def write_csvs(c: Collectives, out_dir: Path) -> list[Path]:
 
     for quantity in QUANTITIES:
         edges = c.edges[quantity]
-        save(pd.DataFrame({"level_low": edges[:-1], "level_high": edges[1:], "time_s": c.time_at_level[quantity]}),
-             f"time_at_level_{quantity}")
-    save(pd.DataFrame(c.residence_s, index=pd.Index(_bin_labels(c.edges["residence_speed_rpm"]), name="wheel_speed_rpm"),
-                      columns=_bin_labels(c.edges["residence_torque_nm"])), "residence_speed_torque_s", index=True)
-    save(pd.DataFrame(c.rainflow_counts, index=pd.Index(_bin_labels(c.edges["rainflow_range_nm"]), name="range_nm"),
-                      columns=_bin_labels(c.edges["rainflow_mean_nm"])), "rainflow_range_mean_counts", index=True)
-    save(pd.DataFrame({"level_nm": c.crossing_levels_nm, "upward_crossings": c.crossings}), "level_crossings_torque")
+        save(pd.DataFrame({f"{quantity}_low": edges[:-1], f"{quantity}_high": edges[1:],
+                           "time_s": c.time_at_level[quantity]}), f"time_at_level_{quantity}")
+    save(_matrix(c.residence_s, "wheel_speed_rpm", "wheel_torque_nm", c.edges["residence_speed_rpm"],
+                 c.edges["residence_torque_nm"]), "residence_speed_torque_s", index=True)
+    save(_matrix(c.rainflow_counts, "range_nm", "mean_nm", c.edges["rainflow_range_nm"], c.edges["rainflow_mean_nm"]),
+         "rainflow_range_mean_counts", index=True)
+    save(pd.DataFrame({"wheel_torque_nm": c.crossing_levels_nm, "upward_crossings": c.crossings}),
+         "level_crossings_torque")
     save(pd.DataFrame({"woehler_exponent": list(c.damage_equivalent_torque_nm),
                        "damage_equivalent_torque_range_nm": list(c.damage_equivalent_torque_nm.values()),
                        "equivalent_cycles": c.duration_s}), "damage_equivalent_torque")

@@ -14,6 +14,7 @@ from ..errors import UserError
 from ..signals import missing_for, read_signals
 from ..stage import Stage
 from . import NEEDED, collectives_of
+from .bins import apply_overrides, default_edges
 from .chapter import TITLE, loads_chapter
 from .output import FILES, write_csvs, write_figures
 from .summary import Collectives, compare, summary
@@ -28,6 +29,8 @@ class LoadsOptions:
     generated_file: Path | None = None
     """A generated cycle table (CSV/Parquet with the `NEEDED` columns) to compare with, instead of
     the cycle stage's (``analyze loads --cycle``)."""
+    bin_overrides: tuple = ()
+    """Axes replacing the vehicle class's bins (`loads.bins.read_overrides` of a TOML file)."""
 
 
 @dataclass
@@ -78,7 +81,8 @@ def loads_stage(ctx) -> LoadsResult | None:
         drives["generated"] = generated
     elif ctx.results.cycle is not None:
         drives["generated"] = ctx.results.cycle.frame
-    collectives = collectives_of(drives, ctx.vehicle, options.common_rate)
+    edges = apply_overrides(default_edges(ctx.vehicle), options.bin_overrides)
+    collectives = collectives_of(drives, ctx.vehicle, options.common_rate, edges)
     comparison = (compare(collectives["measured"], collectives["generated"])
                   if {"measured", "generated"} <= set(collectives) else None)
     result = LoadsResult(collectives, comparison)

@@ -52,7 +52,7 @@ def compute(loads: pd.DataFrame, name: str, edges: dict) -> Collectives:
     duration_s = float(durations.sum())
     torque = loads["wheel_torque_nm"].to_numpy()
     cycles = rainflow_cycles(torque)
-    levels = 0.5 * (edges["wheel_torque_nm"][1:] + edges["wheel_torque_nm"][:-1])
+    levels = np.asarray(edges["wheel_torque_nm"], float)
     dets = damage_equivalent_range(cycles, duration_s * EQUIVALENT_FREQUENCY_HZ)
     distance_km = float(np.sum(loads["speed_mps"].to_numpy() * durations)) / 1000.0
     power = loads["wheel_power_w"].to_numpy()

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserError
+from ..export.fastsim import write_fastsim_cycle
 from ..vecto import COLUMNS as VDRI_COLUMNS, MIN_STEP_M, write_vdri
 
 CSV_COLUMNS = ("time_s", "speed_mps", "accel_mps2", "gradient_pct", "mass_kg", "distance_m")
@@ -168,13 +169,15 @@ def vdri_to_time_cycle(vdri: pd.DataFrame) -> pd.DataFrame:
 
 
 def write_cycle(cycle: pd.DataFrame, out_dir: str | Path, stem: str = "cycle") -> dict[str, Path]:
-    """Write ``<stem>.csv``, ``<stem>.parquet`` and ``<stem>.vdri`` into ``out_dir``."""
+    """Write ``<stem>.csv``, ``<stem>.parquet``, ``<stem>.vdri`` and the FASTSim 3 cycle
+    ``<stem>.fastsim.csv`` into ``out_dir``."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     columns = [c for c in CSV_COLUMNS if c in cycle.columns]
     paths = {"csv": out_dir / f"{stem}.csv", "parquet": out_dir / f"{stem}.parquet",
-             "vdri": out_dir / f"{stem}.vdri"}
+             "vdri": out_dir / f"{stem}.vdri", "fastsim": out_dir / f"{stem}.fastsim.csv"}
     cycle[columns].to_csv(paths["csv"], index=False)
     cycle[columns].to_parquet(paths["parquet"], index=False)
     write_vdri(cycle_to_vdri(cycle), paths["vdri"])
+    write_fastsim_cycle(cycle, paths["fastsim"])
     return paths

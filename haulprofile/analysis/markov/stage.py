@@ -195,5 +195,6 @@ def write_cycle_files(result: CycleResult, directory: Path, figures: bool = True
 
 
 STAGE = Stage("cycle", CycleOptions, cycle_stage, write=write_cycle_files,
-              files=("cycle.csv", "cycle.parquet", "cycle.vdri", "cycle.png", "cycle-scores.png", CYCLES_DIR),
+              files=("cycle.csv", "cycle.parquet", "cycle.vdri", "cycle.fastsim.csv", "cycle.png", "cycle-scores.png",
+                     CYCLES_DIR),
               chapter=cycle_chapter, title=TITLE, reads_vehicle=True, required=True)
