@@ -1,0 +1,119 @@
+"""The concept search: pymoo's NSGA-II over the unit-cube encoding of `evaluate.decode`, each
+generation's population simulated as one batch; then the Pareto front of every feasible
+candidate seen, the chosen concept (knee, or the user's weights) and why the rest failed."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .evaluate import N_VARIABLES, Evaluation, Evaluator, constraint_names
+
+
+@dataclass
+class SearchOutcome:
+    x: np.ndarray
+    """Every candidate simulated, unit-cube variables (rows)."""
+    objectives: np.ndarray
+    constraints: np.ndarray
+    feasible: np.ndarray
+    pareto: np.ndarray
+    """Indices of the feasible non-dominated candidates, cheapest first."""
+    chosen: int | None
+    """Index of the chosen concept (None: nothing feasible)."""
+    constraint_names: list[str]
+    evaluations: list[Evaluation]
+
+
+def run_search(evaluator: Evaluator, seed: int | None = None) -> SearchOutcome:
+    """NSGA-II (Deb et al. 2002, pymoo 0.6) with ``population`` x ``generations`` candidates."""
+    from pymoo.algorithms.moo.nsga2 import NSGA2
+    from pymoo.core.problem import Problem
+    from pymoo.optimize import minimize
+
+    options = evaluator.options
+    names = constraint_names(options)
+    evaluations: list[Evaluation] = []
+    xs: list[np.ndarray] = []
+
+    class ConceptProblem(Problem):
+        def __init__(self):
+            super().__init__(n_var=N_VARIABLES, n_obj=2, n_ieq_constr=len(names), xl=0.0, xu=1.0)
+
+        def _evaluate(self, x, out, *args, **kwargs):
+            e = evaluator.evaluate(x)
+            evaluations.append(e)
+            xs.append(np.array(x, float))
+            out["F"], out["G"] = e.objectives, e.constraints
+
+    minimize(ConceptProblem(), NSGA2(pop_size=int(options.population)), ("n_gen", int(options.generations)),
+             seed=options.seed if seed is None else seed, verbose=False)
+    x = np.concatenate(xs)
+    objectives = np.concatenate([e.objectives for e in evaluations])
+    constraints = np.concatenate([e.constraints for e in evaluations])
+    return outcome(x, objectives, constraints, names, evaluations, options.weights)
+
+
+def outcome(x, objectives, constraints, names, evaluations, weights) -> SearchOutcome:
+    feasible = np.all(constraints <= 0.0, axis=1)
+    pareto = pareto_front(objectives, feasible)
+    chosen = choose(objectives[pareto], weights) if len(pareto) else None
+    return SearchOutcome(x, objectives, constraints, feasible, pareto,
+                         int(pareto[chosen]) if chosen is not None else None, names, evaluations)
+
+
+def pareto_front(objectives: np.ndarray, feasible: np.ndarray) -> np.ndarray:
+    """Indices of the feasible candidates no other feasible candidate dominates, by the second objective."""
+    index = np.flatnonzero(feasible)
+    f = objectives[index]
+    keep = []
+    for k in range(len(index)):
+        dominated = np.any(np.all(f <= f[k], axis=1) & np.any(f < f[k], axis=1))
+        if not dominated:
+            keep.append(k)
+    front = index[keep]
+    _, unique = np.unique(objectives[front].round(9), axis=0, return_index=True)
+    front = front[unique]
+    return front[np.argsort(objectives[front, 1], kind="stable")]
+
+
+def choose(front: np.ndarray, weights=None) -> int:
+    """The front's knee: the point farthest from the line through its two ends (objectives
+    normalised to [0, 1]); with weights, the least weighted sum of the normalised objectives."""
+    low, high = front.min(axis=0), front.max(axis=0)
+    f = (front - low) / np.where(high > low, high - low, 1.0)
+    if weights is not None:
+        return int(np.argmin(f @ np.asarray(weights, float)))
+    if len(f) < 3:
+        return int(np.argmin(f.sum(axis=1)))
+    a, b = f[0], f[-1]
+    direction = (b - a) / np.linalg.norm(b - a)
+    offset = f - a
+    distance = np.abs(offset[:, 0] * direction[1] - offset[:, 1] * direction[0])
+    return int(np.argmax(distance))
+
+
+def exclusions(out: SearchOutcome, regions: list[str]) -> dict:
+    """Why candidates failed: per constraint how many broke it and for how many it was the only
+    one broken (binding); per region (topology, machines, gears) the constraint broken most."""
+    violated = out.constraints > 0.0
+    only = violated & (violated.sum(axis=1, keepdims=True) == 1)
+    by_constraint = {name: {"violated": int(violated[:, k].sum()), "only_violation": int(only[:, k].sum())}
+                     for k, name in enumerate(out.constraint_names)}
+    by_region = {}
+    regions = np.asarray(regions)
+    for region in sorted(set(regions)):
+        rows = regions == region
+        bad = violated[rows & ~out.feasible]
+        entry = {"candidates": int(rows.sum()), "feasible": int((rows & out.feasible).sum())}
+        if len(bad):
+            counts = bad.sum(axis=0)
+            entry["most_violated"] = out.constraint_names[int(np.argmax(counts))]
+            entry["most_violated_share"] = float(counts.max() / len(bad))
+        by_region[region] = entry
+    binding = None
+    if not out.feasible.any():
+        closest = int(np.argmin(np.clip(out.constraints, 0.0, None).sum(axis=1)))
+        binding = out.constraint_names[int(np.argmax(out.constraints[closest]))]
+    return {"by_constraint": by_constraint, "by_region": by_region, "binding_constraint": binding}
