@@ -30,7 +30,7 @@ from .errors import UserError
 
 SUMMARY = "summary.json"
 RUN_FILES = ("gradient.csv", "gradient.png", "mass.png", "cycle.csv", "cycle.parquet", "cycle.vdri", "cycle.png",
-             "cycle-scores.png", "cycles", "loads", "simulation", "report.html", "signals.parquet")
+             "cycle-scores.png", "cycles", "loads", "simulation", "report.html", "signals.parquet", "design")
 """What a full run may write besides the summary; what it did not write this time is removed."""
 
 
@@ -97,6 +97,11 @@ def _stage_files(ctx, staging: Path, full: bool) -> None:
                 return [folder] if folder else [Path(p).name for p in written]
 
             _kept(ctx, stage, staging, write_folder)
+    if getattr(results, "design", None) is not None:
+        from .design import write_design
+
+        _kept(ctx, "design", staging, lambda: write_design(results.design, staging) and ["design"])
+        summary["design"]["files"] = sorted(f"design/{p.name}" for p in (staging / "design").iterdir())
     for name, content in ctx.json_files.items():
         value = content(ctx)
         if value is not None:

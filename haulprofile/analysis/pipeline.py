@@ -33,6 +33,9 @@ from .options import options_of
 from .outputs import OutputOptions, check as check_outputs, write_outputs
 from .simulate.model import SimulationResult
 from .simulate.stage import SimulateOptions, simulate_stage
+from .design.options import DesignOptions
+from .design.result import DesignResult
+from .design.stage import design_stage
 from .stage_cache import StageCache
 from .vehicle import Vehicle
 
@@ -55,6 +58,7 @@ STAGES: list[Stage] = [
     Stage("cycle", cycle_stage, reads_vehicle=True),
     Stage("loads", loads_stage, reads_vehicle=True),
     Stage("simulate", simulate_stage, reads_vehicle=True, needs_signals=False),
+    Stage("design", design_stage, reads_vehicle=True, needs_signals=False),
 ]
 """The analysis in order. ``report`` is not a stage: the output step writes it after the files it shows."""
 
@@ -72,6 +76,7 @@ class Options:
     cycle: CycleOptions = field(default_factory=CycleOptions)
     loads: LoadsOptions = field(default_factory=LoadsOptions)
     simulate: SimulateOptions = field(default_factory=SimulateOptions)
+    design: DesignOptions = field(default_factory=DesignOptions)
     output: OutputOptions = field(default_factory=OutputOptions)
 
     @classmethod
@@ -101,6 +106,7 @@ class Results:
     cycle: CycleResult | None = None
     loads: LoadsResult | None = None
     simulation: SimulationResult | None = None
+    design: DesignResult | None = None
 
 
 @dataclass

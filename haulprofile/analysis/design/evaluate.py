@@ -21,9 +21,10 @@ from . import kernel as DK
 from .options import DesignOptions
 
 N_VARIABLES = 9
-CONSTRAINTS = ("follows the cycle", "gradeability", "startability", "top speed", "battery power",
-               "range with reserve")
-"""Names of the constraints before the thermal windows (one each, ``thermal <w> s``)."""
+CONSTRAINTS = ("gradeability", "startability", "top speed", "range with reserve", "battery power",
+               "follows the cycle")
+"""Names of the constraints before the thermal windows (one each, ``thermal <w> s``), static first:
+the first one every candidate broke is named as binding."""
 NO_REFERENCE_POWERTRAIN_KG = 3_000.0
 """Without a vehicle-file ``[electric_powertrain]``, the curb mass is taken to hold this much
 powertrain (a heavy truck's diesel engine, gearbox, tank and aftertreatment) [kg, choice]."""
@@ -216,17 +217,17 @@ class Evaluator:
         kwh_per_km = np.where(stalled, np.inf, kwh_per_km)
         g = np.zeros((len(c), len(constraint_names(o))))
         missed = np.nansum(m[:, :, DK.M_MISSED_S], axis=1)
-        g[:, 0] = np.where(stalled, 10.0, missed / np.maximum(duration, 1.0) / MAX_MISSED_SHARE - 1.0)
         force = lambda v: C.wheel_force_limit_n(v, s, r)[:, 0]  # noqa: E731
-        g[:, 1] = t["design_grade_force_n"] / np.maximum(force(o.design_grade_speed_mps), 1.0) - 1.0
-        g[:, 2] = t["startability_force_n"] / np.maximum(force(0.0), 1.0) - 1.0
-        g[:, 3] = t["top_speed_force_n"] / np.maximum(force(o.legal_top_speed_mps), 1.0) - 1.0
-        peak_battery = np.nanmax(m[:, :, DK.M_PEAK_BATTERY_W], axis=1)
-        g[:, 4] = peak_battery / s.battery_peak_power_w - 1.0
+        g[:, 0] = t["design_grade_force_n"] / np.maximum(force(o.design_grade_speed_mps), 1.0) - 1.0
+        g[:, 1] = t["startability_force_n"] / np.maximum(force(0.0), 1.0) - 1.0
+        g[:, 2] = t["top_speed_force_n"] / np.maximum(force(o.legal_top_speed_mps), 1.0) - 1.0
         usable_j = c.battery_energy_j * o.usable_soc_window * (1.0 - o.ageing_reserve)
         daily_j = kwh_per_km * 3.6e6 * self.energy_margin * self.daily_distance_m / 1000.0
         break_j = o.break_charging_s * o.break_charger_power_w
-        g[:, 5] = np.where(np.isfinite(daily_j), (daily_j - break_j) / usable_j - 1.0, 10.0)
+        g[:, 3] = np.where(np.isfinite(daily_j), (daily_j - break_j) / usable_j - 1.0, 10.0)
+        peak_battery = np.nanmax(m[:, :, DK.M_PEAK_BATTERY_W], axis=1)
+        g[:, 4] = peak_battery / s.battery_peak_power_w - 1.0
+        g[:, 5] = np.where(stalled, 10.0, missed / np.maximum(duration, 1.0) / MAX_MISSED_SHARE - 1.0)
         n_w = len(o.thermal_windows_s)
         for k, w in enumerate(o.thermal_windows_s):
             overload = 1.0 / math.sqrt(1.0 - math.exp(-w / o.thermal_time_constant_s))

@@ -82,7 +82,7 @@ def draw_envelopes(result, out: Path) -> list[str]:
     ax.set_xlabel("speed [km/h]")
     ax.set_ylabel("wheel force [kN]")
     ax.set_ylim(bottom=min(0.0, ax.get_ylim()[0]))
-    ax.legend(loc="upper right", fontsize=8, markerscale=3)
+    ax.legend(loc="upper right", fontsize=8)
     ax.set_title("operating points of the drives under the concepts' traction envelopes")
     fig.tight_layout()
     fig.savefig(out / "envelopes.png", dpi=110)

@@ -49,6 +49,11 @@ def run_search(evaluator: Evaluator, seed: int | None = None) -> SearchOutcome:
 
     minimize(ConceptProblem(), NSGA2(pop_size=int(options.population)), ("n_gen", int(options.generations)),
              seed=options.seed if seed is None else seed, verbose=False)
+    if options.weights is not None:
+        first = outcome(np.concatenate(xs), np.concatenate([e.objectives for e in evaluations]),
+                        np.concatenate([e.constraints for e in evaluations]), names, evaluations, options.weights)
+        if first.chosen is not None:
+            polish(evaluator, first, options.weights, evaluations, xs)
     x = np.concatenate(xs)
     objectives = np.concatenate([e.objectives for e in evaluations])
     constraints = np.concatenate([e.constraints for e in evaluations])
@@ -61,6 +66,70 @@ def outcome(x, objectives, constraints, names, evaluations, weights) -> SearchOu
     chosen = choose(objectives[pareto], weights) if len(pareto) else None
     return SearchOutcome(x, objectives, constraints, feasible, pareto,
                          int(pareto[chosen]) if chosen is not None else None, names, evaluations)
+
+
+SLACK_WEIGHT = 1e-6
+"""Weight of the constraints' summed slack against the normalised objectives in `polish`."""
+CONTINUOUS = range(3, 9)
+"""Decision variables polished locally (machine power and speed, ratios, inverter current,
+battery); topology, machines and gears stay."""
+
+
+def _directions() -> np.ndarray:
+    """+-1 along each continuous variable and along each pair of them (coupled variables such as
+    machine power and inverter current move together along an active constraint)."""
+    rows = []
+    for a in CONTINUOUS:
+        for sign in (1.0, -1.0):
+            row = np.zeros(N_VARIABLES)
+            row[a] = sign
+            rows.append(row)
+    for a in CONTINUOUS:
+        for b in CONTINUOUS:
+            if a < b:
+                for sa in (1.0, -1.0):
+                    for sb in (1.0, -1.0):
+                        row = np.zeros(N_VARIABLES)
+                        row[a], row[b] = sa, sb
+                        rows.append(row)
+    return np.array(rows)
+
+
+DIRECTIONS = _directions()
+
+
+def polish(evaluator: Evaluator, first: SearchOutcome, weights, evaluations: list, xs: list,
+           step: float = 0.05, iterations: int = 25) -> None:
+    """Pattern search (Kolda, Lewis & Torczon 2003) from the weighted choice: each iteration
+    simulates the neighbours a step along `DIRECTIONS` as one batch and moves to the
+    best feasible one that lowers the weighted sum of the objectives (normalised by the front's
+    spread; at equal sums, more slack in the constraints wins, so the search can slide along an
+    active constraint), else halves the step. NSGA-II approaches a bound of the box only slowly; this finishes
+    the user's choice. Every candidate tried joins the archive."""
+    front = first.objectives[first.pareto]
+    low, spread = front.min(axis=0), np.ptp(front, axis=0)
+    scale = np.where(spread > 0, spread, np.abs(low) + 1e-9)
+    w = np.asarray(weights, float)
+    x = first.x[first.chosen].copy()
+    def scores(objectives, constraints):
+        slack = np.clip(-constraints, 0.0, 1.0).sum(axis=1)
+        return ((objectives - low) / scale) @ w - SLACK_WEIGHT * slack
+
+    best = float(scores(first.objectives[[first.chosen]], first.constraints[[first.chosen]])[0])
+    for _ in range(iterations):
+        trial = np.clip(x[None, :] + step * DIRECTIONS, 0.0, 1.0)
+        e = evaluator.evaluate(trial)
+        evaluations.append(e)
+        xs.append(trial)
+        score = scores(e.objectives, e.constraints)
+        score[~np.all(e.constraints <= 0.0, axis=1)] = np.inf
+        k = int(np.argmin(score))
+        if score[k] < best - 1e-12:
+            x, best = trial[k], float(score[k])
+        else:
+            step *= 0.5
+            if step < 1e-3:
+                break
 
 
 def pareto_front(objectives: np.ndarray, feasible: np.ndarray) -> np.ndarray:
@@ -96,7 +165,9 @@ def choose(front: np.ndarray, weights=None) -> int:
 
 def exclusions(out: SearchOutcome, regions: list[str]) -> dict:
     """Why candidates failed: per constraint how many broke it and for how many it was the only
-    one broken (binding); per region (topology, machines, gears) the constraint broken most."""
+    one broken; per region (topology, machines, gears) the constraint broken most. With nothing
+    feasible, the binding constraint is the first (static ones first) that every candidate broke,
+    else the one the least infeasible candidate broke most."""
     violated = out.constraints > 0.0
     only = violated & (violated.sum(axis=1, keepdims=True) == 1)
     by_constraint = {name: {"violated": int(violated[:, k].sum()), "only_violation": int(only[:, k].sum())}
@@ -112,8 +183,9 @@ def exclusions(out: SearchOutcome, regions: list[str]) -> dict:
             entry["most_violated"] = out.constraint_names[int(np.argmax(counts))]
             entry["most_violated_share"] = float(counts.max() / len(bad))
         by_region[region] = entry
-    binding = None
+    binding, by_all = None, [name for k, name in enumerate(out.constraint_names) if violated[:, k].all()]
     if not out.feasible.any():
         closest = int(np.argmin(np.clip(out.constraints, 0.0, None).sum(axis=1)))
-        binding = out.constraint_names[int(np.argmax(out.constraints[closest]))]
-    return {"by_constraint": by_constraint, "by_region": by_region, "binding_constraint": binding}
+        binding = by_all[0] if by_all else out.constraint_names[int(np.argmax(out.constraints[closest]))]
+    return {"by_constraint": by_constraint, "by_region": by_region, "binding_constraint": binding,
+            "broken_by_every_candidate": by_all}

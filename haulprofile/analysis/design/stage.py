@@ -13,6 +13,15 @@ from .options import DesignOptions
 from .result import DesignResult
 
 NEEDED = ["time_s", "speed_mps", "accel_mps2", "gradient_pct"]
+MIN_DISTANCE_M = 100.0
+"""A cycle shorter than this asks nothing of a powertrain (a truck that stood still): left out."""
+
+
+def cycle_distance_m(cycle: SimCycle) -> float:
+    """Length of a cycle [m]: its distance span, or its speed trace integrated over time."""
+    if cycle.time_based:
+        return float(np.sum(np.diff(cycle.position) * cycle.target_speed_mps[1:]))
+    return float(cycle.position[-1] - cycle.position[0])
 
 
 def mass_sigma_kg(mass_summary: dict | None) -> float:
@@ -71,12 +80,12 @@ def design_stage(ctx) -> None:
     options: DesignOptions = ctx.options.design
     if ctx.vehicle is None:
         return ctx.skip("design", "no vehicle file")
-    cycles = cycle_set(ctx)
+    cycles = [c for c in cycle_set(ctx) if cycle_distance_m(c) >= MIN_DISTANCE_M]
     if not cycles:
-        return ctx.skip("design", "no selected cycle and no time_s/speed_mps signals to design on")
+        return ctx.skip("design", f"no selected cycle and no drive of at least {MIN_DISTANCE_M:.0f} m to design on")
     measured = measured_drive(ctx.signals, default_mass_kg(ctx.vehicle))
-    if measured is not None and float(np.sum(np.diff(measured["time_s"]) * measured["speed_mps"].iloc[1:])) < 100.0:
-        return ctx.skip("design", "the truck hardly moved (under 100 m): no requirement to design for")
+    if measured is not None and float(np.sum(np.diff(measured["time_s"]) * measured["speed_mps"].iloc[1:])) < MIN_DISTANCE_M:
+        measured = None
     sigma = mass_sigma_kg(ctx.summary.get("mass"))
     try:
         result: DesignResult = design_concepts(cycles, ctx.vehicle, options, measured, sigma, ctx.summary.get("loads"))

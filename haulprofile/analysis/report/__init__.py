@@ -11,11 +11,12 @@ from pathlib import Path
 
 from .chapters import (cycle_section, gradient_section, loads_section, mass_section, simulation_section,
                        simulation_skipped_section)
+from ..design import design_chapter
 from .drive import drive_section
 from .html import Section, render
 
 CHAPTERS = [("gradient", gradient_section), ("mass", mass_section), ("cycle", cycle_section),
-            ("loads", loads_section), ("simulation", simulation_section)]
+            ("loads", loads_section), ("simulation", simulation_section), ("design", design_chapter)]
 
 
 def build_report(signals, summary: dict, out_dir, title: str = "haulprofile report") -> str:
