@@ -2,6 +2,9 @@
 ``analyze simulate`` accepts; bad input as one line or a stated "no feasible concept" (exit 3)."""
 
 import json
+import re
+import shutil
+import subprocess
 
 import pytest
 
@@ -74,3 +77,26 @@ def test_missing_source_and_non_run_folder(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     assert main(["design", str(tmp_path / "empty"), "--vehicle", "rigid-18t", "--out", str(tmp_path / "o")]) == 2
     assert "not an 'analyze run' output folder" in capsys.readouterr().err
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+IMAGE_PROBE = """<script>window.addEventListener('load', () => {
+  const images = [...document.images];
+  document.body.dataset.loaded = images.filter(i => i.complete && i.naturalWidth > 100).length + ':' + images.length;
+});</script>"""
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="headless Chromium not installed (Debian package chromium)")
+def test_design_report_renders_in_headless_chromium(designed, tmp_path):
+    _, _, out = designed
+    page = tmp_path / "probe.html"
+    page.write_text((out / "design-report.html").read_text().replace("</body>", IMAGE_PROBE + "</body>"))
+    dom = subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                          "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                          f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=3000", "--dump-dom",
+                          page.as_uri()], check=True, capture_output=True, text=True, timeout=120).stdout
+    loaded = re.search(r'data-loaded="(\d+):(\d+)"', dom)
+    assert loaded and int(loaded.group(2)) >= 2 and loaded.group(1) == loaded.group(2), "every figure decoded"
+    assert "What this application needs" in dom and "Requirements at the wheel" in dom
+    text = re.sub(r"<[^>]+>", " ", re.sub(r"<(script|style)[^>]*>.*?</\1>", " ", dom, flags=re.S))
+    assert not re.search(r"\b(nan|inf|undefined)\b", text, re.I)
