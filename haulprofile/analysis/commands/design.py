@@ -29,6 +29,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--design-grade-pct", type=float, default=8.0, help="grade to climb at 30 km/h, gross mass")
     parser.add_argument("--startability-grade-pct", type=float, default=15.0, help="grade to start on, gross mass")
     parser.add_argument("--top-speed-kmh", type=float, default=90.0, help="legal top speed [km/h]")
+    parser.add_argument("--usable-soc-window", type=float, default=0.9, help="usable share of the battery (0.9)")
+    parser.add_argument("--ageing-reserve", type=float, default=0.2,
+                        help="share of usable energy kept for end-of-life capacity fade (0.2)")
     parser.add_argument("--break-charging", nargs=2, type=float, metavar=("MINUTES", "KW"),
                         help="charging during the driver's breaks each day: minutes and charger power [kW]")
     parser.add_argument("--topology", nargs="+", choices=["central", "e-axle"], default=["central", "e-axle"])
@@ -53,7 +56,8 @@ def options_from(args):
         raise UserError("--break-charging: minutes and kW must not be negative")
     return DesignOptions(
         design_grade_pct=args.design_grade_pct, startability_grade_pct=args.startability_grade_pct,
-        legal_top_speed_mps=args.top_speed_kmh / 3.6,
+        legal_top_speed_mps=args.top_speed_kmh / 3.6, usable_soc_window=args.usable_soc_window,
+        ageing_reserve=args.ageing_reserve,
         daily_distance_m=None if args.daily_distance_km is None else args.daily_distance_km * 1000.0,
         break_charging_s=breaks[0] * 60.0, break_charger_power_w=breaks[1] * 1000.0,
         topologies=tuple(dict.fromkeys(args.topology)), max_machines=args.max_machines,

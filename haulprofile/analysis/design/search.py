@@ -53,7 +53,7 @@ def run_search(evaluator: Evaluator, seed: int | None = None) -> SearchOutcome:
         first = outcome(np.concatenate(xs), np.concatenate([e.objectives for e in evaluations]),
                         np.concatenate([e.constraints for e in evaluations]), names, evaluations, options.weights)
         if first.chosen is not None:
-            polish(evaluator, first, options.weights, evaluations, xs)
+            polish(evaluator, first, options.weights, evaluations, xs, seed=options.seed)
     x = np.concatenate(xs)
     objectives = np.concatenate([e.objectives for e in evaluations])
     constraints = np.concatenate([e.constraints for e in evaluations])
@@ -75,33 +75,26 @@ CONTINUOUS = range(3, 9)
 battery); topology, machines and gears stay."""
 
 
-def _directions() -> np.ndarray:
-    """+-1 along each continuous variable and along each pair of them (coupled variables such as
-    machine power and inverter current move together along an active constraint)."""
+def _directions(rng: np.random.Generator, n_random: int = 24) -> np.ndarray:
+    """+-1 along each continuous variable, and ``n_random`` random unit directions among them
+    (coupled variables, such as machine power, ratio, inverter current and battery along an
+    active constraint, must move together)."""
     rows = []
     for a in CONTINUOUS:
         for sign in (1.0, -1.0):
             row = np.zeros(N_VARIABLES)
             row[a] = sign
             rows.append(row)
-    for a in CONTINUOUS:
-        for b in CONTINUOUS:
-            if a < b:
-                for sa in (1.0, -1.0):
-                    for sb in (1.0, -1.0):
-                        row = np.zeros(N_VARIABLES)
-                        row[a], row[b] = sa, sb
-                        rows.append(row)
-    return np.array(rows)
-
-
-DIRECTIONS = _directions()
+    random = np.zeros((n_random, N_VARIABLES))
+    random[:, list(CONTINUOUS)] = rng.normal(size=(n_random, len(CONTINUOUS)))
+    random /= np.linalg.norm(random, axis=1, keepdims=True)
+    return np.vstack([rows, 2.0 * random])
 
 
 def polish(evaluator: Evaluator, first: SearchOutcome, weights, evaluations: list, xs: list,
-           step: float = 0.05, iterations: int = 25) -> None:
+           step: float = 0.05, iterations: int = 40, seed: int = 0) -> None:
     """Pattern search (Kolda, Lewis & Torczon 2003) from the weighted choice: each iteration
-    simulates the neighbours a step along `DIRECTIONS` as one batch and moves to the
+    simulates the neighbours a step along `_directions` as one batch and moves to the
     best feasible one that lowers the weighted sum of the objectives (normalised by the front's
     spread; at equal sums, more slack in the constraints wins, so the search can slide along an
     active constraint), else halves the step. NSGA-II approaches a bound of the box only slowly; this finishes
@@ -110,6 +103,7 @@ def polish(evaluator: Evaluator, first: SearchOutcome, weights, evaluations: lis
     low, spread = front.min(axis=0), np.ptp(front, axis=0)
     scale = np.where(spread > 0, spread, np.abs(low) + 1e-9)
     w = np.asarray(weights, float)
+    rng = np.random.default_rng(seed)
     x = first.x[first.chosen].copy()
     def scores(objectives, constraints):
         slack = np.clip(-constraints, 0.0, 1.0).sum(axis=1)
@@ -117,7 +111,7 @@ def polish(evaluator: Evaluator, first: SearchOutcome, weights, evaluations: lis
 
     best = float(scores(first.objectives[[first.chosen]], first.constraints[[first.chosen]])[0])
     for _ in range(iterations):
-        trial = np.clip(x[None, :] + step * DIRECTIONS, 0.0, 1.0)
+        trial = np.clip(x[None, :] + step * _directions(rng), 0.0, 1.0)
         e = evaluator.evaluate(trial)
         evaluations.append(e)
         xs.append(trial)

@@ -13,20 +13,13 @@ import pandas as pd
 from ..errors import UserError
 from ..simulate.cycle import SimCycle
 from ..simulate.model import DriverSettings, simulate_cycle
-from ..vehicle import ElectricPowertrain, Vehicle
+from ..vehicle import Vehicle
 from . import components as C
 from . import requirements as R
-from .evaluate import Evaluator
+from .evaluate import UNLIMITED, Evaluator
 from .options import DesignOptions
 from .result import DesignResult
 from .search import exclusions, run_search
-
-UNLIMITED = ElectricPowertrain(machine_max_torque_nm=50_000.0, machine_max_power_w=2_000_000.0,
-                               machine_max_speed_rpm=30_000.0, battery_capacity_kwh=2_000.0, battery_voltage_v=800.0,
-                               gear_ratios=(1.0,), axle_ratio=15.0, battery_internal_resistance_ohm=0.0,
-                               max_recuperation_power_w=2_000_000.0)
-"""A powertrain that never limits: the cycle as the driver model drives it, for its requirements."""
-
 
 def driven(cycle: SimCycle, vehicle: Vehicle, dt: float) -> pd.DataFrame:
     """A cycle as the simulator's driver drives it without powertrain limits: time_s, speed_mps,
