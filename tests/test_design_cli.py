@@ -100,3 +100,39 @@ def test_design_report_renders_in_headless_chromium(designed, tmp_path):
     assert "What this application needs" in dom and "Requirements at the wheel" in dom
     text = re.sub(r"<[^>]+>", " ", re.sub(r"<(script|style)[^>]*>.*?</\1>", " ", dom, flags=re.S))
     assert not re.search(r"\b(nan|inf|undefined)\b", text, re.I)
+
+
+def test_design_summary_is_strict_json(designed):
+    _, _, out = designed
+
+    def refuse(name):
+        raise AssertionError(f"{name} in design-summary.json")
+
+    summary = json.loads((out / "design-summary.json").read_text(), parse_constant=refuse)
+    assert summary["schema_version"] == 1 and summary["concept"]["shaft_requirements"]
+
+
+def test_design_stage_on_a_signals_table_and_its_skip(tmp_path):
+    import numpy as np
+    import pandas as pd
+
+    from haulprofile.analysis.design import DesignOptions
+    from haulprofile.analysis.pipeline import Options, RunContext, run
+    from haulprofile.analysis.vehicle import load_vehicle
+
+    time = np.arange(0.0, 900.0)
+    speed = np.clip(np.minimum(time, 900 - time) * 0.6, 0.0, 22.0)
+    drive = pd.DataFrame({"time_s": time, "speed_mps": speed, "accel_mps2": np.gradient(speed, time),
+                          "gradient_pct": 2.0 * np.sin(time / 120.0), "mass_kg": 15_000.0})
+    options = Options(design=DesignOptions(population=8, generations=2))
+    ctx = RunContext(inputs=[], out_dir=tmp_path / "run", vehicle=load_vehicle("rigid-18t"), options=options,
+                     signals=drive, say=lambda _m: None)
+    run(ctx, start="simulate", until="design")
+    assert ctx.summary["design"]["drives"] == ["measured drive"]
+    assert ctx.summary["design"]["cycles"] == ["measured drive"]
+    assert (tmp_path / "run" / "design" / "pareto.csv").is_file()
+    still = drive.assign(speed_mps=0.0, accel_mps2=0.0)
+    ctx = RunContext(inputs=[], out_dir=tmp_path / "still", vehicle=load_vehicle("rigid-18t"), options=options,
+                     signals=still, say=lambda _m: None)
+    run(ctx, start="simulate", until="design")
+    assert "design" not in ctx.summary and "100 m" in ctx.skipped["design"]

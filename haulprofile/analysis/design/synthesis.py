@@ -87,7 +87,8 @@ def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOpt
     if measured is not None:
         drives["measured drive"] = measured
     for cycle in cycles:
-        drives[cycle.name] = driven(cycle, vehicle, dt)
+        if cycle.name not in drives:  # the measured drive as its own cycle is already there, as measured
+            drives[cycle.name] = driven(cycle, vehicle, dt)
     rotating = vehicle.electric_powertrain.rotating_mass_kg if vehicle.electric_powertrain else 0.0
     ranges, per_drive = R.requirement_ranges(drives, vehicle, options, mass_sigma_kg, rotating)
     heaviest = max(float(d["mass_kg"].max()) for d in drives.values()) + options.mass_sigmas * mass_sigma_kg
