@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from ..report.html import Section
@@ -29,7 +30,9 @@ ROWS = [
 
 
 def _fmt(value, scale) -> str:
-    return "–" if value is None else f"{value * scale:.3g}"
+    if value is None or not math.isfinite(value):
+        return "–"
+    return f"{value * scale:,.0f}" if abs(value * scale) >= 1000 else f"{value * scale:.3g}"
 
 
 def design_chapter(summary: dict, out_dir: Path) -> Section:

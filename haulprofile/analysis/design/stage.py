@@ -91,12 +91,13 @@ def design_stage(ctx) -> None:
         result: DesignResult = design_concepts(cycles, ctx.vehicle, options, measured, sigma, ctx.summary.get("loads"))
     except UserError as exc:
         return ctx.skip("design", str(exc))
+    summary = result.summary()
     ctx.results.design = result
-    ctx.summary["design"] = result.summary()
-    c = result.summary()["concept"]
+    ctx.summary["design"] = summary
+    c = summary["concept"]
     if c is None:
-        ctx.say(f"design: no feasible concept; binding constraint: {result.exclusions['binding_constraint']}")
+        ctx.say(f"design: no feasible concept; binding constraint: {summary['binding_constraint']}")
     else:
         ctx.say(f"design: {c['topology']}, {c['machines']} x {c['machine_peak_power_w'] / 1000:.0f} kW, "
                 f"{c['gears']} gear(s), {c['battery_energy_kwh']:.0f} kWh, {c['battery_kwh_per_km']:.3f} kWh/km "
-                f"({result.summary()['candidates']} candidates in {result.search_s:.0f} s)")
+                f"({summary['candidates']} candidates in {result.search_s:.0f} s)")
