@@ -127,12 +127,12 @@ def test_design_stage_on_a_signals_table_and_its_skip(tmp_path):
     options = Options(design=DesignOptions(population=8, generations=2))
     ctx = RunContext(inputs=[], out_dir=tmp_path / "run", vehicle=load_vehicle("rigid-18t"), options=options,
                      signals=drive, say=lambda _m: None)
-    run(ctx, start="simulate", until="design")
+    run(ctx, start="simulation", until="design")
     assert ctx.summary["design"]["drives"] == ["measured drive"]
     assert ctx.summary["design"]["cycles"] == ["measured drive"]
     assert (tmp_path / "run" / "design" / "pareto.csv").is_file()
     still = drive.assign(speed_mps=0.0, accel_mps2=0.0)
     ctx = RunContext(inputs=[], out_dir=tmp_path / "still", vehicle=load_vehicle("rigid-18t"), options=options,
                      signals=still, say=lambda _m: None)
-    run(ctx, start="simulate", until="design")
+    run(ctx, start="simulation", until="design")
     assert "design" not in ctx.summary and "100 m" in ctx.skipped["design"]

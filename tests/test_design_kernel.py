@@ -77,9 +77,9 @@ def test_batch_equals_simulate_cycle_through_the_concept_file(setup, tmp_path, i
     for j, cycle in enumerate(heavier):
         result = simulate_cycle(cycle, loaded, settings=settings)
         traces.append(result.trace)
-        energy_j = result.summary["battery_terminal_energy_kwh"] * 3.6e6
+        energy_j = result.numbers["battery_terminal_energy_kwh"] * 3.6e6
         assert metrics[index, j, DK.M_ENERGY_J] == pytest.approx(energy_j, rel=1e-9)
-        assert metrics[index, j, DK.M_DISTANCE_M] == pytest.approx(result.summary["distance_km"] * 1000.0, rel=1e-12)
+        assert metrics[index, j, DK.M_DISTANCE_M] == pytest.approx(result.numbers["distance_km"] * 1000.0, rel=1e-12)
         assert metrics[index, j, DK.M_MISSED_S] == pytest.approx(
             float(((result.trace["traction_limited"] > 0)
                    & (result.trace["target_speed_mps"] - result.trace["speed_mps"] > 0.5)).sum()) * 0.5)

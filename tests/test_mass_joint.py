@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from haulprofile.analysis.errors import UserError
-from haulprofile.analysis.mass.calibration import calibrate, parse_known_masses
+from haulprofile.analysis.commands.arguments import parse_known_masses
+from haulprofile.analysis.mass.calibration import calibrate
 from haulprofile.analysis.mass.joint import JointSettings, fit_joint
 from haulprofile.analysis.road_load import G_MPS2
 from haulprofile.analysis.vehicle import load_vehicle

@@ -120,7 +120,7 @@ def run(args) -> int:
         summary["files"] = write_design(result, staging)
         (staging / SUMMARY).write_text(jsonable.dumps(summary, indent=2))
         lead = f"{', '.join(summary['cycles'])} on {vehicle.name}."
-        (staging / REPORT).write_text(render("haulprofile design", lead, [design_chapter({"design": summary}, staging)]),
+        (staging / REPORT).write_text(render("haulprofile design", lead, [design_chapter(summary, staging / "design")]),
                                       encoding="utf-8")
         for name in ("design", SUMMARY, REPORT):
             if (out / name).is_dir():

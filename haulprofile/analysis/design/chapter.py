@@ -1,4 +1,4 @@
-"""The report chapter "What this application needs", from ``summary["design"]`` and the design's figures."""
+"""The report chapter "What this application needs", from the design's summary and figures."""
 
 from __future__ import annotations
 
@@ -35,8 +35,8 @@ def _fmt(value, scale) -> str:
     return f"{value * scale:,.0f}" if abs(value * scale) >= 1000 else f"{value * scale:.3g}"
 
 
-def design_chapter(summary: dict, out_dir: Path) -> Section:
-    d = summary["design"]
+def design_chapter(d: dict, out_dir: Path) -> Section:
+    """The chapter from the stage's summary (``summary["design"]``) and the files in its folder ``out_dir``."""
     section = Section(TITLE)
     req = d["requirements"]
     rows = [{"requirement": label, "unit": unit, "nominal": _fmt(req[key]["value"], scale),
@@ -93,7 +93,7 @@ def design_chapter(summary: dict, out_dir: Path) -> Section:
     section.tables.append(("Regions of the design space", [
         {"region": k, "candidates": v["candidates"], "feasible": v["feasible"],
          "most violated": v.get("most_violated", "")} for k, v in regions.items()]))
-    folder = Path(out_dir) / "design"
+    folder = Path(out_dir)
     section.figures = [(folder / name, caption) for name, caption in (
         ("pareto.png", "Energy per km against the component cost proxy of every candidate; the Pareto front and "
                        "the chosen concept."),

@@ -159,7 +159,7 @@ class Evaluator:
                                      np.int64)
         self.w_pu, self.t_pu, self.map_eff = C.reference_map()
         self.settings = DriverSettings(time_step_s=options.time_step_s)
-        free = [simulate_cycle(c, replace(vehicle, electric_powertrain=UNLIMITED), settings=self.settings).summary
+        free = [simulate_cycle(c, replace(vehicle, electric_powertrain=UNLIMITED), settings=self.settings).numbers
                 for c in cycles]
         self.free_duration_s = np.array([f["duration_s"] for f in free])
         self.free_distance_m = np.array([f["distance_km"] * 1000.0 for f in free])

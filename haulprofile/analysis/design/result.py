@@ -17,6 +17,8 @@ from .search import SearchOutcome
 
 FOLDER = "design"
 MAP_FILE = "concept-efficiency-map.csv"
+FILES = ("pareto.csv", "candidates.csv", "requirements.csv", "concept.toml", MAP_FILE, "pareto.png", "envelopes.png")
+"""Every name the design may write into its folder."""
 
 
 @dataclass
@@ -161,14 +163,19 @@ def concept_toml(result: DesignResult, map_csv: str) -> str:
     return head + tomli_w.dumps(data)
 
 
-def write_design(result: DesignResult, folder: Path) -> list[str]:
-    """``design/``: pareto.csv, candidates.csv, requirements.csv, concept.toml with its efficiency
-    map, pareto.png and envelopes.png; returns the names written, relative to ``folder``."""
+def write_design(result: DesignResult, folder: Path, figures: bool = True) -> list[str]:
+    """``design/`` in ``folder``: pareto.csv, candidates.csv, requirements.csv, concept.toml with its
+    efficiency map, pareto.png and envelopes.png; returns the names written, relative to ``folder``."""
+    out = Path(folder) / FOLDER
+    out.mkdir(parents=True, exist_ok=True)
+    return [f"{FOLDER}/{n}" for n in write_into(result, out, figures)]
+
+
+def write_into(result: DesignResult, out: Path, figures: bool = True) -> list[str]:
+    """The design's files directly in ``out``; returns their names."""
     from .figures import draw_envelopes, draw_pareto
 
-    folder = Path(folder)
-    out = folder / FOLDER
-    out.mkdir(parents=True, exist_ok=True)
+    out = Path(out)
     frame = result.candidates_frame()
     frame.iloc[result.outcome.pareto].to_csv(out / "pareto.csv", index=False)
     frame.to_csv(out / "candidates.csv", index=False)
@@ -184,5 +191,6 @@ def write_design(result: DesignResult, folder: Path) -> list[str]:
                       "efficiency": eff.ravel()}).to_csv(out / MAP_FILE, index=False)
         (out / "concept.toml").write_text(concept_toml(result, MAP_FILE))
         names += ["concept.toml", MAP_FILE]
-    names += draw_pareto(result, out) + draw_envelopes(result, out)
-    return [f"{FOLDER}/{n}" for n in names]
+    if figures:
+        names += draw_pareto(result, out) + draw_envelopes(result, out)
+    return names

@@ -3,14 +3,18 @@ selected cycle set, the measured drive's requirements beside them."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 
 from ..errors import UserError
 from ..signals import missing_for
 from ..simulate.cycle import SimCycle, default_mass_kg, read_cycle
+from ..stage import Stage
+from .chapter import TITLE, design_chapter
 from .options import DesignOptions
-from .result import DesignResult
+from .result import FILES, FOLDER, DesignResult, write_into
 
 NEEDED = ["time_s", "speed_mps", "accel_mps2", "gradient_pct"]
 MIN_DISTANCE_M = 100.0
@@ -60,13 +64,14 @@ def cycle_set(ctx, cycle_file=None) -> list[SimCycle]:
     if ctx.signals is not None and not missing_for(ctx.signals, ["time_s", "speed_mps"]):
         from ..simulate.stage import SimulateOptions, measured_cycle
 
-        measured = measured_cycle(ctx, getattr(ctx.options, "simulate", SimulateOptions()))
+        measured = measured_cycle(ctx, getattr(ctx.options, "simulation", SimulateOptions()))
         return [measured] if measured is not None else []
     return []
 
 
-def design_stage(ctx) -> None:
-    """Requirements and concepts into ``ctx.results.design`` and ``ctx.summary["design"]``.
+def design_stage(ctx) -> DesignResult | None:
+    """Requirements and concepts: the `DesignResult` (the pipeline keeps it in ``ctx.results.design``
+    and its summary in ``ctx.summary["design"]``), or None when skipped.
 
     Parameters
     ----------
@@ -79,10 +84,12 @@ def design_stage(ctx) -> None:
 
     options: DesignOptions = ctx.options.design
     if ctx.vehicle is None:
-        return ctx.skip("design", "no vehicle file")
+        ctx.skip("design", "no vehicle file")
+        return None
     cycles = [c for c in cycle_set(ctx) if cycle_distance_m(c) >= MIN_DISTANCE_M]
     if not cycles:
-        return ctx.skip("design", f"no selected cycle and no drive of at least {MIN_DISTANCE_M:.0f} m to design on")
+        ctx.skip("design", f"no selected cycle and no drive of at least {MIN_DISTANCE_M:.0f} m to design on")
+        return None
     measured = measured_drive(ctx.signals, default_mass_kg(ctx.vehicle))
     if measured is not None and float(np.sum(np.diff(measured["time_s"]) * measured["speed_mps"].iloc[1:])) < MIN_DISTANCE_M:
         measured = None
@@ -90,10 +97,9 @@ def design_stage(ctx) -> None:
     try:
         result: DesignResult = design_concepts(cycles, ctx.vehicle, options, measured, sigma, ctx.summary.get("loads"))
     except UserError as exc:
-        return ctx.skip("design", str(exc))
+        ctx.skip("design", str(exc))
+        return None
     summary = result.summary()
-    ctx.results.design = result
-    ctx.summary["design"] = summary
     c = summary["concept"]
     if c is None:
         ctx.say(f"design: no feasible concept; binding constraint: {summary['binding_constraint']}")
@@ -101,3 +107,13 @@ def design_stage(ctx) -> None:
         ctx.say(f"design: {c['topology']}, {c['machines']} x {c['machine_peak_power_w'] / 1000:.0f} kW, "
                 f"{c['gears']} gear(s), {c['battery_energy_kwh']:.0f} kWh, {c['battery_kwh_per_km']:.3f} kWh/km "
                 f"({summary['candidates']} candidates in {result.search_s:.0f} s)")
+    return result
+
+
+def write_design_files(result: DesignResult, directory: Path, figures: bool = True) -> list[str]:
+    """The design's files in ``directory`` (the run's ``design/``); returns the names."""
+    return write_into(result, directory, figures)
+
+
+STAGE = Stage("design", DesignOptions, design_stage, write=write_design_files, files=FILES, folder=FOLDER,
+              chapter=design_chapter, title=TITLE, reads_vehicle=True, needs_signals=False)

@@ -121,7 +121,7 @@ def _reference_powertrain(vehicle: Vehicle, cycles: list[SimCycle], dt: float) -
         return None
     energy = distance = missed = 0.0
     for cycle in cycles:
-        s = simulate_cycle(cycle, vehicle, settings=DriverSettings(time_step_s=dt)).summary
+        s = simulate_cycle(cycle, vehicle, settings=DriverSettings(time_step_s=dt)).numbers
         energy += s["battery_terminal_energy_kwh"]
         distance += s["distance_km"]
         missed += s["missed_target_s"]

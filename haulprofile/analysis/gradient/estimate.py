@@ -55,10 +55,31 @@ class GradientResult:
     """The map-matching smoothing used [m] (None without map-matching)."""
     smoother: dict | None = None
     """The smoother's data-estimated noise levels and calibrations (None if it could not run)."""
+    settings: GradientSettings | None = None
+    """The settings it was estimated with."""
 
     def __post_init__(self):
         if self.smoother is None:
             self.smoother = {}
+
+    def summary(self) -> dict:
+        """Sources, method, the gradient's range, height gained, the smoother's calibrations, notes."""
+        settings = self.settings or GradientSettings()
+        grid = self.grid
+        gradient = grid["gradient_pct"].to_numpy()
+        return {
+            "grid_spacing_m": settings.spacing_m,
+            "sources": [s for s, c in (("map", "gradient_map_pct"), ("baro", "gradient_baro_pct"),
+                                       ("imu", "gradient_imu_pct")) if c in grid.columns],
+            "method": settings.gradient_method,
+            "mean_map_weight": float(np.mean(grid["weight_map"])),
+            "smoother": self.smoother,
+            "map_sigma_m": self.map_sigma_m,
+            "gradient_pct": {"mean": float(np.nanmean(gradient)), "min": float(np.nanmin(gradient)),
+                             "max": float(np.nanmax(gradient))},
+            "height_gain_m": float(np.sum(np.clip(np.diff(grid["height_m"].to_numpy()), 0, None))),
+            "notes": self.notes,
+        }
 
 
 def _column(frame: pd.DataFrame, name: str) -> np.ndarray | None:
@@ -140,7 +161,7 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
         out["gradient_imu_pct"] = 100 * np.tan(np.arcsin(np.clip(level, -1, 1)))
 
     if map_slope is None and baro_slope is None:
-        raise UserError("gradient: needs a DEM (--dem DIR) with GPS positions, or a barometer (pressure_pa); "
+        raise UserError("gradient: needs a DEM (dem_dir) with GPS positions, or a barometer (pressure_pa); "
                         "this input has neither")
     paper_notes: list[str] = []
     fused_slope = _fuse(map_slope, weight_map, baro_slope, s_grid, paper_notes)

@@ -171,7 +171,7 @@ def run_case(case: Case) -> dict:
         write_dem(virtual, root / "dem", arc_seconds=1 if case.dem == "hgt1" else 3, fmt=fmt)
         write_mcap(virtual, root / "logs" / f"{scenario.name}.mcap")
         ctx = RunContext(inputs=[root / "logs"], out_dir=root / "out", vehicle=virtual.vehicle,
-                         dem_dir=root / "dem", say=lambda _msg: None, figures=False)
+                         dem_dir=root / "dem", say=lambda _msg: None, options={"output": {"figures": False}})
         run(ctx, until="gradient")
         signals = _gradient_columns(ctx.signals, root / "dem")
     methods = {name: column for name, column in METHODS.items() if column in signals.columns}
