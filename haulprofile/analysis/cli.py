@@ -26,6 +26,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "cycle": ("haulprofile.analysis.commands.cycle", "representative driving cycle (Markov chain, Monte Carlo)"),
     "loads": ("haulprofile.analysis.commands.loads", "load collectives at the wheel"),
     "simulate": ("haulprofile.analysis.commands.simulate", "longitudinal simulation of the electric truck on a cycle"),
+    "design": ("haulprofile.analysis.commands.design", "application requirements and e-powertrain concepts (NSGA-II)"),
     "fleet": ("haulprofile.analysis.commands.fleet", "many logs: map per log, reduce, cycles per vehicle group"),
 }
 

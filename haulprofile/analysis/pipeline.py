@@ -29,11 +29,12 @@ from .mass.stage import STAGE as MASS
 from .options import options_of
 from .outputs import OUTPUT, OutputOptions, check as check_outputs, write_outputs
 from .simulate.stage import STAGE as SIMULATION
+from .design.stage import STAGE as DESIGN
 from .stage import Results, Stage
 from .stage_cache import StageCache
 from .vehicle import Vehicle
 
-STAGES: list[Stage] = [INGEST, KINEMATICS, GRADIENT, MASS, CYCLE, LOADS, SIMULATION]
+STAGES: list[Stage] = [INGEST, KINEMATICS, GRADIENT, MASS, CYCLE, LOADS, SIMULATION, DESIGN]
 """The analysis in order. ``report`` is not a stage: the output step writes it after the files it shows."""
 
 REPORT = "report"

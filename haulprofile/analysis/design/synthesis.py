@@ -1,0 +1,135 @@
+"""From drives and cycles to a concept: requirements, the search, the chosen concept, and the
+vehicle file's own powertrain on the same cycles for comparison (`design_concepts`)."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+
+from ..errors import UserError
+from ..simulate.cycle import SimCycle
+from ..simulate.model import DriverSettings, simulate_cycle
+from ..vehicle import Vehicle
+from . import components as C
+from . import requirements as R
+from .evaluate import UNLIMITED, Evaluator
+from .options import DesignOptions
+from .result import DesignResult
+from .search import exclusions, run_search
+
+def driven(cycle: SimCycle, vehicle: Vehicle, dt: float) -> pd.DataFrame:
+    """A cycle as the simulator's driver drives it without powertrain limits: time_s, speed_mps,
+    accel_mps2, gradient_pct, mass_kg per step."""
+    trace = simulate_cycle(cycle, replace(vehicle, electric_powertrain=UNLIMITED),
+                           settings=DriverSettings(time_step_s=dt)).trace
+    where = trace["time_s"] if cycle.time_based else trace["distance_m"]
+    mass = np.interp(where, cycle.position, cycle.mass_kg)
+    return pd.DataFrame({"time_s": trace["time_s"], "speed_mps": trace["speed_mps"], "accel_mps2": trace["accel_mps2"],
+                         "gradient_pct": trace["gradient_pct"], "mass_kg": mass})
+
+
+def check_options(options: DesignOptions) -> None:
+    """Targets a road truck can be designed for; else a one-line error naming the field."""
+    if not 0.0 <= options.design_grade_pct <= 30.0:
+        raise UserError(f"design_grade_pct {options.design_grade_pct:g} %: road grades for trucks end near 30 %; "
+                        f"give 0..30")
+    if not 0.0 <= options.startability_grade_pct <= 40.0:
+        raise UserError(f"startability_grade_pct {options.startability_grade_pct:g} %: give 0..40")
+    if not 5.0 <= options.legal_top_speed_mps <= 45.0:
+        raise UserError(f"legal_top_speed_mps {options.legal_top_speed_mps:g} m/s is not a truck's top speed; "
+                        f"give 5..45 m/s")
+    if not 0.1 <= options.usable_soc_window <= 1.0 or not 0.0 <= options.ageing_reserve < 0.9:
+        raise UserError("usable_soc_window must lie in 0.1..1 and ageing_reserve in 0..0.9")
+    lo, hi = options.machine_power_range_w
+    e_lo, e_hi = options.battery_energy_range_j
+    if not (0 < lo <= hi) or not (0 < e_lo <= e_hi) or not options.topologies or options.max_machines < 1:
+        raise UserError("the design space is empty: machine_power_range_w and battery_energy_range_j need "
+                        "0 < low <= high, topologies at least one of central, e-axle, max_machines >= 1")
+    unknown = set(options.topologies) - set(C.TOPOLOGIES)
+    if unknown:
+        raise UserError(f"topologies: unknown {', '.join(sorted(unknown))} (known: {', '.join(C.TOPOLOGIES)})")
+    if options.population < 4 or options.generations < 1:
+        raise UserError("population must be at least 4 and generations at least 1")
+    if options.daily_distance_m is not None and options.daily_distance_m <= 0:
+        raise UserError(f"daily_distance_m {options.daily_distance_m:g} must be positive")
+
+
+def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOptions,
+                    measured: pd.DataFrame | None = None, mass_sigma_kg: float = 0.0,
+                    loads_summary: dict | None = None) -> DesignResult:
+    """Requirements of ``measured`` (signals: time_s, speed_mps, accel_mps2, gradient_pct, mass_kg)
+    and the ``cycles``, then the NSGA-II concept search on the cycles.
+
+    Parameters
+    ----------
+    cycles : list of SimCycle
+        The cycle set the candidates are simulated on (the cycle stage's selections or a cycle file).
+    vehicle : Vehicle
+        Road load (c_d, A, c_r, r_dyn), masses, and the reference ``[electric_powertrain]`` if any.
+    options : DesignOptions
+    measured : DataFrame, optional
+        The measured drive, for its requirements.
+    mass_sigma_kg : float
+        Standard deviation of the mass estimate [kg]; requirements at +-``options.mass_sigmas`` of it.
+    loads_summary : dict, optional
+        The loads stage's summary, whose damage-equivalent torques stand in the requirement table.
+    """
+    check_options(options)
+    if not cycles:
+        raise UserError("no cycle to design on: give a cycle file or a run with a selected cycle")
+    started = time.perf_counter()
+    dt = options.time_step_s
+    drives = {}
+    if measured is not None:
+        drives["measured drive"] = measured
+    for cycle in cycles:
+        if cycle.name not in drives:  # the measured drive as its own cycle is already there, as measured
+            drives[cycle.name] = driven(cycle, vehicle, dt)
+    rotating = vehicle.electric_powertrain.rotating_mass_kg if vehicle.electric_powertrain else 0.0
+    ranges, per_drive = R.requirement_ranges(drives, vehicle, options, mass_sigma_kg, rotating)
+    heaviest = max(float(d["mass_kg"].max()) for d in drives.values()) + options.mass_sigmas * mass_sigma_kg
+    targets = R.static_requirements(vehicle, options, heaviest, ranges["max_gradient_pct"]["high"],
+                                    options.design_grade_speed_mps)
+    first = next(iter(per_drive))
+    nominal = per_drive[first]["estimate"]["positive_wheel_kwh_per_km"]
+    margin = ranges["positive_wheel_kwh_per_km"]["high"] / nominal if nominal and math.isfinite(nominal) else 1.0
+    daily_m = options.daily_distance_m or 1000.0 * max(ranges["distance_km"]["value"], 1e-3)
+    evaluator = Evaluator(vehicle, cycles, options, targets, daily_m, max(margin, 1.0))
+    outcome = run_search(evaluator)
+    search_s = time.perf_counter() - started
+    reference = _reference_powertrain(vehicle, cycles, dt)
+    return DesignResult(options=options, vehicle=vehicle, evaluator=evaluator, outcome=outcome, ranges=ranges,
+                        per_drive=per_drive, targets=targets, daily_distance_m=daily_m, energy_margin=margin,
+                        mass_sigma_kg=mass_sigma_kg, drives=drives,
+                        exclusions=exclusions(outcome, _regions(outcome, evaluator)), reference=reference,
+                        loads=loads_summary or {}, search_s=search_s)
+
+
+def _regions(outcome, evaluator) -> list[str]:
+    c = evaluator.decode(outcome.x)
+    return [f"{C.TOPOLOGIES[t]}, {m} machine(s), {s} gear(s)" for t, m, s in zip(c.topology, c.machines, c.speeds)]
+
+
+def _reference_powertrain(vehicle: Vehicle, cycles: list[SimCycle], dt: float) -> dict | None:
+    """The vehicle file's own powertrain on the same cycles (energy per km, time below target)."""
+    ep = vehicle.electric_powertrain
+    if ep is None:
+        return None
+    energy = distance = missed = 0.0
+    for cycle in cycles:
+        s = simulate_cycle(cycle, vehicle, settings=DriverSettings(time_step_s=dt)).numbers
+        energy += s["battery_terminal_energy_kwh"]
+        distance += s["distance_km"]
+        missed += s["missed_target_s"]
+    kw = ep.machine_max_power_w / 1000.0
+    kwh = ep.battery_capacity_kwh
+    return {"machine_peak_power_w": ep.machine_max_power_w, "machine_peak_torque_nm": ep.machine_max_torque_nm,
+            "machine_max_speed_rpm": ep.machine_max_speed_rpm, "gear_ratios": list(ep.gear_ratios),
+            "axle_ratio": ep.axle_ratio or vehicle.axle_ratio, "battery_energy_kwh": kwh,
+            "battery_kwh_per_km": energy / distance if distance > 0 else math.nan, "missed_target_s": missed,
+            "cost_eur": C.EUR_PER_MACHINE + C.EUR_PER_KW_MACHINE * kw + C.EUR_PER_KVA_INVERTER * kw / C.POWER_FACTOR
+            + C.EUR_GEARBOX_BASE + C.EUR_PER_GEAR * len(ep.gear_ratios) + C.EUR_PER_KWH_BATTERY * kwh}
