@@ -122,8 +122,8 @@ def test_the_python_api_given_no_paths_says_so(inputs):
 @pytest.mark.parametrize("item", ["1=0.001", "2=1e9", "inf", "1=nan"])
 def test_a_known_mass_no_road_vehicle_has_is_refused(item):
     from haulprofile.analysis.errors import UserError
-    from haulprofile.analysis.fleet.road_load import parse_fleet_known_masses
-    from haulprofile.analysis.mass.calibration import parse_known_masses
+    from haulprofile.analysis.commands.arguments import parse_fleet_known_masses
+    from haulprofile.analysis.commands.arguments import parse_known_masses
 
     with pytest.raises(UserError, match="--known-mass"):
         parse_known_masses([item])

@@ -47,6 +47,7 @@ def test_fleet_outputs_are_0640(tmp_path, shell_umask):
 
 
 def test_the_stage_cache_of_a_failed_run_is_0640(tmp_path, shell_umask, monkeypatch):
+    from haulprofile.analysis.kinematics import KinematicsOptions
     from haulprofile.testing.drives import synthetic_drive
 
     table = tmp_path / "drive.csv"
@@ -56,7 +57,7 @@ def test_the_stage_cache_of_a_failed_run_is_0640(tmp_path, shell_umask, monkeypa
         raise RuntimeError("a stage that fails")
 
     monkeypatch.setattr(pipeline, "STAGES", [s for s in pipeline.STAGES if s.name == "kinematics"]
-                        + [pipeline.Stage("cycle", fails)])
+                        + [pipeline.Stage("fails", KinematicsOptions, fails)])
     with pytest.raises(RuntimeError):
         run(RunContext(inputs=[table], out_dir=tmp_path / "out", say=lambda _m: None), cache=True)
     cached = [p for p in (tmp_path / "out").rglob("*") if p.is_file()]

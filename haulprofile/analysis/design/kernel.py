@@ -25,24 +25,23 @@ def n_metrics(n_windows: int) -> int:
 
 @numba.njit(cache=True)
 def reduce_trace(out, n, dt, tolerance_mps, window_steps, metrics):
-    """Reduce ``out[:n]`` (`simulate.kernel` columns) into ``metrics`` (columns M_*)."""
+    """Reduce ``out[:, :n]`` (`simulate.kernel` columns by step) into ``metrics`` (columns M_*)."""
     energy, distance, missed, peak_t, peak_b, peak_r, min_soc = 0.0, 0.0, 0.0, 0.0, -np.inf, 0.0, np.inf
     for i in range(n):
-        row = out[i]
-        energy += row[K.C_P_BATT] * dt
-        distance += row[K.C_DS]
-        if row[K.C_LIMITED] > 0 and row[K.C_TARGET] - row[K.C_SPEED] > tolerance_mps:
+        energy += out[K.C_P_BATT, i] * dt
+        distance += out[K.C_DS, i]
+        if out[K.C_LIMITED, i] > 0 and out[K.C_TARGET, i] - out[K.C_SPEED, i] > tolerance_mps:
             missed += dt
-        t = abs(row[K.C_M_TORQUE])
+        t = abs(out[K.C_M_TORQUE, i])
         if t > peak_t:
             peak_t = t
-        if row[K.C_P_BATT] > peak_b:
-            peak_b = row[K.C_P_BATT]
-        p_mech = row[K.C_M_TORQUE] * row[K.C_M_SPEED]
+        if out[K.C_P_BATT, i] > peak_b:
+            peak_b = out[K.C_P_BATT, i]
+        p_mech = out[K.C_M_TORQUE, i] * out[K.C_M_SPEED, i]
         if p_mech < peak_r:
             peak_r = p_mech
-        if row[K.C_SOC] < min_soc:
-            min_soc = row[K.C_SOC]
+        if out[K.C_SOC, i] < min_soc:
+            min_soc = out[K.C_SOC, i]
     metrics[M_ENERGY_J], metrics[M_DISTANCE_M], metrics[M_MISSED_S] = energy, distance, missed
     metrics[M_PEAK_TORQUE_NM], metrics[M_PEAK_BATTERY_W], metrics[M_MIN_SOC] = peak_t, peak_b, min_soc
     metrics[M_DURATION_S], metrics[M_PEAK_REGEN_W] = n * dt, -peak_r
@@ -51,11 +50,11 @@ def reduce_trace(out, n, dt, tolerance_mps, window_steps, metrics):
         k = min(max(window_steps[w], 1), max(n, 1))
         sq, pw, best_sq, best_pw = 0.0, 0.0, 0.0, 0.0
         for i in range(n):
-            sq += out[i, K.C_M_TORQUE] ** 2
-            pw += abs(out[i, K.C_M_TORQUE] * out[i, K.C_M_SPEED])
+            sq += out[K.C_M_TORQUE, i] ** 2
+            pw += abs(out[K.C_M_TORQUE, i] * out[K.C_M_SPEED, i])
             if i >= k:
-                sq -= out[i - k, K.C_M_TORQUE] ** 2
-                pw -= abs(out[i - k, K.C_M_TORQUE] * out[i - k, K.C_M_SPEED])
+                sq -= out[K.C_M_TORQUE, i - k] ** 2
+                pw -= abs(out[K.C_M_TORQUE, i - k] * out[K.C_M_SPEED, i - k])
             if i >= k - 1:
                 best_sq, best_pw = max(best_sq, sq), max(best_pw, pw)
         metrics[M_WINDOWS + w] = np.sqrt(max(best_sq, 0.0) / k)
@@ -79,7 +78,7 @@ def simulate_batch(time_based, starts, steps, t_end, row_pos, row_target, row_gr
             p[K.P_T_END] = t_end[j]
             size = steps[j]
             while True:
-                out = np.empty((size, K.N_COLUMNS))
+                out = np.empty((K.N_COLUMNS, size))
                 n = K.run_kernel(time_based[j] > 0, row_pos[a:b], row_target[a:b], row_gradient[a:b],
                                  row_f_roll[c, a:b], row_f_climb[c, a:b], row_mass[c, a:b], stop_pos[sa:sb],
                                  stop_time[sa:sb], load_time, aux, epto, obc, p, ratios[c, :n_ratios[c]],

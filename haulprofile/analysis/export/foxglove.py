@@ -123,8 +123,9 @@ def _events(content: LogContent, table, row_mono_ns):
             "timestamp": _stamp(t), "id": ident, "extended": bool(flag & CAN_FLAG_EXTENDED), "remote": remote,
             "error": bool(flag & CAN_FLAG_ERROR), "tx": bool(flag & CAN_FLAG_TX), "dlc": dlc, "channel": channel,
             "data": [] if remote else data[:dlc]}
+    json_forms = {t.name: t for t in (contract.BAROMETER_V1, contract.HUMIDITY_V1, contract.MAGNETOMETER_V1)}
     for topic, records in content.json.items():
-        spec = contract.TOPICS.get(topic)
+        spec = json_forms.get(topic, contract.TOPICS.get(topic))
         if spec is None or not spec.json_schema:
             continue
         for record in records:

@@ -101,6 +101,18 @@ def json_records(window, topics) -> dict[str, list[dict]]:
     return records
 
 
+def sensor_records(window) -> dict[str, list[dict]]:
+    """The packed sensor samples of a window (contract 2) as the records of their contract-1 JSON
+    form, so a viewer copy shows the barometer, humidity and magnetometer of either version."""
+    records: dict[str, list[dict]] = {}
+    for topic in contract.SENSOR_TOPICS:
+        rows = window.topic_records(topic)
+        if len(rows):
+            fields = [f for f in rows.dtype.names if f != "reserved"]
+            records[topic] = [{f: row[f].tolist() for f in fields} for row in rows]
+    return records
+
+
 class Clock:
     """What a log's clock offset is taken from, gathered a window at a time: its time-sync records
     and the (publish time, log time) of its messages."""
@@ -129,7 +141,7 @@ def _read_mcap(path: Path, everything: bool):
         can_parts.append(window.topic_records(contract.CAN_FRAMES.name))
         if everything:
             imu_parts.append(window.topic_records(contract.IMU.name))
-            for topic, found in json_records(window, None).items():
+            for topic, found in (json_records(window, None) | sensor_records(window)).items():
                 records.setdefault(topic, []).extend(found)
         for channel in window.channels.values():
             if channel.topic == contract.IMU.name and not imu_meta:
