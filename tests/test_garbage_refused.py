@@ -284,3 +284,12 @@ def test_zone_files_of_the_wrong_shape_or_encoding_are_one_line(tmp_path, conten
     path.write_bytes(content)
     with pytest.raises(UserError, match="--zones"):
         load_zones(path)
+
+
+@pytest.mark.parametrize("address", ["tls://127.0.0.1:1", "ucx://127.0.0.1:1"])
+def test_schedulers_of_other_protocols_are_one_error(address):
+    pytest.importorskip("distributed")
+    from haulprofile.analysis.fleet import runner
+
+    with pytest.raises(runner.FleetError, match="Dask scheduler"):
+        runner.executor_for(scheduler=address)
