@@ -293,3 +293,14 @@ def test_schedulers_of_other_protocols_are_one_error(address):
 
     with pytest.raises(runner.FleetError, match="Dask scheduler"):
         runner.executor_for(scheduler=address)
+
+
+def test_a_dbc_signal_longer_than_its_message_is_refused(tmp_path, data_dir):
+    from haulprofile.analysis.errors import UserError
+    from haulprofile.analysis.ingest import ingest_logs
+
+    dbc = tmp_path / "wide.dbc"
+    text = (data_dir / "real-can" / "CSS-Electronics-SAE-J1939-DEMO.dbc").read_text()
+    dbc.write_text(text.replace("SG_ EngineSpeed : 24|16@1+", "SG_ EngineSpeed : 0|128@1+"))
+    with pytest.raises(UserError, match="EngineSpeed is 128 bits"):
+        ingest_logs([synthetic_log(tmp_path)], dbc=dbc)
