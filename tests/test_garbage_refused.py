@@ -304,3 +304,18 @@ def test_a_dbc_signal_longer_than_its_message_is_refused(tmp_path, data_dir):
     dbc.write_text(text.replace("SG_ EngineSpeed : 24|16@1+", "SG_ EngineSpeed : 0|128@1+"))
     with pytest.raises(UserError, match="EngineSpeed is 128 bits"):
         ingest_logs([synthetic_log(tmp_path)], dbc=dbc)
+
+
+def test_a_battery_that_cannot_deliver_the_machines_power_is_refused(tmp_path):
+    from haulprofile.analysis.errors import UserError
+    from haulprofile.analysis.vehicle import load_vehicle
+    from importlib import resources
+
+    text = resources.files("haulprofile.analysis.data.vehicles").joinpath("rigid-18t.toml").read_text()
+    text = text.replace("battery_voltage_v = 650.0", "battery_voltage_v = 12.0").replace(
+        "battery_internal_resistance_ohm = 0.045", "battery_internal_resistance_ohm = 5.0")
+    assert "battery_voltage_v = 12.0" in text and "= 5.0" in text
+    path = tmp_path / "toy.toml"
+    path.write_text(text)
+    with pytest.raises(UserError, match="U²/4R"):
+        load_vehicle(path)
