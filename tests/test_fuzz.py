@@ -140,8 +140,8 @@ def test_the_command_line_on_damaged_logs_exits_with_a_line_not_a_traceback(smal
     result = limited_run(command)
     assert result.returncode in (0, 2, 3), (command, result.stderr[-3000:])
     assert "Traceback" not in result.stderr, (command, result.stderr[-3000:])
-    if result.returncode == 2:
-        assert result.stderr.strip().count("\n") == 0, result.stderr[-3000:]
+    if result.returncode == 2:  # one error line (progress lines such as "[ingest]" may precede it)
+        assert sum("error:" in line for line in result.stderr.splitlines()) == 1, result.stderr[-3000:]
 
 
 def test_the_fuzzed_json_topics_handle_integers_beyond_int64(tmp_path):

@@ -284,3 +284,38 @@ def test_zone_files_of_the_wrong_shape_or_encoding_are_one_line(tmp_path, conten
     path.write_bytes(content)
     with pytest.raises(UserError, match="--zones"):
         load_zones(path)
+
+
+@pytest.mark.parametrize("address", ["tls://127.0.0.1:1", "ucx://127.0.0.1:1"])
+def test_schedulers_of_other_protocols_are_one_error(address):
+    pytest.importorskip("distributed")
+    from haulprofile.analysis.fleet import runner
+
+    with pytest.raises(runner.FleetError, match="Dask scheduler"):
+        runner.executor_for(scheduler=address)
+
+
+def test_a_dbc_signal_longer_than_its_message_is_refused(tmp_path, data_dir):
+    from haulprofile.analysis.errors import UserError
+    from haulprofile.analysis.ingest import ingest_logs
+
+    dbc = tmp_path / "wide.dbc"
+    text = (data_dir / "real-can" / "CSS-Electronics-SAE-J1939-DEMO.dbc").read_text()
+    dbc.write_text(text.replace("SG_ EngineSpeed : 24|16@1+", "SG_ EngineSpeed : 0|128@1+"))
+    with pytest.raises(UserError, match="EngineSpeed is 128 bits"):
+        ingest_logs([synthetic_log(tmp_path)], dbc=dbc)
+
+
+def test_a_battery_that_cannot_deliver_the_machines_power_is_refused(tmp_path):
+    from haulprofile.analysis.errors import UserError
+    from haulprofile.analysis.vehicle import load_vehicle
+    from importlib import resources
+
+    text = resources.files("haulprofile.analysis.data.vehicles").joinpath("rigid-18t.toml").read_text()
+    text = text.replace("battery_voltage_v = 650.0", "battery_voltage_v = 12.0").replace(
+        "battery_internal_resistance_ohm = 0.045", "battery_internal_resistance_ohm = 5.0")
+    assert "battery_voltage_v = 12.0" in text and "= 5.0" in text
+    path = tmp_path / "toy.toml"
+    path.write_text(text)
+    with pytest.raises(UserError, match="U²/4R"):
+        load_vehicle(path)

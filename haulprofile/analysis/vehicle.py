@@ -132,6 +132,20 @@ def _build(cls, table: dict, where: str, allowed: set[str] | None = None):
     return table_kwargs(cls, table, where, _check_value, VehicleFileError, allowed)
 
 
+def _deliverable(ep: "ElectricPowertrain", where: str) -> "ElectricPowertrain":
+    """The battery must be able to deliver the machine's peak power at all: at most U²/(4R) [W]
+    flows out of a source of open-circuit voltage U and internal resistance R (half of it lost in
+    R). A 12 V / 5 Ω battery (7.2 W) for a 300 kW machine once "delivered" 45 kWh while charging."""
+    if ep.battery_internal_resistance_ohm > 0:
+        peak_w = ep.battery_voltage_v ** 2 / (4 * ep.battery_internal_resistance_ohm)
+        if peak_w < ep.machine_max_power_w:
+            raise VehicleFileError(
+                f"{where}: a {ep.battery_voltage_v:g} V battery of {ep.battery_internal_resistance_ohm:g} Ω delivers at "
+                f"most {peak_w / 1000:.3g} kW (U²/4R), below machine_max_power_w {ep.machine_max_power_w / 1000:.3g} kW; "
+                "check battery_voltage_v and battery_internal_resistance_ohm")
+    return ep
+
+
 def vehicle_from_dict(data: dict, source: str = "<vehicle>") -> Vehicle:
     """Validate a parsed vehicle file and build the `Vehicle`."""
     for table in data:
@@ -148,7 +162,7 @@ def vehicle_from_dict(data: dict, source: str = "<vehicle>") -> Vehicle:
         ep = _build(ElectricPowertrain, data["electric_powertrain"], f"{source} [electric_powertrain]")
         if ep.get("min_soc", 0.1) >= ep.get("initial_soc", 0.9):
             raise VehicleFileError(f"{source} [electric_powertrain]: min_soc must be below initial_soc")
-        kwargs["electric_powertrain"] = ElectricPowertrain(**ep)
+        kwargs["electric_powertrain"] = _deliverable(ElectricPowertrain(**ep), f"{source} [electric_powertrain]")
     if (kwargs.get("gear_ratios") is None) != (kwargs.get("axle_ratio") is None):
         raise VehicleFileError(f"{source} [vehicle]: gear_ratios and axle_ratio go together; give both or neither")
     engine = kwargs.get("engine")

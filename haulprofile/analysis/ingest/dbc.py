@@ -39,10 +39,16 @@ def load(path: str | Path):
     if not path.is_file():
         raise DbcError(f"DBC file {path} not found")
     try:
-        return cantools.database.load_file(str(path), strict=False)
+        database = cantools.database.load_file(str(path), strict=False)
     except Exception as exc:  # cantools raises parser-specific types
         raise DbcError(f"{path}: cannot parse as a DBC file ({type(exc).__name__}: {exc}); "
                        "check it opens in a DBC editor") from None
+    for message in database.messages:
+        for signal in message.signals:
+            if not 1 <= signal.length <= min(64, 8 * message.length):
+                raise DbcError(f"{path}: signal {message.name}.{signal.name} is {signal.length} bits long, more "
+                               f"than its {message.length}-byte message (or 64 bits) holds; fix its length")
+    return database
 
 
 def _is_j1939(database, message) -> bool:
