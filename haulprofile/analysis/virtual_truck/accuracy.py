@@ -20,10 +20,11 @@ import numpy as np
 from .truth import GRID_SPACING_M, truth_grid
 
 METHODS = {"fusion": "gradient_pct", "baro": "gradient_baro_pct", "map": "gradient_map_pct",
-           "smoother": "gradient_smooth_pct"}
+           "smoother": "gradient_smooth_pct", "flat": "gradient_flat_pct"}
 """Method name -> gradient column. ``fusion`` is the paper's (8): the default run's
 ``gradient_pct``, or the run with ``gradient_method="paper"`` where that exists; ``smoother`` is
-used when the gradient stage writes it (by default or with ``gradient_method="smoother"``)."""
+used when the gradient stage writes it (by default or with ``gradient_method="smoother"``); ``flat``
+(0 %) only where nothing measures a height (``can-only``)."""
 CATEGORIES = {"outside": ("at grade", "embankment"), "cutting": ("cutting",), "bridge": ("bridge",),
               "tunnel": ("tunnel",)}
 MIN_BINS = 5
@@ -31,6 +32,13 @@ MIN_SEGMENT_S = 120.0
 MASS_KEYS = ("mass_ls_kg", "mass_rls_kg", "mass_kg")
 MISMATCH = {"rolling_resistance_coefficient": 0.15, "drag_coefficient": 0.10}
 MISMATCH_ETA = 0.02
+SENSOR_SETS = ("full", "no-baro", "no-imu", "gps+can", "can-only")
+"""The sensor sets each drive is analysed with (`gradient.sensor_sets`): the full log, and the
+same log with the missing sensors' columns taken out."""
+FLAT = "flat"
+"""The gradient of a log with no height source at all: a flat road (``can-only``)."""
+STD_COLUMNS = {"smoother": "gradient_smooth_std_pct"}
+"""Method -> its per-bin gradient standard deviation [%-pt], scored for coverage."""
 
 
 @dataclass(frozen=True)
@@ -79,8 +87,9 @@ def mismatched_vehicle(vehicle, rng: np.random.Generator):
     return dataclasses.replace(vehicle, **changes)
 
 
-def gradient_errors(signals, virtual, column: str) -> dict:
-    """RMSE [%-pt] of a gradient column per bin category (None where too few bins)."""
+def _true_bin_means(signals, virtual, column: str):
+    """Per 10 m bin of true distance: the mean of ``column`` over the moving samples, and the
+    number of samples (0: none)."""
     truth = virtual.truth
     grid = truth_grid(virtual)
     time_s = signals["time_s"].to_numpy(float)
@@ -94,13 +103,28 @@ def gradient_errors(signals, virtual, column: str) -> dict:
     count = np.bincount(index, minlength=len(grid))
     total = np.bincount(index, weights=values, minlength=len(grid))
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = total / count
+        return total / count, count, grid
+
+
+def gradient_errors(signals, virtual, column: str) -> dict:
+    """RMSE [%-pt] of a gradient column per bin category (None where too few bins)."""
+    mean, count, grid = _true_bin_means(signals, virtual, column)
     error = mean - grid["gradient_pct"].to_numpy()
     out = {}
     for name, kinds in CATEGORIES.items():
         pick = (count > 0) & np.isin(grid["structure"], kinds)
         out[name] = float(np.sqrt(np.mean(error[pick] ** 2))) if pick.sum() >= MIN_BINS else None
     return out
+
+
+def gradient_coverage(signals, virtual, column: str, std_column: str) -> float | None:
+    """Share of the 10 m bins whose true gradient lies inside the stated ±2σ of ``std_column``."""
+    mean, count, grid = _true_bin_means(signals, virtual, column)
+    std, _, _ = _true_bin_means(signals, virtual, std_column)
+    pick = (count > 0) & np.isfinite(std)
+    if pick.sum() < MIN_BINS:
+        return None
+    return float(np.mean(np.abs(mean[pick] - grid["gradient_pct"].to_numpy()[pick]) <= 2 * std[pick]))
 
 
 def mass_errors(signals, truth, vehicle, column: str) -> dict:
@@ -157,14 +181,48 @@ def _gradient_columns(signals, dem_dir: Path):
     return signals
 
 
-def run_case(case: Case) -> dict:
-    """Drive, log, analyse and score one case; a dict of plain values (for a process pool)."""
+def _sensor_set_columns(base, dem_dir: Path, set_name: str):
+    """The signals of ``base`` as a logger with only ``set_name``'s sensors gives them, with the
+    gradient columns the estimator makes of them (``gradient_pct`` = the paper's fusion (8) where
+    it can run); a log with no height source gets the flat road as its gradient."""
+    from ..dem import open_dem
+    from ..errors import UserError
+    from ..gradient import estimate_gradient
+    from ..gradient.sensor_sets import without_sensors
+    frame = without_sensors(base, set_name)
+    try:
+        samples = estimate_gradient(frame, open_dem(dem_dir)).samples
+    except UserError:
+        return frame.assign(**{METHODS[FLAT]: np.zeros(len(frame))})
+    frame = frame.assign(**samples)
+    return frame.assign(**{METHODS["fusion"]: samples["gradient_paper_pct"]})
+
+
+def score(signals, virtual, vehicles) -> dict:
+    """Gradient errors (and the per-bin σ's coverage) and mass errors of every method present."""
+    methods = {name: column for name, column in METHODS.items() if column in signals.columns}
+    return {
+        "gradient": {name: gradient_errors(signals, virtual, column) for name, column in methods.items()},
+        "gradient_within_2_sigma": {name: gradient_coverage(signals, virtual, METHODS[name], std)
+                                    for name, std in STD_COLUMNS.items() if std in signals.columns},
+        "mass": {kind: {name: mass_errors(signals, virtual.truth, vehicle, column) for name, column in methods.items()}
+                 for kind, vehicle in vehicles.items()},
+    }
+
+
+def run_case(case: Case, sensor_sets: tuple[str, ...] = SENSOR_SETS) -> dict:
+    """Drive, log, analyse and score one case with each sensor set; a dict of plain values (for
+    a process pool). The ``full`` set's figures are at the top level as before, every set's under
+    ``sensor_sets``."""
     from ..pipeline import RunContext, run
     from .dem import write_dem
     from .mcap_log import write_mcap
     from .truck import drive
     scenario = case_scenario(case)
     virtual = drive(scenario, seed=case.seed, realism=case.level)
+    rng = np.random.default_rng(case.seed)
+    vehicles = {"exact": virtual.vehicle, "datasheet": mismatched_vehicle(virtual.vehicle, rng)}
+    scores = {}
     with tempfile.TemporaryDirectory(prefix="haulprofile-accuracy-") as tmp:
         root = Path(tmp)
         fmt = "geotiff" if case.dem == "geotiff" else "hgt"
@@ -173,18 +231,20 @@ def run_case(case: Case) -> dict:
         ctx = RunContext(inputs=[root / "logs"], out_dir=root / "out", vehicle=virtual.vehicle,
                          dem_dir=root / "dem", say=lambda _msg: None, figures=False)
         run(ctx, until="gradient")
-        signals = _gradient_columns(ctx.signals, root / "dem")
-    methods = {name: column for name, column in METHODS.items() if column in signals.columns}
-    rng = np.random.default_rng(case.seed)
-    vehicles = {"exact": virtual.vehicle, "datasheet": mismatched_vehicle(virtual.vehicle, rng)}
+        base = ctx.signals.drop(columns=[c for c in ctx.results.gradient.samples if c in ctx.signals.columns])
+        for set_name in sensor_sets:
+            if set_name == "full":
+                signals = _gradient_columns(ctx.signals, root / "dem")
+            else:
+                signals = _sensor_set_columns(base, root / "dem", set_name)
+            scores[set_name] = score(signals, virtual, vehicles)
     grid = truth_grid(virtual)
+    full = scores.get("full", {"gradient": {}, "gradient_within_2_sigma": {}, "mass": {}})
     return {
         "case": dataclasses.asdict(case), "name": case.name,
         "km": float(virtual.road.length_m / 1000), "minutes": float(virtual.duration_s / 60),
         "structures_m": {kind: float((grid["structure"] == kind).sum() * GRID_SPACING_M)
                          for kind in ("cutting", "embankment", "bridge", "tunnel")},
-        "gradient": {name: gradient_errors(signals, virtual, column) for name, column in methods.items()},
-        "mass": {kind: {name: mass_errors(signals, virtual.truth, vehicle, column) for name, column in methods.items()}
-                 for kind, vehicle in vehicles.items()},
+        **full, "sensor_sets": scores,
         "injected": {k: v for k, v in virtual.injected.items() if k != "realism"},
     }
