@@ -13,6 +13,7 @@ from ..dem.plausible import ImplausibleDemError
 from ..errors import UserError
 from .estimate import GradientResult, GradientSettings, estimate_gradient
 from .figure import draw_sources
+from .sensor_sets import describe, sensor_set
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,7 @@ def gradient_stage(ctx) -> None:
     frame = ctx.signals
     if options.keep_existing and "gradient_pct" in frame.columns and frame["gradient_pct"].notna().any():
         return
+    ctx.say(f"gradient: {describe(frame)}")
     if ctx.dem_dir is None:
         ctx.say("gradient: no --dem DIR given: barometric height only (no map-matching)")
     dem = open_dem(ctx.dem_dir) if ctx.dem_dir is not None else None
@@ -73,6 +75,7 @@ def gradient_stage(ctx) -> None:
     gradient = grid["gradient_pct"].to_numpy()
     ctx.summary["gradient"] = {
         "grid_spacing_m": options.settings.spacing_m,
+        "sensor_set": sensor_set(frame),
         "sources": [s for s, c in (("map", "gradient_map_pct"), ("baro", "gradient_baro_pct"),
                                    ("imu", "gradient_imu_pct")) if c in grid.columns],
         "method": options.settings.gradient_method,
