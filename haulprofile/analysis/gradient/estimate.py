@@ -139,13 +139,22 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
         level, _, _ = distance_grid.local_linear(sin_angle, np.ones(n_bins), spacing, settings.imu_sigma_m)
         out["gradient_imu_pct"] = 100 * np.tan(np.arcsin(np.clip(level, -1, 1)))
 
-    if map_slope is None and baro_slope is None:
-        raise UserError("gradient: needs a DEM (--dem DIR) with GPS positions, or a barometer (pressure_pa); "
-                        "this input has neither")
     paper_notes: list[str] = []
-    fused_slope = _fuse(map_slope, weight_map, baro_slope, s_grid, paper_notes)
-    fused_height = _integrate(fused_slope, spacing)
-    fused_height += _height_offset(fused_height, map_level, weight_map, baro_level)
+    if map_slope is None and baro_slope is None:
+        if not _has_gps_altitude(frame):
+            raise UserError("gradient: needs a DEM (--dem DIR) with GPS positions, a barometer (pressure_pa) or "
+                            "GPS altitude with its accuracy (gps_altitude_m, gps_v_acc_m); this input has none")
+        notes.append("GPS altitude is the only height source: the gradient is its smoothed slope, good to the "
+                     "stated gradient_smooth_std_pct (the paper's fusion (8) needs a DEM or a barometer)")
+        if settings.gradient_method == "paper":
+            notes.append("gradient_pct is the smoother's: the paper's fusion has no source here")
+            settings = replace(settings, gradient_method="smoother")
+        fused_slope = np.full(n_bins, np.nan)
+        fused_height = np.full(n_bins, np.nan)
+    else:
+        fused_slope = _fuse(map_slope, weight_map, baro_slope, s_grid, paper_notes)
+        fused_height = _integrate(fused_slope, spacing)
+        fused_height += _height_offset(fused_height, map_level, weight_map, baro_level)
     out["height_paper_m"] = fused_height
     out["gradient_paper_pct"] = 100 * fused_slope
 
@@ -177,6 +186,10 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
                                                       if imu_excess is not None else None),
                                     "map_gated_km": float(smoothed.map_gated.sum() * spacing / 1000),
                                     "mean_weights": {k: float(np.mean(v)) for k, v in smoothed.weights.items()}})
+
+
+def _has_gps_altitude(frame) -> bool:
+    return _column(frame, "gps_altitude_m") is not None and _column(frame, "gps_v_acc_m") is not None
 
 
 def _bin_count(index, values, n_bins):
