@@ -50,7 +50,7 @@ class Stage(NamedTuple):
 STAGES: list[Stage] = [
     Stage("ingest", ingest_stage, needs_signals=False),
     Stage("kinematics", kinematics_stage),
-    Stage("gradient", gradient_stage, reads_dem=True),
+    Stage("gradient", gradient_stage, reads_dem=True, reads_vehicle=True),
     Stage("mass", mass_stage, reads_vehicle=True),
     Stage("cycle", cycle_stage, reads_vehicle=True),
     Stage("loads", loads_stage, reads_vehicle=True),

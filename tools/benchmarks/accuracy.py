@@ -81,12 +81,12 @@ def _summarise_set(results: list[dict], sensor_set: str) -> list[dict]:
                 gradient = {cat: _stats([r["gradient"][method][cat] for r in have]) for cat in CATEGORIES}
                 mass = {}
                 for key in MASS_KEYS:
-                    errors = [abs(e) for r in have for e in r["mass"][vehicle][method][key]]
+                    errors = [abs(e) for r in have if r["mass"] for e in r["mass"][vehicle][method][key]]
                     mass[key] = {"segments": len(errors)}
                     if errors:
                         mass[key] |= {"median_pct": 100 * float(np.median(errors)),
                                       "worst_pct": 100 * float(np.max(errors))}
-                covered = [c for r in have for c in r["mass"][vehicle][method].get("mass_kg_within_2_sigma", [])]
+                covered = [c for r in have if r["mass"] for c in r["mass"][vehicle][method].get("mass_kg_within_2_sigma", [])]
                 if "mass_kg" in mass and covered:
                     mass["mass_kg"]["within_2_sigma"] = float(np.mean(covered))
                 covered = [r["gradient_within_2_sigma"].get(method) for r in have]

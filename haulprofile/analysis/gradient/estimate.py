@@ -12,7 +12,7 @@ from .. import checks, kinematics
 from ..errors import UserError
 from . import grid as distance_grid
 from . import kalman, sources
-from .smoother import GradientSmoother, Measurements, SmootherSettings, bin_times, standstill_bins
+from .smoother import KNOWN_BIAS_MPS2, GradientSmoother, Measurements, SmootherSettings, bin_times, standstill_bins
 
 METHODS = ("smoother", "paper")
 
@@ -141,11 +141,15 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
 
     paper_notes: list[str] = []
     if map_slope is None and baro_slope is None:
-        if not _has_gps_altitude(frame):
+        known_bias = imu_excess is not None and settings.smoother.imu_bias_prior_sigma_mps2 <= KNOWN_BIAS_MPS2
+        if not _has_gps_altitude(frame) and known_bias:
+            notes.append("no height source: the gradient is the accelerometer's with its bias known beforehand")
+        elif not _has_gps_altitude(frame):
             raise UserError("gradient: needs a DEM (--dem DIR) with GPS positions, a barometer (pressure_pa) or "
                             "GPS altitude with its accuracy (gps_altitude_m, gps_v_acc_m); this input has none")
-        notes.append("GPS altitude is the only height source: the gradient is its smoothed slope, good to the "
-                     "stated gradient_smooth_std_pct (the paper's fusion (8) needs a DEM or a barometer)")
+        else:
+            notes.append("GPS altitude is the only height source: the gradient is its smoothed slope, good to the "
+                         "stated gradient_smooth_std_pct (the paper's fusion (8) needs a DEM or a barometer)")
         if settings.gradient_method == "paper":
             notes.append("gradient_pct is the smoother's: the paper's fusion has no source here")
             settings = replace(settings, gradient_method="smoother")

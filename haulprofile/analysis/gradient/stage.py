@@ -13,6 +13,7 @@ from ..dem.plausible import ImplausibleDemError
 from ..errors import UserError
 from .estimate import GradientResult, GradientSettings, estimate_gradient
 from .figure import draw_sources
+from .force_balance import estimate_gradient_for_log
 from .sensor_sets import describe, sensor_set
 
 
@@ -55,12 +56,12 @@ def gradient_stage(ctx) -> None:
     dem = open_dem(ctx.dem_dir) if ctx.dem_dir is not None else None
     try:
         try:
-            result = estimate_gradient(frame, dem, options.settings)
+            result = estimate_gradient_for_log(frame, dem, options.settings, ctx.vehicle)
         except (MissingTileError, ImplausibleDemError) as exc:
             if not options.barometer_off_map:
                 raise type(exc)(f"{exc}; or run without --dem for barometric height only") from None
             ctx.say(f"gradient: {exc}; using the barometer alone")
-            result = estimate_gradient(frame, None, options.settings)
+            result = estimate_gradient_for_log(frame, None, options.settings, ctx.vehicle)
     except (MissingTileError, ImplausibleDemError):
         raise
     except UserError as exc:

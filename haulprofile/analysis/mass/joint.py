@@ -145,7 +145,10 @@ def _solve(force, excess, cos_angle, aero, seg, n_seg, theta, free, settings, we
             full += np.diag(precision)
             rhs += precision * (centre - theta)
         normal = full[np.ix_(free_idx, free_idx)]
-        step = np.linalg.solve(normal, rhs[free_idx])
+        try:
+            step = np.linalg.solve(normal, rhs[free_idx])
+        except np.linalg.LinAlgError:  # a parameter the weighted data no longer see: left where it is
+            step = np.linalg.lstsq(normal, rhs[free_idx], rcond=None)[0]
         theta[free_idx] += step
         if np.max(np.abs(step) / np.maximum(np.abs(theta[free_idx]), 1e-9)) < settings.tolerance:
             break

@@ -181,32 +181,43 @@ def _gradient_columns(signals, dem_dir: Path):
     return signals
 
 
-def _sensor_set_columns(base, dem_dir: Path, set_name: str):
+def _sensor_set_columns(base, dem_dir: Path, set_name: str, virtual):
     """The signals of ``base`` as a logger with only ``set_name``'s sensors gives them, with the
-    gradient columns the estimator makes of them (``gradient_pct`` = the paper's fusion (8) where
-    it can run); a log with no height source gets the flat road as its gradient."""
+    gradient columns the estimator makes of them as the gradient stage does (the force balance as
+    the accelerometer where there is none; ``gradient_pct`` = the paper's fusion (8) where it can
+    run). A log with no height source (``can-only``) is given the true mass per sample, as a
+    weighing at every load change would give it, and scored against the flat road too."""
     from ..dem import open_dem
     from ..errors import UserError
     from ..gradient import estimate_gradient
-    from ..gradient.sensor_sets import without_sensors
+    from ..gradient.force_balance import estimate_gradient_force_balance
+    from ..gradient.sensor_sets import sensors_present, without_sensors
     frame = without_sensors(base, set_name)
+    given = None
+    if "gps" not in sensors_present(frame):
+        given = np.interp(frame["time_s"], virtual.truth["time_s"], virtual.truth["mass_kg"])
+        frame = frame.assign(**{METHODS[FLAT]: np.zeros(len(frame))})
     try:
-        samples = estimate_gradient(frame, open_dem(dem_dir)).samples
+        if "imu" in sensors_present(frame):
+            samples = estimate_gradient(frame, open_dem(dem_dir)).samples
+        else:
+            samples = estimate_gradient_force_balance(frame, open_dem(dem_dir), virtual.vehicle, mass_kg=given).samples
     except UserError:
-        return frame.assign(**{METHODS[FLAT]: np.zeros(len(frame))})
+        return frame
     frame = frame.assign(**samples)
     return frame.assign(**{METHODS["fusion"]: samples["gradient_paper_pct"]})
 
 
-def score(signals, virtual, vehicles) -> dict:
-    """Gradient errors (and the per-bin σ's coverage) and mass errors of every method present."""
+def score(signals, virtual, vehicles, mass: bool = True) -> dict:
+    """Gradient errors (and the per-bin σ's coverage) and mass errors of every method present
+    (no mass errors where the mass was given)."""
     methods = {name: column for name, column in METHODS.items() if column in signals.columns}
     return {
         "gradient": {name: gradient_errors(signals, virtual, column) for name, column in methods.items()},
         "gradient_within_2_sigma": {name: gradient_coverage(signals, virtual, METHODS[name], std)
                                     for name, std in STD_COLUMNS.items() if std in signals.columns},
         "mass": {kind: {name: mass_errors(signals, virtual.truth, vehicle, column) for name, column in methods.items()}
-                 for kind, vehicle in vehicles.items()},
+                 for kind, vehicle in vehicles.items()} if mass else {},
     }
 
 
@@ -236,8 +247,8 @@ def run_case(case: Case, sensor_sets: tuple[str, ...] = SENSOR_SETS) -> dict:
             if set_name == "full":
                 signals = _gradient_columns(ctx.signals, root / "dem")
             else:
-                signals = _sensor_set_columns(base, root / "dem", set_name)
-            scores[set_name] = score(signals, virtual, vehicles)
+                signals = _sensor_set_columns(base, root / "dem", set_name, virtual)
+            scores[set_name] = score(signals, virtual, vehicles, mass=set_name != "can-only")
     grid = truth_grid(virtual)
     full = scores.get("full", {"gradient": {}, "gradient_within_2_sigma": {}, "mass": {}})
     return {
