@@ -142,3 +142,25 @@ def test_without_an_imu_the_gradient_regressor_is_the_fallback(imperfect_drive):
     true = _true_masses(result, truth)
     masses = np.array([s["mass_kg"] for s in result.segments])
     assert np.all(np.abs(masses / true - 1) < 0.06)
+
+
+def test_a_wind_the_route_turns_against_is_fitted_instead_of_read_as_mass():
+    """A 6 m/s wind from the north; each segment drives a different way (north, east, south),
+    so its head wind differs and a fit without the wind puts it into the masses."""
+    from haulprofile.analysis.mass.joint import wind_regressors
+    force, excess, cos_angle, aero, time_s, bounds, usable = _drive(aux_fraction=0.0)
+    speed = np.sqrt(aero / 0.6)
+    heading = np.repeat([np.pi / 2, 0.1, -np.pi / 2], bounds[0][1]) + 0.3 * np.sin(time_s / 40)
+    east = np.cumsum(speed * np.cos(heading) * 0.1)
+    north = np.cumsum(speed * np.sin(heading) * 0.1)
+    wind = np.array([0.0, -6.0])  # the air moves south
+    head = -(wind[0] * np.cos(heading) + wind[1] * np.sin(heading))
+    force = force + CDA * 0.6 * ((speed + head) ** 2 - speed ** 2)
+    columns = wind_regressors(speed, east, north, time_s)
+    without = fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE)
+    fitted = fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE, wind_regressors=columns)
+    error_without = np.abs(without.masses_kg / np.array(MASSES) - 1).max()
+    error_with = np.abs(fitted.masses_kg / np.array(MASSES) - 1).max()
+    assert error_without > 0.03 and error_with < 0.3 * error_without
+    assert fitted.identified["wind_north_mps"]
+    assert abs(fitted.coefficients["wind_north_mps"] + 6.0) < 1.5 and abs(fitted.coefficients["wind_east_mps"]) < 1.5

@@ -19,7 +19,7 @@ import pandas as pd
 
 from ..road_load import G_MPS2
 from . import calibration
-from .joint import JointFit, JointSettings, fit_joint
+from .joint import JointFit, JointSettings, fit_joint, wind_regressors
 from .regression import FilterSettings, Regression, build_regression
 from .segments import SegmentSettings, estimate_segment, segment_bounds
 
@@ -77,8 +77,11 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
         worst = max(regression.rejected, key=regression.rejected.get)
         notes.append(f"no sample passes the data filter (most fail: {worst}, {regression.rejected[worst]} "
                      f"of {len(frame)}): no mass estimated")
+    wind = _wind_regressors(frame, speed, time_s) if joint_settings.fit_wind else None
+    if wind is not None:
+        notes.append("the drive's wind fitted with the masses from the heading along the GPS track")
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
-                              columns, max_mass, notes, segment_settings)
+                              columns, max_mass, notes, segment_settings, wind)
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint)
 
@@ -96,8 +99,18 @@ def regressor_bias_kg(fit: JointFit, regressor_std, bounds) -> np.ndarray:
     return out
 
 
+def _wind_regressors(frame, speed, time_s):
+    """The joint fit's head-wind columns from the GPS track (None without positions)."""
+    from ..gradient.sources import local_east_north_m
+    if not {"latitude_deg", "longitude_deg"} <= set(frame.columns) or frame["latitude_deg"].isna().all():
+        return None
+    east, north = local_east_north_m(frame["latitude_deg"].to_numpy(dtype=float),
+                                     frame["longitude_deg"].to_numpy(dtype=float))
+    return wind_regressors(speed, east, north, time_s)
+
+
 def _joint(regression, time_s, bounds, vehicle, settings, known, segments, columns, max_mass, notes,
-           segment_settings):
+           segment_settings, wind=None):
     """Joint fit with the IMU regressor (else the gradient one), calibration, and per segment the
     chosen ``mass_kg`` and its total ``mass_uncertainty_kg``; the gradient-based joint fit too,
     for comparison."""
@@ -105,12 +118,13 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
     if regression.excess_imu is not None:
         fits["imu"] = fit_joint(regression.force, regression.excess_imu, regression.cos_angle,
                                 regression.aero_per_cda, time_s, bounds, regression.usable_imu, vehicle, settings, "imu",
-                                instrument=regression.excess_gradient)
+                                instrument=regression.excess_gradient, wind_regressors=wind)
     else:
         notes.append("no accelerometer with a calibrated bias (accel_x_mps2, imu_bias_mps2): mass from the "
                      "gradient-based regressor")
     fits["gradient"] = fit_joint(regression.force, regression.excess_gradient, regression.cos_angle,
-                                 regression.aero_per_cda, time_s, bounds, regression.usable, vehicle, settings, "gradient")
+                                 regression.aero_per_cda, time_s, bounds, regression.usable, vehicle, settings, "gradient",
+                                 wind_regressors=wind)
     chosen = fits.get("imu", fits["gradient"])
     gradient_bias = G_MPS2 * np.sin(np.arctan(segment_settings.gradient_bias_pct / 100))
     for name, fit in fits.items():
