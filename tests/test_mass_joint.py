@@ -164,3 +164,22 @@ def test_a_wind_the_route_turns_against_is_fitted_instead_of_read_as_mass():
     assert error_without > 0.03 and error_with < 0.3 * error_without
     assert fitted.identified["wind_north_mps"]
     assert abs(fitted.coefficients["wind_north_mps"] + 6.0) < 1.5 and abs(fitted.coefficients["wind_east_mps"]) < 1.5
+
+
+def test_an_offset_of_the_torque_report_is_fitted_through_the_gears():
+    """A torque report 3 % of the reference torque high adds force in proportion to the gear's
+    ratio; with the gears changing with speed it is told apart from the masses."""
+    from haulprofile.analysis.mass.joint import offset_regressor
+    force, excess, cos_angle, aero, time_s, bounds, usable = _drive(aux_fraction=0.0)
+    speed = np.sqrt(aero / 0.6)
+    newton_per_nm = np.select([speed < 12, speed < 17, speed < 21], [40.0, 28.0, 20.0], 14.0)
+    reference_nm = 2000.0
+    torque = force / newton_per_nm + 0.03 * reference_nm
+    reported = torque * newton_per_nm
+    column = offset_regressor(reported, torque, reference_nm)
+    without = fit_joint(reported, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE)
+    fitted = fit_joint(reported, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE, offset_regressor=column)
+    error_without = np.abs(without.masses_kg / np.array(MASSES) - 1).max()
+    error_with = np.abs(fitted.masses_kg / np.array(MASSES) - 1).max()
+    assert error_without > 0.03 and error_with < 0.5 * error_without
+    assert fitted.identified["torque_offset"] and abs(fitted.coefficients["torque_offset"] - 0.03) < 0.01

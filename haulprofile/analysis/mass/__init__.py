@@ -19,7 +19,7 @@ import pandas as pd
 
 from ..road_load import G_MPS2
 from . import calibration
-from .joint import JointFit, JointSettings, fit_joint, wind_regressors
+from .joint import JointFit, JointSettings, fit_joint, offset_regressor, wind_regressors
 from .regression import FilterSettings, Regression, build_regression
 from .segments import SegmentSettings, estimate_segment, segment_bounds
 
@@ -81,7 +81,8 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     if wind is not None:
         notes.append("the drive's wind fitted with the masses from the heading along the GPS track")
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
-                              columns, max_mass, notes, segment_settings, wind)
+                              columns, max_mass, notes, segment_settings, wind,
+                              _offset_regressor(frame, regression, vehicle) if joint_settings.fit_torque_offset else None)
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint)
 
@@ -109,8 +110,19 @@ def _wind_regressors(frame, speed, time_s):
     return wind_regressors(speed, east, north, time_s)
 
 
+def _offset_regressor(frame, regression, vehicle):
+    """The joint fit's torque-offset column (None without engine torque or a reference torque)."""
+    reference = getattr(vehicle, "engine_reference_torque_nm", None)
+    if not reference or "engine_torque_nm" not in frame.columns or regression.force is None:
+        return None
+    torque = frame["engine_torque_nm"].to_numpy(dtype=float)
+    window = max(1, int(round(1.0 / np.median(np.diff(frame["time_s"].to_numpy(dtype=float))))))
+    smooth = np.convolve(np.nan_to_num(torque), np.ones(window) / window, "same")
+    return offset_regressor(regression.force, smooth, reference)
+
+
 def _joint(regression, time_s, bounds, vehicle, settings, known, segments, columns, max_mass, notes,
-           segment_settings, wind=None):
+           segment_settings, wind=None, offset=None):
     """Joint fit with the IMU regressor (else the gradient one), calibration, and per segment the
     chosen ``mass_kg`` and its total ``mass_uncertainty_kg``; the gradient-based joint fit too,
     for comparison."""
@@ -118,13 +130,13 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
     if regression.excess_imu is not None:
         fits["imu"] = fit_joint(regression.force, regression.excess_imu, regression.cos_angle,
                                 regression.aero_per_cda, time_s, bounds, regression.usable_imu, vehicle, settings, "imu",
-                                instrument=regression.excess_gradient, wind_regressors=wind)
+                                instrument=regression.excess_gradient, wind_regressors=wind, offset_regressor=offset)
     else:
         notes.append("no accelerometer with a calibrated bias (accel_x_mps2, imu_bias_mps2): mass from the "
                      "gradient-based regressor")
     fits["gradient"] = fit_joint(regression.force, regression.excess_gradient, regression.cos_angle,
                                  regression.aero_per_cda, time_s, bounds, regression.usable, vehicle, settings, "gradient",
-                                 wind_regressors=wind)
+                                 wind_regressors=wind, offset_regressor=offset)
     chosen = fits.get("imu", fits["gradient"])
     gradient_bias = G_MPS2 * np.sin(np.arctan(segment_settings.gradient_bias_pct / 100))
     for name, fit in fits.items():

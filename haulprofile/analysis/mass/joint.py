@@ -48,6 +48,10 @@ class JointSettings:
     rolling_resistance_uncertainty: float = 0.15
     """Relative 1-sigma of a datasheet c_r, used when the drive cannot identify it."""
     drag_area_uncertainty: float = 0.10
+    torque_offset_uncertainty: float = 0.02
+    """Prior 1-sigma of the torque report's offset [fraction of the reference torque]."""
+    fit_torque_offset: bool = True
+    """Fit a constant offset of the engine torque report with the masses."""
     fit_wind: bool = True
     """Fit the drive's wind (east, north) with the masses where the log has GPS positions."""
     wind_sigma_mps: float = 5.0
@@ -201,7 +205,7 @@ def _block_covariance(normal, free_idx, n_seg, seg, block, weights, residual, in
 
 
 def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, settings: JointSettings = JointSettings(),
-              regressor_name: str = "", instrument=None, wind_regressors=None) -> JointFit:
+              regressor_name: str = "", instrument=None, wind_regressors=None, offset_regressor=None) -> JointFit:
     """Masses of the segments ``bounds`` ([start, end) index pairs) and the shared c_r, c_d·A from
     the samples in ``usable`` (see the module docstring). Coefficients the drive cannot identify
     (relative std above ``max_relative_std``, a non-physical value, or a singular system) are fixed
@@ -211,13 +215,23 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     travel (`wind_regressors`); given, the drive's wind (east, north) [m/s] is fitted with them,
     c_d A w: the head wind's linear term of the drag, ½ rho c_d A (v + h)² ≈ ½ rho c_d A v² +
     rho c_d A v h with h = -w·u. A wind that is not modelled reads as mass wherever the route
-    turns against it (measured: +11 % on one segment of the accuracy matrix)."""
+    turns against it (measured: +11 % on one segment of the accuracy matrix).
+
+    ``offset_regressor`` (n,): the wheel force per unit of engine torque offset, as a fraction of
+    the reference torque [N] (`offset_regressor`); given, a constant offset of the torque report
+    is fitted (prior ``torque_offset_uncertainty``): J1939's actual torque is a percentage of the
+    reference torque with an offset of its own (friction model), which reads as mass in proportion
+    to the gear ratio."""
     n_seg = len(bounds)
     seg_of = np.full(len(force), -1)
     for j, (start, end) in enumerate(bounds):
         seg_of[start:end] = j
     n_wind = 0 if wind_regressors is None else 2
-    extra_all = np.zeros((len(force), 0)) if wind_regressors is None else np.asarray(wind_regressors, dtype=float)
+    columns = [] if wind_regressors is None else [np.asarray(wind_regressors, dtype=float)]
+    if offset_regressor is not None:
+        columns.append(np.asarray(offset_regressor, dtype=float)[:, None])
+    extra_all = np.column_stack(columns) if columns else np.zeros((len(force), 0))
+    n_extra = extra_all.shape[1]
     ok = usable & (seg_of >= 0) & np.isfinite(force) & np.isfinite(excess) & np.isfinite(cos_angle) & np.isfinite(aero)
     ok &= np.isfinite(extra_all).all(axis=1)
     if instrument is not None:
@@ -246,15 +260,16 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     _, block = np.unique(seg * 1_000_000 + block_local, return_inverse=True)
     m = len(kept)
     theta0 = np.concatenate([np.zeros(m), [result.coefficients["rolling_resistance_coefficient"],
-                                           result.coefficients["drag_area_m2"]], np.zeros(n_wind)])
+                                           result.coefficients["drag_area_m2"]], np.zeros(n_extra)])
     regressor0 = x + G_MPS2 * theta0[m] * c
     theta0[:m] = (np.bincount(seg, weights=regressor0 * (f - theta0[m + 1] * q), minlength=m)
                   / np.bincount(seg, weights=regressor0 ** 2, minlength=m))
-    free = np.ones(m + 2 + n_wind, bool)
+    free = np.ones(m + 2 + n_extra, bool)
     centre = theta0.copy()
     prior_std = np.concatenate([np.full(m, np.inf), [settings.rolling_resistance_uncertainty * theta0[m],
                                                      settings.drag_area_uncertainty * theta0[m + 1]],
-                                np.full(n_wind, settings.wind_sigma_mps * theta0[m + 1])])
+                                np.full(n_wind, settings.wind_sigma_mps * theta0[m + 1]),
+                                np.full(n_extra - n_wind, settings.torque_offset_uncertainty)])
     z = None if instrument is None else instrument[ok]
     try:
         # the data alone: the noise level per unit of the normal matrix, from the block-robust covariance
@@ -294,13 +309,23 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
         cda = theta[m + 1]
         wind = theta[m + 2:m + 4] / cda
         wind_std = np.sqrt(np.diag(cov)[m + 2:m + 4]) / abs(cda)
-        identified = bool(np.all(np.sqrt(np.diag(cov)[m + 2:m + 4]) < settings.max_prior_fraction * prior_std[m + 2:]))
+        identified = bool(np.all(np.sqrt(np.diag(cov)[m + 2:m + 4]) < settings.max_prior_fraction * prior_std[m + 2:m + 4]))
         result.coefficients.update(wind_east_mps=float(wind[0]), wind_north_mps=float(wind[1]))
         result.coefficient_std.update(wind_east_mps=float(wind_std[0]), wind_north_mps=float(wind_std[1]))
         result.identified.update(wind_east_mps=identified, wind_north_mps=identified)
         reason = "identified" if identified else (f"not identifiable on this drive (the route does not turn enough): "
                                                   f"its {settings.wind_sigma_mps:g} m/s prior is in every mass")
         result.reasons.update(wind_east_mps=reason, wind_north_mps=reason)
+    if offset_regressor is not None:
+        index = m + 2 + n_wind
+        std = float(np.sqrt(cov[index, index]))
+        identified = std < settings.max_prior_fraction * prior_std[index]
+        result.coefficients["torque_offset"] = float(theta[index])
+        result.coefficient_std["torque_offset"] = std
+        result.identified["torque_offset"] = bool(identified)
+        result.reasons["torque_offset"] = "identified" if identified else (
+            f"not identifiable on this drive (too few gears): its {100 * settings.torque_offset_uncertainty:g} % "
+            f"prior is in every mass")
     result.weights[ok] = weights
     result.regressor_values[ok] = regressor
     result.outliers = int(np.sum(weights == 0))
@@ -326,3 +351,13 @@ def wind_regressors(speed_mps, east_m, north_m, time_s, window_s: float = 5.0) -
         moving = length > 0.5 * speed * window_s
         u = np.where(moving[:, None], np.column_stack([d_east, d_north]) / length[:, None], np.nan)
     return -AIR_DENSITY_KGPM3 * speed[:, None] * u
+
+
+def offset_regressor(wheel_force_n, engine_torque_nm, reference_torque_nm: float) -> np.ndarray:
+    """Wheel force [N] that a torque offset of the whole reference torque would add, per sample:
+    F_wheel / T_engine x T_ref (the driveline's ratio and efficiency over the wheel radius);
+    NaN where the engine gives less than 5 % of its reference torque."""
+    torque = np.asarray(engine_torque_nm, dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.asarray(wheel_force_n, dtype=float) / torque * reference_torque_nm
+    return np.where(torque > 0.05 * reference_torque_nm, out, np.nan)
