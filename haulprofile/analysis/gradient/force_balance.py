@@ -32,6 +32,9 @@ from ..road_load import G_MPS2
 from .estimate import GradientResult, GradientSettings, estimate_gradient
 
 
+GIVEN_MASS_GAIN_UNCERTAINTY = 0.036
+"""Relative 1-sigma of the force with a given mass: the torque report and driveline gain
+(sqrt(3² + 2²) %, as `mass.joint.JointSettings`), which a weighing does not remove here."""
 ROLLING_RESISTANCE_UNCERTAINTY = 0.15
 """Relative uncertainty of a vehicle file's c_r (datasheet width, as the joint mass's prior)."""
 
@@ -54,18 +57,25 @@ def virtual_accelerometer_mps2(frame: pd.DataFrame, vehicle, mass_kg: np.ndarray
     return np.where(regression.usable & np.isfinite(value), value, np.nan)
 
 
-def segment_masses_kg(frame: pd.DataFrame, vehicle) -> np.ndarray:
+def segment_masses_kg(frame: pd.DataFrame, vehicle) -> tuple[np.ndarray, np.ndarray]:
     """Per sample, the mass [kg] of its segment from `estimate_mass` on ``frame``'s gradient_pct
-    (NaN where a segment has none)."""
+    and its 1-sigma [kg]: the confident mass, or the joint fit's where it is only uncertain (its
+    uncertainty then widens the gradient's); NaN where a segment has no plausible mass, and no
+    force balance there."""
     from ..mass import estimate_mass
     result = estimate_mass(frame, vehicle)
     time_s = frame["time_s"].to_numpy(dtype=float)
-    out = np.full(len(frame), np.nan)
+    mass, sigma = np.full(len(frame), np.nan), np.full(len(frame), np.nan)
     for segment in result.segments:
-        mass = segment.get("mass_kg") or segment.get("mass_gradient_kg")
-        if mass is not None and np.isfinite(mass):
-            out[(time_s >= segment["start_s"]) & (time_s <= segment["end_s"])] = mass
-    return out
+        value, std = segment.get("mass_kg"), segment.get("mass_uncertainty_kg")
+        if value is None and segment.get("mass_joint_status") == "uncertain":
+            regressor = segment.get("mass_regressor", "gradient")
+            value, std = segment.get(f"mass_{regressor}_kg"), segment.get(f"mass_{regressor}_uncertainty_kg")
+        if value is not None and np.isfinite(value):
+            inside = (time_s >= segment["start_s"]) & (time_s <= segment["end_s"])
+            mass[inside] = value
+            sigma[inside] = std if std is not None else np.nan
+    return mass, sigma
 
 
 def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings: GradientSettings = GradientSettings(),
@@ -85,10 +95,12 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         gradient = np.zeros(len(frame))
     first = frame.assign(gradient_pct=np.nan_to_num(gradient))
     if mass_kg is None:
-        mass = segment_masses_kg(first, vehicle)
+        mass, mass_sigma = segment_masses_kg(first, vehicle)
+        relative = mass_sigma / mass
         source = "each segment's mass from a first pass without it"
     else:
         mass = np.broadcast_to(np.asarray(mass_kg, dtype=float), (len(frame),))
+        relative = np.full(len(frame), GIVEN_MASS_GAIN_UNCERTAINTY)
         source = f"the given mass {np.nanmedian(mass):.0f} kg"
         bias_sigma = G_MPS2 * vehicle.rolling_resistance_coefficient * ROLLING_RESISTANCE_UNCERTAINTY
         settings = replace(settings, smoother=replace(settings.smoother, imu_bias_prior_sigma_mps2=bias_sigma))
@@ -96,6 +108,9 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     if not np.isfinite(virtual).any():
         raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
     result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
+    _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
+    if mass_kg is None:
+        result.samples["gradient_mass_pct"] = np.asarray(gradient, dtype=float)
     result.notes = [n for n in result.notes if "IMU carries the gradient" not in n]
     result.notes.append(f"no IMU: the force balance (engine torque, gears, wheel speed, {source}) stands in for "
                         f"the accelerometer on {100 * np.isfinite(virtual).mean():.0f} % of the samples; a mass or "
@@ -104,13 +119,41 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     return result
 
 
+def _add_mass_uncertainty(result: GradientResult, frame, virtual, relative, vehicle, spacing_m):
+    """Widen the gradient's sigma by what the mass's (or the torque gain's) relative error k does to
+    the force balance where it carries the gradient: k (a + g sin alpha + g c_r) / g, a systematic
+    error over a segment that the smoother, taking the force balance as an unbiased accelerometer,
+    cannot see."""
+    from . import grid as distance_grid
+    distance = frame["distance_m"].to_numpy(dtype=float) if "distance_m" in frame else None
+    grid = result.grid
+    if distance is None or "weight_smooth_imu" not in grid:
+        return
+    specific = np.abs(virtual + G_MPS2 * vehicle.rolling_resistance_coefficient) * np.nan_to_num(relative)
+    index = np.where(np.isfinite(distance), distance_grid.grid_index(distance, spacing_m), -1)
+    per_bin = distance_grid.bin_mean(index, specific, len(grid))
+    s_grid = grid["distance_m"].to_numpy()
+    ok = np.isfinite(per_bin)
+    if not ok.any():
+        return
+    filled = np.interp(s_grid, s_grid[ok], per_bin[ok])
+    extra_pct = 100 * filled / G_MPS2 * grid["weight_smooth_imu"].to_numpy()
+    std = np.hypot(grid["gradient_smooth_std_pct"].to_numpy(), extra_pct)
+    grid["gradient_smooth_std_pct"] = std
+    result.samples["gradient_smooth_std_pct"] = np.interp(distance, s_grid, std, left=np.nan, right=np.nan)
+
+
 def estimate_gradient_for_log(frame: pd.DataFrame, dem, settings: GradientSettings = GradientSettings(),
                               vehicle=None) -> GradientResult:
     """The gradient stage's estimate: with the force balance as the accelerometer where the log
-    has none and a vehicle file and engine torque are there, else `estimate_gradient`."""
+    has neither an IMU nor a barometer and a vehicle file and engine torque are there, else
+    `estimate_gradient`. With a barometer the force balance is left out: its errors are
+    systematic (mass, torque gain, wind, auxiliaries), the smoother takes them for noise, and on the
+    accuracy matrix it made the barometer-led gradient worse (``docs/estimation.md``)."""
     has_imu = "accel_x_mps2" in frame.columns and frame["accel_x_mps2"].notna().any()
+    has_baro = "pressure_pa" in frame.columns and frame["pressure_pa"].notna().any()
     has_torque = "engine_torque_nm" in frame.columns and frame["engine_torque_nm"].notna().any()
-    if has_imu or vehicle is None or not has_torque:
+    if has_imu or has_baro or vehicle is None or not has_torque:
         return estimate_gradient(frame, dem, settings)
     try:
         return estimate_gradient_force_balance(frame, dem, vehicle, settings)

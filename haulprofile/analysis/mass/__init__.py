@@ -45,7 +45,14 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
                   joint_settings: JointSettings = JointSettings(), known_masses: dict[int, float] | None = None
                   ) -> MassResult:
     """Per-segment masses [kg] of a signals table (see `MassResult`); ``known_masses`` {segment
-    index from 0: kg} calibrates the torque gain. UserError if columns are missing."""
+    index from 0: kg} calibrates the torque gain. UserError if columns are missing.
+
+    Where ``gradient_pct`` itself rests on a mass (the force balance standing in for a missing
+    IMU, `gradient.force_balance`), the gradient stage also writes ``gradient_mass_pct``, the
+    estimate without it, and the mass is fitted on that: on its own force-balance gradient any
+    mass fits its torque, and would look confident."""
+    if "gradient_mass_pct" in frame.columns and frame["gradient_mass_pct"].notna().any():
+        frame = frame.assign(gradient_pct=frame["gradient_mass_pct"])
     regression = build_regression(frame, vehicle, filter_settings)
     time_s = frame["time_s"].to_numpy(dtype=float)
     speed = frame["speed_mps"].to_numpy(dtype=float)

@@ -133,6 +133,8 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
     and in ``mass_kg_within_2_sigma`` whether the truth lies inside its stated ±2σ."""
     from ..mass import estimate_mass
     frame = signals.assign(gradient_pct=signals[column])
+    if column != METHODS["smoother"] and "gradient_mass_pct" in frame.columns:
+        frame = frame.drop(columns=["gradient_mass_pct"])
     result = estimate_mass(frame, vehicle)
     time_s, mass = truth["time_s"].to_numpy(), truth["mass_kg"].to_numpy()
     out = {key: [] for key in MASS_KEYS} | {"mass_kg_within_2_sigma": []}
@@ -184,13 +186,12 @@ def _gradient_columns(signals, dem_dir: Path):
 def _sensor_set_columns(base, dem_dir: Path, set_name: str, virtual):
     """The signals of ``base`` as a logger with only ``set_name``'s sensors gives them, with the
     gradient columns the estimator makes of them as the gradient stage does (the force balance as
-    the accelerometer where there is none; ``gradient_pct`` = the paper's fusion (8) where it can
+    the accelerometer where there is neither IMU nor barometer; ``gradient_pct`` = the paper's fusion (8) where it can
     run). A log with no height source (``can-only``) is given the true mass per sample, as a
     weighing at every load change would give it, and scored against the flat road too."""
     from ..dem import open_dem
     from ..errors import UserError
-    from ..gradient import estimate_gradient
-    from ..gradient.force_balance import estimate_gradient_force_balance
+    from ..gradient.force_balance import estimate_gradient_for_log, estimate_gradient_force_balance
     from ..gradient.sensor_sets import sensors_present, without_sensors
     frame = without_sensors(base, set_name)
     given = None
@@ -198,8 +199,8 @@ def _sensor_set_columns(base, dem_dir: Path, set_name: str, virtual):
         given = np.interp(frame["time_s"], virtual.truth["time_s"], virtual.truth["mass_kg"])
         frame = frame.assign(**{METHODS[FLAT]: np.zeros(len(frame))})
     try:
-        if "imu" in sensors_present(frame):
-            samples = estimate_gradient(frame, open_dem(dem_dir)).samples
+        if given is None:
+            samples = estimate_gradient_for_log(frame, open_dem(dem_dir), vehicle=virtual.vehicle).samples
         else:
             samples = estimate_gradient_force_balance(frame, open_dem(dem_dir), virtual.vehicle, mass_kg=given).samples
     except UserError:
