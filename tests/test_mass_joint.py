@@ -183,3 +183,16 @@ def test_an_offset_of_the_torque_report_is_fitted_through_the_gears():
     error_with = np.abs(fitted.masses_kg / np.array(MASSES) - 1).max()
     assert error_without > 0.03 and error_with < 0.5 * error_without
     assert fitted.identified["torque_offset"] and abs(fitted.coefficients["torque_offset"] - 0.03) < 0.01
+
+
+def test_a_segment_whose_force_balance_mostly_fails_is_told_apart():
+    """An auxiliary load on most of one segment's samples: the robust fit rejects them there and
+    hardly anywhere else, so that segment can be called not confident."""
+    force, excess, cos_angle, aero, time_s, bounds, usable = _drive(aux_fraction=0.0)
+    start, end = bounds[1]
+    on = np.zeros(len(force), bool)
+    on[start:end] = (time_s[start:end] % 40.0) < 18.0  # 18 s on in every 40 s
+    force = force + np.where(on, 6000.0, 0.0)
+    fit = fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE)
+    assert fit.rejected_share[1] > JointSettings().max_rejected_share
+    assert fit.rejected_share[0] < 0.1 and fit.rejected_share[2] < 0.1

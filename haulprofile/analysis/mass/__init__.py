@@ -162,11 +162,15 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
             segment[f"mass_{name}_uncertainty_kg"] = float(sigma[j]) if np.isfinite(m[j]) else None
         mass, sigma = masses[j], total[j]
         status, reason = "ok", ""
+        broken = chosen.rejected_share is not None and chosen.rejected_share[j] > settings.max_rejected_share
         if not np.isfinite(mass):
             status, reason = "no_excitation", f"only {int(chosen.samples[j])} samples for the joint fit"
         elif not (0.5 * vehicle.curb_mass_kg < mass < max_mass):
             status, reason = "implausible", f"joint mass {mass:.0f} kg outside {0.5 * vehicle.curb_mass_kg:.0f}.." \
                                             f"{max_mass:.0f} kg"
+        elif broken:
+            status, reason = "uncertain", f"the force balance does not hold on {100 * chosen.rejected_share[j]:.0f} % " \
+                                          f"of its samples (an auxiliary load or PTO running, unflagged braking)"
         elif chosen.mass_std_kg[j] > settings.max_relative_uncertainty * mass:
             status, reason = "uncertain", f"statistical uncertainty {chosen.mass_std_kg[j]:.0f} kg over " \
                                           f"{100 * settings.max_relative_uncertainty:.0f} %"
@@ -174,7 +178,7 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         if status == "ok":
             segment["mass_kg"], segment["mass_uncertainty_kg"] = float(mass), float(sigma)
             columns["mass_kg"][start:end] = mass
-        elif segment["status"] == "ok":
+        elif segment["status"] == "ok" and not broken:
             segment["mass_kg"], segment["mass_uncertainty_kg"] = segment["mass_ls_kg"], segment["uncertainty_kg"]
         else:
             segment["mass_kg"] = segment["mass_uncertainty_kg"] = None

@@ -57,6 +57,10 @@ class JointSettings:
     wind_sigma_mps: float = 5.0
     """Prior 1-sigma of each horizontal wind component [m/s] (a fresh breeze at truck height)."""
     max_relative_uncertainty: float = 0.05
+    max_rejected_share: float = 1 / 3
+    """A segment where the robust fit rejects more than this share of the samples has a force
+    balance the model does not hold (an auxiliary load running most of the time, a PTO, unflagged
+    braking): its mass is "not confident" (measured: 65 % rejected on a segment 37 % off)."""
     min_samples: int = 150
 
 
@@ -79,6 +83,8 @@ class JointFit:
     samples: np.ndarray
     outliers: int
     regressor: str = ""
+    rejected_share: np.ndarray | None = None
+    """Per segment, the share of its used samples the robust fit gave weight 0 (NaN: not fitted)."""
     condition: float = np.nan
     notes: list[str] = field(default_factory=list)
 
@@ -327,6 +333,9 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
             f"not identifiable on this drive (too few gears): its {100 * settings.torque_offset_uncertainty:g} % "
             f"prior is in every mass")
     result.weights[ok] = weights
+    result.rejected_share = np.full(n_seg, np.nan)
+    result.rejected_share[kept] = np.bincount(seg, weights=(weights == 0).astype(float), minlength=m) / np.bincount(
+        seg, minlength=m)
     result.regressor_values[ok] = regressor
     result.outliers = int(np.sum(weights == 0))
     return result
