@@ -4,7 +4,8 @@ levels through the real analysis (MCAP log -> ingest -> gradient -> mass), score
 truth. One JSON line per vehicle file (exact / datasheet-mismatched), level and gradient method:
 gradient RMSE [%-pt] on the 10 m grid per road category (median and p95 over drives) and the mass
 error per segment (median and worst of |error| over all segments, LS, RLS and ``mass_kg``, the
-joint estimate, with the share of segments whose truth is inside its stated ±2σ), and for the
+joint estimate, with the share of segments whose truth is inside its stated ±2σ; and
+``mass_kg_weighed``, the other segments with the first one weighed), and for the
 smoother the share of 10 m bins whose true gradient is inside its stated ±2σ. Each drive is
 analysed with each sensor set (`SENSOR_SETS`: the full log and the same log without barometer,
 IMU or GPS); lines of a set other than ``full`` have it in their name and ``sensor_set``. Drives
@@ -81,14 +82,16 @@ def _summarise_set(results: list[dict], sensor_set: str) -> list[dict]:
                 gradient = {cat: _stats([r["gradient"][method][cat] for r in have]) for cat in CATEGORIES}
                 mass = {}
                 for key in MASS_KEYS:
-                    errors = [abs(e) for r in have if r["mass"] for e in r["mass"][vehicle][method][key]]
+                    errors = [abs(e) for r in have if r["mass"] for e in r["mass"][vehicle][method].get(key, [])]
                     mass[key] = {"segments": len(errors)}
                     if errors:
                         mass[key] |= {"median_pct": 100 * float(np.median(errors)),
                                       "worst_pct": 100 * float(np.max(errors))}
-                covered = [c for r in have if r["mass"] for c in r["mass"][vehicle][method].get("mass_kg_within_2_sigma", [])]
-                if "mass_kg" in mass and covered:
-                    mass["mass_kg"]["within_2_sigma"] = float(np.mean(covered))
+                for key in ("mass_kg", "mass_kg_weighed"):
+                    covered = [c for r in have if r["mass"]
+                               for c in r["mass"][vehicle][method].get(f"{key}_within_2_sigma", [])]
+                    if covered:
+                        mass[key]["within_2_sigma"] = float(np.mean(covered))
                 covered = [r["gradient_within_2_sigma"].get(method) for r in have]
                 covered = [c for c in covered if c is not None]
                 coverage = {"median": float(np.median(covered)), "min": float(np.min(covered))} if covered else None

@@ -29,7 +29,7 @@ CATEGORIES = {"outside": ("at grade", "embankment"), "cutting": ("cutting",), "b
               "tunnel": ("tunnel",)}
 MIN_BINS = 5
 MIN_SEGMENT_S = 120.0
-MASS_KEYS = ("mass_ls_kg", "mass_rls_kg", "mass_kg")
+MASS_KEYS = ("mass_ls_kg", "mass_rls_kg", "mass_kg", "mass_kg_weighed")
 MISMATCH = {"rolling_resistance_coefficient": 0.15, "drag_coefficient": 0.10}
 MISMATCH_ETA = 0.02
 SENSOR_SETS = ("full", "no-baro", "no-imu", "gps+can", "can-only")
@@ -127,24 +127,33 @@ def gradient_coverage(signals, virtual, column: str, std_column: str) -> float |
     return float(np.mean(np.abs(mean[pick] - grid["gradient_pct"].to_numpy()[pick]) <= 2 * std[pick]))
 
 
-def mass_errors(signals, truth, vehicle, column: str) -> dict:
-    """Relative errors of each confident segment's mass when the gradient is ``column``: LS and
-    RLS where the LS is ``ok``; ``mass_kg`` (the joint estimate, else LS) wherever it is given,
-    and in ``mass_kg_within_2_sigma`` whether the truth lies inside its stated ±2σ."""
-    from ..mass import estimate_mass
-    frame = signals.assign(gradient_pct=signals[column])
-    if column != METHODS["smoother"] and "gradient_mass_pct" in frame.columns:
-        frame = frame.drop(columns=["gradient_mass_pct"])
-    result = estimate_mass(frame, vehicle)
+def _scored_segments(segments, truth):
+    """(segment index, segment, true mass) of the segments of >= MIN_SEGMENT_S within one true mass."""
     time_s, mass = truth["time_s"].to_numpy(), truth["mass_kg"].to_numpy()
-    out = {key: [] for key in MASS_KEYS} | {"mass_kg_within_2_sigma": []}
-    for segment in result.segments:
+    for j, segment in enumerate(segments):
         if segment["end_s"] - segment["start_s"] < MIN_SEGMENT_S:
             continue
         inside = (time_s >= segment["start_s"]) & (time_s <= segment["end_s"])
         if not inside.any() or np.ptp(mass[inside]) > 0:
             continue
-        true = mass[inside][0]
+        yield j, segment, float(mass[inside][0])
+
+
+def mass_errors(signals, truth, vehicle, column: str) -> dict:
+    """Relative errors of each confident segment's mass when the gradient is ``column``: LS and
+    RLS where the LS is ``ok``; ``mass_kg`` (the joint estimate, else LS) wherever it is given,
+    and in ``mass_kg_within_2_sigma`` whether the truth lies inside its stated ±2σ. The same for
+    ``mass_kg_weighed``: with the first scored segment weighed (`--known-mass`, its true mass),
+    the other segments' errors, the torque gain calibrated."""
+    from ..mass import estimate_mass
+    frame = signals.assign(gradient_pct=signals[column])
+    if column != METHODS["smoother"] and "gradient_mass_pct" in frame.columns:
+        frame = frame.drop(columns=["gradient_mass_pct"])
+    result = estimate_mass(frame, vehicle)
+    out = {key: [] for key in MASS_KEYS} | {"mass_kg_within_2_sigma": [], "mass_kg_weighed": [],
+                                           "mass_kg_weighed_within_2_sigma": []}
+    scored = list(_scored_segments(result.segments, truth))
+    for _, segment, true in scored:
         for key in MASS_KEYS:
             confident = segment["status"] == "ok" if key != "mass_kg" else True
             if confident and segment.get(key) is not None:
@@ -152,6 +161,16 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
         sigma = segment.get("mass_uncertainty_kg")
         if segment.get("mass_kg") is not None and sigma is not None and np.isfinite(sigma):
             out["mass_kg_within_2_sigma"].append(bool(abs(segment["mass_kg"] - true) <= 2 * sigma))
+    weighed = [(j, true) for j, segment, true in scored if segment.get("mass_kg") is not None]
+    if len(scored) >= 2 and weighed:
+        first, known = weighed[0]
+        calibrated = estimate_mass(frame, vehicle, known_masses={first: known})
+        for j, segment, true in _scored_segments(calibrated.segments, truth):
+            sigma = segment.get("mass_uncertainty_kg")
+            if j == first or segment.get("mass_kg") is None or sigma is None or not np.isfinite(sigma):
+                continue
+            out["mass_kg_weighed"].append(float(segment["mass_kg"] / true - 1))
+            out["mass_kg_weighed_within_2_sigma"].append(bool(abs(segment["mass_kg"] - true) <= 2 * sigma))
     return out
 
 
