@@ -77,6 +77,8 @@ def test_force_balance_with_gps_altitude_beats_gps_altitude_alone(drive):
     alone = estimate_gradient(gps_can, None)
     joint = estimate_gradient_force_balance(gps_can, None, vehicle)
     assert rmse_pct(joint) < 0.6 * rmse_pct(alone)
+    assert "gradient_imu_pct" not in joint.grid and "gradient_force_balance_pct" in joint.grid, "no IMU to claim"
+    assert "gradient_mass_pct" in joint.samples and joint.smoother["force_balance"]
 
 
 def test_without_a_barometer_the_imu_leads_and_its_noise_is_not_the_gps_gradients_error(drive):

@@ -116,6 +116,9 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
                         f"the accelerometer on {100 * np.isfinite(virtual).mean():.0f} % of the samples; a mass or "
                         f"torque-gain error of k % reads as k % of (a + g sin alpha) in the gradient")
     result.smoother["force_balance"] = True
+    if "gradient_imu_pct" in result.grid:  # (7) of the stand-in, not of an IMU
+        result.grid = result.grid.rename(columns={"gradient_imu_pct": "gradient_force_balance_pct"})
+        result.samples["gradient_force_balance_pct"] = result.samples.pop("gradient_imu_pct")
     return result
 
 

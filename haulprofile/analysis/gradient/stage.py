@@ -78,7 +78,8 @@ def gradient_stage(ctx) -> None:
         "grid_spacing_m": options.settings.spacing_m,
         "sensor_set": sensor_set(frame),
         "sources": [s for s, c in (("map", "gradient_map_pct"), ("baro", "gradient_baro_pct"),
-                                   ("imu", "gradient_imu_pct")) if c in grid.columns],
+                                   ("imu", "gradient_imu_pct"), ("force_balance", "gradient_force_balance_pct"))
+                    if c in grid.columns],
         "method": options.settings.gradient_method,
         "mean_map_weight": float(np.mean(grid["weight_map"])),
         "smoother": result.smoother,
