@@ -33,10 +33,10 @@ def test_option_tables_reach_the_settings_that_hold_them_and_unknown_keys_are_on
 
     options = analysis.Options.of({"mass": {"forgetting_factor": 0.99}, "mass_filter": {"min_speed_mps": 3.0},
                                    "cycle": {"widths": {"mass_kg": 200.0}, "seed": 4},
-                                   "simulate": {"time_step_s": 0.05, "payload_kg": 6000}})
+                                   "simulation": {"time_step_s": 0.05, "payload_kg": 6000}})
     assert options.mass.segments.forgetting_factor == 0.99 and options.mass.filter.min_speed_mps == 3.0
     assert options.cycle.widths.mass_kg == 200.0 and options.cycle.seed == 4
-    assert options.simulate.driver.time_step_s == 0.05 and options.simulate.payload_kg == 6000
+    assert options.simulation.driver.time_step_s == 0.05 and options.simulation.payload_kg == 6000
     with pytest.raises(UserError, match="unknown key 'n_candidate'") as error:
         analysis.Options.of({"cycle": {"n_candidate": 5}})
     assert "\n" not in str(error.value)

@@ -12,7 +12,8 @@ import pandas as pd
 import pytest
 
 from haulprofile.analysis.errors import UserError
-from haulprofile.analysis.fleet.road_load import fit_truck, parse_fleet_known_masses, segment_moments
+from haulprofile.analysis.commands.arguments import parse_fleet_known_masses
+from haulprofile.analysis.fleet.road_load import fit_truck, segment_moments
 from haulprofile.analysis.mass.joint import fit_joint
 from haulprofile.analysis.road_load import G_MPS2
 from haulprofile.analysis.vehicle import load_vehicle

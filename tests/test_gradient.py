@@ -169,8 +169,7 @@ def test_fused_height_integrates_to_fused_gradient(drive, dem):
 def fallback_stage(drive, dem_dir, said):
     ctx = RunContext(inputs=[], out_dir=".", signals=drive.copy(), dem_dir=dem_dir, say=said.append,
                      options=Options(gradient=GradientOptions(barometer_off_map=True)))
-    gradient_stage(ctx)
-    return ctx.results.gradient
+    return gradient_stage(ctx)
 
 
 def test_baro_only_without_dem_and_missing_tile_falls_back(drive, tmp_path):

@@ -57,7 +57,7 @@ def test_analyze_mass_on_a_table_without_engine_data_is_one_line(table_and_dem, 
 
 def test_run_pipeline_adds_columns_and_segment_masses(table_and_dem, tmp_path, monkeypatch):
     table, dem = table_and_dem
-    monkeypatch.setattr(pipeline, "STAGES", [s for s in pipeline.STAGES if s[0] in ("kinematics", "gradient", "mass")])
+    monkeypatch.setattr(pipeline, "STAGES", [s for s in pipeline.STAGES if s.name in ("kinematics", "gradient", "mass")])
     ctx = pipeline.RunContext(inputs=[table], out_dir=tmp_path, vehicle=load_vehicle("rigid-18t"), dem_dir=dem,
                               say=lambda _m: None)
     pipeline.run(ctx)
@@ -72,7 +72,7 @@ def test_run_pipeline_adds_columns_and_segment_masses(table_and_dem, tmp_path, m
 
 def test_run_pipeline_without_dem_says_barometric_only(table_and_dem, tmp_path, monkeypatch):
     table, _ = table_and_dem
-    monkeypatch.setattr(pipeline, "STAGES", [s for s in pipeline.STAGES if s[0] in ("kinematics", "gradient")])
+    monkeypatch.setattr(pipeline, "STAGES", [s for s in pipeline.STAGES if s.name in ("kinematics", "gradient")])
     said = []
     pipeline.run(pipeline.RunContext(inputs=[table], out_dir=tmp_path, say=said.append))
     assert any("barometric height only" in s for s in said)
@@ -84,7 +84,7 @@ def test_run_pipeline_on_a_drive_without_valid_samples_says_so_and_gives_no_numb
     table, dem = table_and_dem
     broken = pd.read_parquet(table).assign(valid=False)
     broken.to_parquet(tmp_path / "invalid.parquet")
-    monkeypatch.setattr(pipeline, "STAGES", [s for s in pipeline.STAGES if s[0] in ("kinematics", "gradient", "mass")])
+    monkeypatch.setattr(pipeline, "STAGES", [s for s in pipeline.STAGES if s.name in ("kinematics", "gradient", "mass")])
     said = []
     pipeline.run(pipeline.RunContext(inputs=[tmp_path / "invalid.parquet"], out_dir=tmp_path / "out",
                                      vehicle=load_vehicle("rigid-18t"), dem_dir=dem, say=said.append))

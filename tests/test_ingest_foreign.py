@@ -88,8 +88,8 @@ def test_pipeline_stage(tmp_path):
         synthetic.write_log(stream, 5, seed=6)
     said = []
     ctx = RunContext(inputs=[log], out_dir=tmp_path, options={"ingest": {"rate_hz": 5.0}}, say=said.append)
-    stage(ctx)
-    assert len(ctx.signals) == 25 and ctx.summary["ingest"]["rate_hz"] == 5.0
+    result = stage(ctx)
+    assert len(ctx.signals) == 25 and result.summary()["rate_hz"] == 5.0
     assert {"speed_mps", "engine_torque_nm", "pressure_pa", "wall_time_ns"} <= set(ctx.signals.columns)
     assert said and "25 rows" in said[-1]
 

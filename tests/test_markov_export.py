@@ -133,8 +133,8 @@ def test_stage_writes_the_cycle_and_its_summary(drive, tmp_path):
 def test_stage_without_mass_says_so_and_writes_nothing(drive, tmp_path):
     messages = []
     ctx = RunContext(inputs=[], out_dir=tmp_path, signals=drive.drop(columns=["mass_kg"]), say=messages.append)
-    cycle_stage(ctx)
-    assert "cycle" not in ctx.summary and "mass_kg" in messages[0]
+    assert cycle_stage(ctx) is None
+    assert "cycle" in ctx.skipped and "mass_kg" in messages[0]
     assert not (tmp_path / "cycle.csv").exists()
 
 

@@ -156,14 +156,14 @@ def test_cli_paper_selection_writes_the_golden_cycle(drive, tmp_path):
 
 
 def test_stage_writes_a_cycle_set_with_loads_and_the_score_figure(drive, vehicle, tmp_path):
-    from haulprofile.analysis.markov.stage import cycle_stage
+    from haulprofile.analysis.markov.stage import STAGE, cycle_stage
     from haulprofile.analysis.outputs import write_outputs
-    from haulprofile.analysis.pipeline import Options, RunContext
+    from haulprofile.analysis.pipeline import Options, RunContext, run_stage
     ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=vehicle, say=lambda _m: None,
                      options={"cycle": {"n_cycles": 2, "n_candidates": 2000, "n_moves": 800}})
     ctx.signals = drive
-    cycle_stage(ctx)
-    write_outputs(ctx, full=False)
+    run_stage(ctx, STAGE)
+    write_outputs(ctx, [STAGE], full=False)
     c = ctx.summary["cycle"]
     assert c["method"] == "refined" and c["valid"] and set(c["load_criteria"]) == set(LOAD_NAMES)
     assert c["cycle_set"]["n_cycles"] == 2 and c["cycle_set"]["spread"]["all_valid"]

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from haulprofile.analysis.errors import UserError
-from haulprofile.analysis.mass.calibration import calibrate, parse_known_masses
+from haulprofile.analysis.commands.arguments import parse_known_masses
+from haulprofile.analysis.mass.calibration import calibrate
 from haulprofile.analysis.mass.joint import JointSettings, fit_joint
 from haulprofile.analysis.road_load import G_MPS2
 from haulprofile.analysis.vehicle import load_vehicle
@@ -122,7 +123,7 @@ def test_accelerometer_mass_on_an_imperfect_world_with_and_without_a_weighing(im
     assert all(s["mass_regressor"] == "imu" and s["mass_joint_status"] == "ok" for s in result.segments)
     assert np.all(np.abs(masses - true) < 2 * sigma)  # the torque-gain ambiguity is in the uncertainty
     assert result.road_load["rolling_resistance_coefficient"]["identified"]
-    assert any("--known-mass" in note for note in result.notes)
+    assert any("weighed_masses_kg" in note for note in result.notes)
     calibrated = estimate_mass(signals, vehicle, known_masses={0: float(true[0])})
     masses = np.array([s["mass_kg"] for s in calibrated.segments])
     print("calibrated", masses / true - 1, calibrated.road_load["torque_gain"])

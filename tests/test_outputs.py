@@ -2,6 +2,7 @@
 cache knows a log by its content, not by its size and time stamp."""
 
 import json
+from dataclasses import replace
 import os
 
 import numpy as np
@@ -47,7 +48,7 @@ def test_interrupted_in_a_stage_after_the_cycle_leaves_the_earlier_run_as_it_was
     def interrupted(ctx):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(pipeline, "STAGES", [pipeline.Stage("loads", interrupted) if s.name == "loads" else s
+    monkeypatch.setattr(pipeline, "STAGES", [replace(s, run=interrupted) if s.name == "loads" else s
                                              for s in pipeline.STAGES])
     with pytest.raises(KeyboardInterrupt):
         run(RunContext(inputs=[table], out_dir=out, options={"cycle": {**CYCLE, "seed": 2}}, say=lambda _m: None))
@@ -90,14 +91,21 @@ def test_a_full_run_removes_what_an_earlier_run_wrote_and_this_one_did_not(quick
                                                                           monkeypatch):
     out = tmp_path / "out"
     earlier_run(table, out)
-    monkeypatch.setattr(pipeline, "STAGES", [s for s in pipeline.STAGES if s.name == "kinematics"])
+
+    def no_cycle(ctx):
+        ctx.skip("cycle", "no gradient")
+
+    monkeypatch.setattr(pipeline, "STAGES", [replace(s, run=no_cycle) if s.name == "cycle" else s
+                                             for s in pipeline.STAGES])
     run(RunContext(inputs=[table], out_dir=out, say=lambda _m: None))
     assert not (out / "cycle.csv").exists() and not (out / "cycle.vdri").exists()
-    assert json.loads((out / "summary.json").read_text())["stages"] == ["kinematics", "report"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert "cycle" not in summary and summary["skipped"]["cycle"] == "no gradient"
 
 
 def test_the_signals_table_is_never_written_over_an_input(tmp_path, table):
-    ctx = RunContext(inputs=[table], out_dir=table.parent, signals_name=table.name, say=lambda _m: None)
+    ctx = RunContext(inputs=[table], out_dir=table.parent, options={"output": {"signals_file": table.name}},
+                     say=lambda _m: None)
     with pytest.raises(UserError, match="is an input"):
         run(ctx, until="ingest")
     assert pd.read_csv(table).shape[0] > 0

@@ -41,8 +41,8 @@ def test_signals_table_and_output_tree(tmp_path, umask):
     frame = pd.DataFrame({"time_s": [0.0, 0.1], "latitude_deg": [48.1, 48.1], "longitude_deg": [11.5, 11.5]})
     for name in ("a/signals.parquet", "b/signals.csv"):  # the output step, as `analyze signals -o`
         path = tmp_path / name
-        write_outputs(RunContext(inputs=[], out_dir=path.parent, signals=frame, signals_name=path.name, say=print),
-                      full=False)
+        write_outputs(RunContext(inputs=[], out_dir=path.parent, signals=frame,
+                                 options={"output": {"signals_file": path.name}}, say=print), [], full=False)
         assert mode(path) == 0o640 and mode(path.parent) == 0o750
     out = make_dirs(tmp_path / "out" / "run")
     (out / "figures").mkdir(mode=0o777)
@@ -55,7 +55,7 @@ def test_signals_table_and_output_tree(tmp_path, umask):
 def test_private_output_step_writes_no_positions(tmp_path):
     frame = pd.DataFrame({"time_s": [0.0, 0.1], "latitude_deg": [48.1, 48.1], "longitude_deg": [11.5, 11.5],
                           "wall_time_ns": [1, 2], "height_m": [500.0, 500.1]})
-    ctx = RunContext(inputs=[], out_dir=tmp_path, signals=frame, signals_name="s.parquet",
-                     options={"output": {"private": True}}, say=print)
-    write_outputs(ctx, full=False)
+    ctx = RunContext(inputs=[], out_dir=tmp_path, signals=frame,
+                     options={"output": {"private": True, "signals_file": "s.parquet"}}, say=print)
+    write_outputs(ctx, [], full=False)
     assert list(pd.read_parquet(tmp_path / "s.parquet")) == ["time_s", "height_m"]

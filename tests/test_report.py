@@ -124,7 +124,7 @@ def test_a_drive_that_stood_still_says_why_there_is_no_simulation(tmp_path):
     run(RunContext(inputs=[tmp_path / "idle.csv"], out_dir=tmp_path / "out", vehicle=load_vehicle("rigid-18t"),
                    say=lambda _m: None))
     text = _visible_text((tmp_path / "out" / "report.html").read_text())
-    assert "No simulation: the measured drive covers 0.00 km" in text
+    assert "Not run: the measured drive covers 0.00 km" in text
     assert not re.search(r"\b(nan|inf)\b", text, re.I)
     assert not (tmp_path / "out" / "simulation" / "machine_residence.png").exists()
 

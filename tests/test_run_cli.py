@@ -62,13 +62,13 @@ def test_rerun_with_one_changed_option_reruns_only_what_depends_on_it(first_run,
     base = ["run", demo_inputs / "logs", "--vehicle", "rigid-18t", "--dem", demo_inputs / "dem", "--out", out,
             "--candidates", "1000"]
     code, printed, _ = run_cli(capsys, *base)
-    assert "[ingest] unchanged, from cache" in printed and "[simulate] unchanged, from cache" in printed
+    assert "[ingest] unchanged, from cache" in printed and "[simulation] unchanged, from cache" in printed
     code, printed, _ = run_cli(capsys, *base[:-1], "1500")
     assert "[mass] unchanged, from cache" in printed and "[cycle] unchanged" not in printed
     assert "[cycle]" in printed and "[loads]" in printed
     code, printed, _ = run_cli(capsys, *base[:-1], "1500", "--payload-kg", "4000")
-    assert "[loads] unchanged, from cache" in printed and "[simulate]" in printed
-    assert "[simulate] unchanged" not in printed
+    assert "[loads] unchanged, from cache" in printed and "[simulation]" in printed
+    assert "[simulation] unchanged" not in printed
 
 
 def test_json_prints_only_the_summary(first_run, demo_inputs, capsys):

@@ -42,6 +42,6 @@ def test_the_gradient_stage_says_the_sensor_set_and_puts_it_in_the_summary():
     said = []
     ctx = RunContext(inputs=[], out_dir=".", signals=without_sensors(full_log(), "no-imu"), dem_dir=None,
                      say=said.append)
-    gradient_stage(ctx)
+    result = gradient_stage(ctx)
     assert "gradient: sensor set no-imu: barometer + GPS + CAN (no IMU)" in said
-    assert ctx.summary["gradient"]["sensor_set"] == "no-imu"
+    assert result.summary()["sensor_set"] == "no-imu"

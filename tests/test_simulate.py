@@ -34,7 +34,7 @@ def energy_balance_terms(result, vehicle):
     """Right-hand side of battery energy = wheel work + losses + auxiliaries, with the road work
     recomputed from the trace through `analysis.road_load` [J]."""
     tr = result.trace
-    mass = np.full(len(tr), result.summary["mean_mass_kg"])
+    mass = np.full(len(tr), result.numbers["mean_mass_kg"])
     m_eff = mass + vehicle.electric_powertrain.rotating_mass_kg
     speed_end = np.append(tr["speed_mps"].to_numpy()[1:], 0.0)
     kinetic = np.sum(0.5 * m_eff * (speed_end ** 2 - tr["speed_mps"].to_numpy() ** 2))
@@ -53,7 +53,7 @@ def test_energy_balance_closes_on_hilly_cycle_with_stops(rigid):
     battery = result.trace["battery_energy_j"].sum()
     assert battery > 0
     assert energy_balance_terms(result, rigid) == pytest.approx(battery, rel=1e-3)
-    assert result.summary["friction_brake_energy_kwh"] > 0, "the -5 % descent must need the friction brake"
+    assert result.numbers["friction_brake_energy_kwh"] > 0, "the -5 % descent must need the friction brake"
 
 
 def test_energy_balance_closes_on_vecto_regional_delivery(rigid, data_dir):
@@ -62,7 +62,7 @@ def test_energy_balance_closes_on_vecto_regional_delivery(rigid, data_dir):
     battery = result.trace["battery_energy_j"].sum()
     assert energy_balance_terms(result, rigid) == pytest.approx(battery, rel=1e-3)
     soc_drop = result.trace["battery_current_a"].sum() * 0.1 / (350 * 3.6e6 / 650)
-    assert result.summary["final_soc"] == pytest.approx(0.95 - soc_drop, abs=1e-12)
+    assert result.numbers["final_soc"] == pytest.approx(0.95 - soc_drop, abs=1e-12)
 
 
 def test_flat_constant_speed_matches_closed_form_road_load(rigid):
@@ -153,7 +153,7 @@ def test_constant_efficiency_map_equals_constant_efficiency(rigid, tmp_path):
     mapped = dataclasses.replace(rigid, electric_powertrain=dataclasses.replace(ep, efficiency_map_csv=str(path)))
     cycle = distance_cycle(HILLY_WITH_STOPS, 16_000.0)
     a, b = simulate_cycle(cycle, rigid), simulate_cycle(cycle, mapped)
-    assert a.summary["battery_terminal_energy_kwh"] == pytest.approx(b.summary["battery_terminal_energy_kwh"], rel=1e-9)
+    assert a.numbers["battery_terminal_energy_kwh"] == pytest.approx(b.numbers["battery_terminal_energy_kwh"], rel=1e-9)
     bad = tmp_path / "bad.csv"
     pd.DataFrame({"speed_rpm": [0, 1000], "torque_nm": [0, 10], "efficiency": [0.9, 0.9]}).to_csv(bad, index=False)
     broken = dataclasses.replace(rigid, electric_powertrain=dataclasses.replace(ep, efficiency_map_csv=str(bad)))
@@ -202,7 +202,7 @@ gear_ratios = [3.2, 1.0]
         mapped.electric_powertrain, efficiency_map_csv=None, machine_efficiency=0.9, axle_ratio=3.07))
     cycle = distance_cycle(HILLY_WITH_STOPS, 16_000.0)
     a, b = simulate_cycle(cycle, mapped), simulate_cycle(cycle, explicit)
-    assert a.summary["battery_terminal_energy_kwh"] == pytest.approx(b.summary["battery_terminal_energy_kwh"], rel=1e-9)
+    assert a.numbers["battery_terminal_energy_kwh"] == pytest.approx(b.numbers["battery_terminal_energy_kwh"], rel=1e-9)
 
 
 def test_driver_holds_the_target_until_a_far_lower_target_is_near(rigid):

@@ -6,9 +6,9 @@ import numpy as np
 import pandas as pd
 
 from haulprofile.analysis.cli import main
-from haulprofile.analysis.pipeline import RunContext, run
-from haulprofile.analysis.markov.stage import cycle_stage
-from haulprofile.analysis.simulate.stage import simulate_stage
+from haulprofile.analysis.markov.stage import STAGE as CYCLE
+from haulprofile.analysis.pipeline import RunContext, run, run_stage
+from haulprofile.analysis.simulate.stage import STAGE as SIMULATION, simulate_stage
 from haulprofile.analysis.vehicle import load_vehicle
 
 
@@ -52,14 +52,14 @@ def test_stage_simulates_measured_drive_then_the_selected_cycle_in_memory(tmp_pa
     messages = []
     ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=load_vehicle("rigid-18t"), signals=signals,
                      say=messages.append)
-    run(ctx, start="simulate", until="simulate")
+    run(ctx, start="simulation", until="simulation")
     assert ctx.summary["simulation"]["cycle"] == "measured drive"
     assert ctx.summary["simulation"]["mean_mass_kg"] == 17_000.0
     assert (tmp_path / "simulation" / "summary.json").is_file()
     ctx.signals["mass_kg"] = 12_000.0
     ctx.options = ctx.options.of({"cycle": {"n_candidates": 50, "duration_s": 200.0}})
-    cycle_stage(ctx)
-    simulate_stage(ctx)
+    run_stage(ctx, CYCLE)
+    run_stage(ctx, SIMULATION)
     assert ctx.summary["simulation"]["cycle"] == "generated cycle"
     assert ctx.summary["simulation"]["mean_mass_kg"] == 12_000.0
 
@@ -69,5 +69,5 @@ def test_stage_without_electric_powertrain_says_so(tmp_path):
     messages = []
     ctx = RunContext(inputs=[], out_dir=tmp_path, say=messages.append,
                      vehicle=dataclasses.replace(load_vehicle("rigid-18t"), electric_powertrain=None))
-    simulate_stage(ctx)
-    assert "simulation" not in ctx.summary and "electric_powertrain" in messages[0]
+    assert simulate_stage(ctx) is None
+    assert "simulation" in ctx.skipped and "electric_powertrain" in messages[0]

@@ -34,5 +34,5 @@ def test_positive_wheel_energy_agrees_with_fastsim_on_udds(monkeypatch):
     cycle = time_cycle(pd.DataFrame({"time_s": trace["time_seconds"], "speed_mps": trace["speed_meters_per_second"],
                                      "gradient_pct": 100 * np.asarray(trace["grade"])}), MASS_KG)
     ours = simulate_cycle(cycle, dataclasses.replace(rigid, electric_powertrain=ep))
-    assert ours.summary["missed_target_intervals"] == 0
-    assert ours.summary["wheel_positive_energy_kwh"] == pytest.approx(fastsim_kwh, rel=0.01)
+    assert ours.numbers["missed_target_intervals"] == 0
+    assert ours.numbers["wheel_positive_energy_kwh"] == pytest.approx(fastsim_kwh, rel=0.01)

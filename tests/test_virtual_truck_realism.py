@@ -12,7 +12,7 @@ from haulprofile.analysis.dem import open_dem
 from haulprofile.analysis.dem.srtm import read_hgt
 from haulprofile.analysis.errors import UserError
 from haulprofile.analysis.virtual_truck import drive, load_scenario, realism_level, write_dem, write_truth
-from haulprofile.analysis.virtual_truck import engineering as eng
+from haulprofile.analysis.virtual_truck import road_design as eng
 from haulprofile.analysis.virtual_truck.scenario import ScenarioFileError
 from haulprofile.analysis.virtual_truck.sensors import G_MPS2
 from test_virtual_truck import SHORT

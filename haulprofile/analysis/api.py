@@ -36,7 +36,7 @@ class RunResult:
     @property
     def mass_segments(self) -> pd.DataFrame:
         """One row per segment between stops: LS/RLS/LM masses, uncertainty, CAN estimate, status."""
-        return pd.DataFrame(self.summary.get("mass", {}).get("segments", []))
+        return pd.DataFrame(self.results.mass.segments if self.results.mass is not None else [])
 
 
 def run(inputs, vehicle: str | Path | Vehicle, dem: str | Path | None = None, out: str | Path | None = None,
@@ -61,7 +61,7 @@ def run(inputs, vehicle: str | Path | Vehicle, dem: str | Path | None = None, ou
         Say nothing (else the stages' messages are printed).
     **options
         Per-stage keyword tables or option objects, e.g. ``cycle={"n_candidates": 2000, "seed": 1}``,
-        ``ingest={"rate_hz": 5}``, ``simulate={"payload_kg": 6000}`` (`pipeline.Options`).
+        ``ingest={"rate_hz": 5}``, ``simulation={"payload_kg": 6000}`` (`pipeline.Options`).
 
     Returns
     -------

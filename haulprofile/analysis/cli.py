@@ -115,7 +115,9 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as exc:
         if known.debug:
             raise
-        print(f"analyze {known.command}: error: {exc}", file=sys.stderr)
+        from .commands.arguments import in_flags
+
+        print(f"analyze {known.command}: error: {in_flags(str(exc))}", file=sys.stderr)
         return exc.exit_code
     except OSError as exc:
         if not known.debug and exc.errno in ENVIRONMENT_ERRNOS:

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .stage import Stage
+
 
 def distance_m(time_s: np.ndarray, speed_mps: np.ndarray) -> np.ndarray:
     """Driven distance [m]: trapezoidal integral of speed, NaN speeds counted as 0."""
@@ -41,20 +43,35 @@ class KinematicsOptions:
     """Length of the centred moving average before differentiating speed [s]."""
 
 
-def kinematics_stage(ctx) -> None:
-    """Add ``distance_m`` [m] and ``accel_mps2`` [m/s²] to ``ctx.signals`` where it has none, and
-    the drive's ``distance_km`` and ``duration_s`` to ``ctx.summary``.
+@dataclass
+class KinematicsResult:
+    """The drive's length and duration."""
+
+    distance_km: float
+    duration_s: float
+
+    def summary(self) -> dict:
+        return {"distance_km": self.distance_km, "duration_s": self.duration_s}
+
+
+def kinematics_stage(ctx) -> KinematicsResult:
+    """Add ``distance_m`` [m] and ``accel_mps2`` [m/s²] to ``ctx.signals`` where it has none (a
+    log never has; a signals table may bring its own), NaN where a row is not ``valid``.
 
     Parameters
     ----------
     ctx : pipeline.RunContext
-        Reads ``signals`` (time_s [s], speed_mps [m/s]) and ``options.kinematics`` (`KinematicsOptions`).
+        Reads ``signals`` (time_s [s], speed_mps [m/s], valid) and ``options.kinematics`` (`KinematicsOptions`).
     """
     frame = ctx.signals
+    time_s, speed_mps = frame["time_s"].to_numpy(), frame["speed_mps"].to_numpy()
     if "distance_m" not in frame.columns:
-        frame["distance_m"] = distance_m(frame["time_s"].to_numpy(), frame["speed_mps"].to_numpy())
+        frame["distance_m"] = distance_m(time_s, speed_mps)
     if "accel_mps2" not in frame.columns:
-        frame["accel_mps2"] = acceleration_mps2(frame["time_s"].to_numpy(), frame["speed_mps"].to_numpy(),
-                                                ctx.options.kinematics.accel_window_s)
-    ctx.summary["distance_km"] = float(frame["distance_m"].iloc[-1] / 1000.0)
-    ctx.summary["duration_s"] = float(frame["time_s"].iloc[-1] - frame["time_s"].iloc[0])
+        accel = acceleration_mps2(time_s, speed_mps, ctx.options.kinematics.accel_window_s)
+        frame["accel_mps2"] = np.where(frame["valid"].to_numpy(bool), accel, np.nan) if "valid" in frame else accel
+    return KinematicsResult(float(frame["distance_m"].iloc[-1] / 1000.0),
+                            float(frame["time_s"].iloc[-1] - frame["time_s"].iloc[0]))
+
+
+STAGE = Stage("kinematics", KinematicsOptions, kinematics_stage, summary_key="")

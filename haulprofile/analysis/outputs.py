@@ -29,30 +29,57 @@ from . import checks, jsonable
 from .errors import UserError
 
 SUMMARY = "summary.json"
-RUN_FILES = ("gradient.csv", "gradient.png", "mass.png", "cycle.csv", "cycle.parquet", "cycle.vdri", "cycle.png",
-             "cycle-scores.png", "cycles", "loads", "simulation", "report.html", "signals.parquet")
-"""What a full run may write besides the summary; what it did not write this time is removed."""
+REPORT_FILES = ("report.html", "signals.parquet")
+"""What a full run writes besides its stages' files and the summary."""
+OUTPUT = "output"
+"""The output step's name among the options (``options.output``)."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class OutputOptions:
-    """What the output step writes (``analyze run --private``)."""
+    """What the output step writes."""
 
     private: bool = False
     """Keep positions and wall-clock time (`signals.POSITION_COLUMNS`) out of the signals table and
     the report; heights, gradients, distances and times since the start stay. The stages used them
     in memory (the DEM); the pipeline keeps no stage cache, which would hold them."""
+    figures: bool = True
+    """Draw each stage's figures (a fleet's per-log runs may leave them out: some 30 % of their time)."""
+    flat: tuple[str, ...] = ()
+    """Stages whose files go into the output directory itself instead of their folder
+    (``analyze loads -o DIR``)."""
+    summary_files: tuple[str, ...] = ()
+    """Stages whose summary is also written as ``<stage>.json`` (``analyze cycle``, ``analyze mass``)."""
+    signals_file: str | None = None
+    """Write the signals table under this name (``.csv`` or ``.parquet``) after any run, not only
+    as ``signals.parquet`` after the full run (``analyze signals -o``)."""
 
 
-def _kept(ctx, stage: str, staging: Path, write):
+def _folder(stage, options: OutputOptions) -> str:
+    return "" if stage.name in options.flat else stage.folder
+
+
+def run_files(stages, options: OutputOptions) -> list[str]:
+    """Every name a run of ``stages`` may write into the output directory besides the summary."""
+    names = set(REPORT_FILES) | {f"{stage.key or stage.name}.json" for stage in stages
+                                 if stage.name in options.summary_files}
+    for stage in stages:
+        folder = _folder(stage, options)
+        names |= {folder} if folder else set(stage.files)
+    if options.signals_file is not None:
+        names.add(options.signals_file)
+    return sorted(names)
+
+
+def _kept(store, stage: str, staging: Path, write):
     """What ``write()`` returns (the names it wrote into ``staging``). A stage the run took from
     the stage cache gets the files kept there when it last ran, instead of drawing them again; a
     stage that ran keeps its files there for the next run."""
-    if ctx.cache_dir is None:
+    if store is None:
         return write()
-    kept = ctx.cache_dir / stage / "files"
+    kept = store.directory / stage / "files"
     index = kept / "index.json"
-    if stage in ctx.from_cache and index.is_file():
+    if stage in store.restored and index.is_file():
         record = json.loads(index.read_text())
         for name in record["paths"]:
             copy = shutil.copytree if (kept / name).is_dir() else shutil.copy2
@@ -70,49 +97,43 @@ def _kept(ctx, stage: str, staging: Path, write):
     return value
 
 
-def _stage_files(ctx, staging: Path, full: bool) -> None:
-    from .gradient.stage import write_gradient
-    from .loads.stage import write_loads
-    from .markov.stage import write_cycle_files
-    from .mass.stage import write_mass
-    from .simulate.output import write_outputs as write_simulation
+def _stage_files(ctx, stages, staging: Path, full: bool, store) -> None:
+    options: OutputOptions = ctx.options.output
+    summary = ctx.summary
+    for stage in stages:
+        result = ctx.results.get(stage.name)
+        if result is None or stage.write is None:
+            continue
+        folder = _folder(stage, options)
 
-    results, summary = ctx.results, ctx.summary
-    if results.gradient is not None:
-        summary["gradient"]["files"] = _kept(ctx, "gradient", staging, lambda: write_gradient(
-            results.gradient, staging, ctx.figures))
-    if results.mass is not None:
-        summary["mass"]["files"] = _kept(ctx, "mass", staging, lambda: write_mass(
-            results.mass, ctx.signals, staging, ctx.figures, ctx.options.mass.true_mass_kg))
-    if results.cycle is not None:
-        summary["cycle"]["files"] = _kept(ctx, "cycle", staging, lambda: write_cycle_files(
-            results.cycle, staging, ctx.figures))
-    for stage, result, write in (("loads", results.loads, write_loads),
-                                 ("simulate", results.simulation, write_simulation)):
-        if result is not None:
-            folder = ctx.subdirs[stage]
+        def write(stage=stage, result=result, folder=folder):
+            target = staging / folder
+            target.mkdir(parents=True, exist_ok=True)
+            written = stage.write(result, target, options.figures)
+            if not folder:
+                return written
+            names = list(written.values()) if isinstance(written, dict) else list(written)
+            return [folder] if names else []
 
-            def write_folder():
-                written = write(result, staging / folder)
-                return [folder] if folder else [Path(p).name for p in written]
-
-            _kept(ctx, stage, staging, write_folder)
-    for name, content in ctx.json_files.items():
-        value = content(ctx)
-        if value is not None:
-            (staging / name).write_text(jsonable.dumps(value, indent=2))
+        written = _kept(store, stage.name, staging, write)
+        if stage.key and isinstance(summary.get(stage.key), dict) and not stage.folder:
+            summary[stage.key]["files"] = written
+    for name in options.summary_files:
+        stage = next(s for s in stages if s.name == name)
+        if stage.key in summary:
+            (staging / f"{stage.key}.json").write_text(jsonable.dumps(summary[stage.key], indent=2))
     from .signals import without_positions, write_signals
 
     signals = ctx.signals
-    if signals is not None and ctx.options.output.private:
+    if signals is not None and options.private:
         signals = without_positions(signals)
-    if ctx.signals_name is not None and signals is not None:
-        write_signals(signals, staging / ctx.signals_name)
+    if options.signals_file is not None and signals is not None:
+        write_signals(signals, staging / options.signals_file)
     if full:
         from .report import write_report
 
         summary["stages"].append("report")
-        summary["report"] = write_report(signals, summary, staging, ctx.vehicle)
+        summary["report"] = write_report(signals, summary, staging, ctx.vehicle, stages)
         ctx.say(f"report: {ctx.out_dir / summary['report']}")
         write_signals(signals, staging / "signals.parquet")
         (staging / SUMMARY).write_text(jsonable.dumps(summary, indent=2))
@@ -127,23 +148,21 @@ def _remove(path: Path) -> None:
 
 def _files_read(ctx) -> list[Path]:
     """The run's inputs and the files its stage options name (a DBC, a cycle to simulate or compare)."""
-    named = [getattr(table, f.name) for table in (getattr(ctx.options, t.name) for t in dataclasses.fields(ctx.options))
-             for f in dataclasses.fields(table)]
+    named = [getattr(table, f.name) for table in ctx.options.tables().values() for f in dataclasses.fields(table)]
     return list(ctx.inputs) + [value for value in named if isinstance(value, Path)]
 
 
-def check(ctx) -> None:
+def check(ctx, stages) -> None:
     """Before any stage runs: the output directory can be written and nothing this run may write
     there is one of its inputs or an existing log (`checks.output_dir`)."""
-    names = {*RUN_FILES, SUMMARY, *ctx.json_files, *(n for n in ctx.subdirs.values() if n)}
-    if ctx.signals_name is not None:
-        names.add(ctx.signals_name)
+    names = {*run_files(stages, ctx.options.output), SUMMARY}
     checks.output_dir(ctx.out_dir, _files_read(ctx), names=sorted(names))
 
 
-def write_outputs(ctx, full: bool) -> list[Path]:
-    """Write the files of the stages that ran (and, for a ``full`` run, the report, signals table and
-    summary) into ``ctx.out_dir``; returns the paths written, the summary last."""
+def write_outputs(ctx, stages, full: bool, store=None) -> list[Path]:
+    """Write the files of ``stages`` that ran (and, for a ``full`` run, the report, signals table
+    and summary) into ``ctx.out_dir``; ``store`` is the run's stage cache, if any. Returns the
+    paths written, the summary last."""
     out = ctx.out_dir
     try:
         make_dirs(out)
@@ -151,17 +170,18 @@ def write_outputs(ctx, full: bool) -> list[Path]:
     except OSError as exc:
         raise UserError(f"cannot write into {out}: {exc.strerror}") from None
     try:
-        _stage_files(ctx, staging, full)
+        _stage_files(ctx, stages, staging, full, store)
         restrict_tree(staging)
-        if ctx.cache_dir is not None and ctx.cache_dir.exists():
-            restrict_tree(ctx.cache_dir)
+        if store is not None and store.directory.exists():
+            restrict_tree(store.directory)
+        run_names = run_files(stages, ctx.options.output)
         names = sorted(p.name for p in staging.iterdir())
         if not names:
             return []
-        if full or set(names) & set(RUN_FILES):
+        if full or set(names) & set(run_names):
             (out / SUMMARY).unlink(missing_ok=True)  # the folder no longer holds one finished run
         if full:
-            for name in RUN_FILES:
+            for name in run_names:
                 if name not in names:
                     _remove(out / name)
         moved = []

@@ -1,78 +1,74 @@
 """The pipeline behind every ``analyze`` command: inputs → signals table → stages → one output step.
 
-Stages are plain functions, listed in order in `STAGES`. A stage takes the `RunContext`, adds
-columns to ``ctx.signals``, puts its typed result into ``ctx.results`` (the gradient grid, the mass
-result, the selected cycle, the load collectives, the simulated cycle) and its numbers into
-``ctx.summary``; the stages after it read those in memory. A stage writes no file: once the stages
-ran, `analysis.outputs.write_outputs` writes every file, so an interrupted run leaves an earlier
-run's outputs as they were. A stage whose inputs are missing is skipped with a line saying why
-(`RunContext.skip`), never faked.
+The stages are listed in order in `STAGES`, each declared by its own folder (`stage.Stage`). A
+stage takes the `RunContext`, adds columns to ``ctx.signals`` and returns its typed result; the
+pipeline keeps it in ``ctx.results`` under the stage's name (the stages after it read it there, in
+memory) and its ``summary()`` in ``ctx.summary``. A stage writes no file: once the stages ran,
+`analysis.outputs.write_outputs` writes every stage's files, so an interrupted run leaves an
+earlier run's outputs as they were. A stage whose inputs are missing is skipped with a line saying
+why (`RunContext.skip`), never faked.
 """
 
 from __future__ import annotations
 
 import time
-import typing
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable, NamedTuple
+from typing import Callable
 
 import pandas as pd
 
 from . import signals as signals_table
 from .errors import UserError
-from .gradient.estimate import GradientResult
-from .gradient.stage import GradientOptions, gradient_stage
-from .ingest.stage import IngestOptions, ingest_stage
-from .kinematics import KinematicsOptions, kinematics_stage
-from .loads.stage import LoadsOptions, LoadsResult, loads_stage
-from .markov.stage import CycleOptions, CycleResult, cycle_stage
-from .mass import MassResult
-from .mass.stage import MassOptions, mass_stage
+from .gradient.stage import STAGE as GRADIENT
+from .ingest.stage import STAGE as INGEST
+from .kinematics import STAGE as KINEMATICS
+from .loads.stage import STAGE as LOADS
+from .markov.stage import STAGE as CYCLE
+from .mass.stage import STAGE as MASS
 from .options import options_of
-from .outputs import OutputOptions, check as check_outputs, write_outputs
-from .simulate.model import SimulationResult
-from .simulate.stage import SimulateOptions, simulate_stage
+from .outputs import OUTPUT, OutputOptions, check as check_outputs, write_outputs
+from .simulate.stage import STAGE as SIMULATION
+from .stage import Results, Stage
 from .stage_cache import StageCache
 from .vehicle import Vehicle
 
-
-class Stage(NamedTuple):
-    name: str
-    run: Callable[["RunContext"], None]
-    reads_vehicle: bool = False
-    """A change of the vehicle file reruns it (and everything after it)."""
-    reads_dem: bool = False
-    """A change of the DEM tiles reruns it."""
-    needs_signals: bool = True
-
-
-STAGES: list[Stage] = [
-    Stage("ingest", ingest_stage, needs_signals=False),
-    Stage("kinematics", kinematics_stage),
-    Stage("gradient", gradient_stage, reads_dem=True, reads_vehicle=True),
-    Stage("mass", mass_stage, reads_vehicle=True),
-    Stage("cycle", cycle_stage, reads_vehicle=True),
-    Stage("loads", loads_stage, reads_vehicle=True),
-    Stage("simulate", simulate_stage, reads_vehicle=True, needs_signals=False),
-]
+STAGES: list[Stage] = [INGEST, KINEMATICS, GRADIENT, MASS, CYCLE, LOADS, SIMULATION]
 """The analysis in order. ``report`` is not a stage: the output step writes it after the files it shows."""
 
 REPORT = "report"
 
 
-@dataclass
 class Options:
-    """Every stage's options, by stage name, and the output step's (``output``)."""
+    """Every stage's options by stage name (``options.cycle``), and the output step's (``output``).
 
-    ingest: IngestOptions = field(default_factory=IngestOptions)
-    kinematics: KinematicsOptions = field(default_factory=KinematicsOptions)
-    gradient: GradientOptions = field(default_factory=GradientOptions)
-    mass: MassOptions = field(default_factory=MassOptions)
-    cycle: CycleOptions = field(default_factory=CycleOptions)
-    loads: LoadsOptions = field(default_factory=LoadsOptions)
-    simulate: SimulateOptions = field(default_factory=SimulateOptions)
-    output: OutputOptions = field(default_factory=OutputOptions)
+    The names come from `STAGES` when the options are made, so a stage added there takes options
+    with no further line; each is its stage's options dataclass, its defaults where not given."""
+
+    def __init__(self, **tables):
+        types = option_types()
+        for name in tables:
+            if name not in types:
+                raise UserError(f"no stage named {name} to take options (stages: {', '.join(types)})")
+        for name, cls in types.items():
+            object.__setattr__(self, name, options_of(cls, tables.get(name), name))
+
+    def __setattr__(self, name, value):
+        raise AttributeError("options are fixed once made: use replace()")
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Options) and vars(self) == vars(other)
+
+    def __repr__(self) -> str:
+        return f"Options({', '.join(f'{name}={value!r}' for name, value in vars(self).items())})"
+
+    def tables(self) -> dict:
+        """Stage name (and ``output``) → its options object."""
+        return dict(vars(self))
+
+    def replace(self, **changes) -> "Options":
+        """These options with some stages' options replaced."""
+        return Options(**{**vars(self), **changes})
 
     @classmethod
     def of(cls, tables: "Options | dict | None") -> "Options":
@@ -82,30 +78,20 @@ class Options:
             return tables
         tables = dict(tables or {})
         if "mass_filter" in tables:
-            mass = options_of(MassOptions, tables.get("mass"), "mass")
+            mass = options_of(MASS.options, tables.get("mass"), "mass")
             tables["mass"] = replace(mass, filter=options_of(type(mass.filter), tables.pop("mass_filter"),
                                                              "mass_filter"))
-        hints = typing.get_type_hints(cls)
-        for name in tables:
-            if name not in hints:
-                raise UserError(f"no stage named {name} to take options (stages: {', '.join(hints)})")
-        return cls(**{name: options_of(hints[name], table, name) for name, table in tables.items()})
+        return cls(**tables)
 
 
-@dataclass
-class Results:
-    """What the stages hand over in memory (None: the stage did not run or was skipped)."""
-
-    gradient: GradientResult | None = None
-    mass: MassResult | None = None
-    cycle: CycleResult | None = None
-    loads: LoadsResult | None = None
-    simulation: SimulationResult | None = None
+def option_types() -> dict[str, type]:
+    """Stage name → its options dataclass, and the output step's (``output``)."""
+    return {**{stage.name: stage.options for stage in STAGES}, OUTPUT: OutputOptions}
 
 
 @dataclass
 class RunContext:
-    """One run: its inputs, options and, as the stages go, the signals table, results and summary."""
+    """One run: its inputs and options and, as the stages go, the signals table, results and summary."""
 
     inputs: list[Path]
     out_dir: Path
@@ -115,28 +101,17 @@ class RunContext:
     signals: pd.DataFrame | None = None
     summary: dict = field(default_factory=dict)
     say: Callable[[str], None] = print
-    figures: bool = True
-    """Draw each stage's figure (a fleet's per-log runs may leave them out: some 30 % of their time)."""
     results: Results = field(default_factory=Results)
     skipped: dict[str, str] = field(default_factory=dict)
     """Stage name → why it was skipped."""
-    subdirs: dict[str, str] = field(default_factory=lambda: {"loads": "loads", "simulate": "simulation"})
-    """Folder of the output directory for the loads and simulate files ("" for the folder itself)."""
-    json_files: dict[str, Callable[["RunContext"], object]] = field(default_factory=dict)
-    """Further JSON files of a command: file name → what to write (None: no file)."""
-    from_cache: set[str] = field(default_factory=set)
-    """Stages whose results this run took from the stage cache."""
-    cache_dir: Path | None = None
-    """The stage cache's folder, where the output step also keeps each stage's files."""
-    signals_name: str | None = None
-    """Write the signals table under this name (``.csv`` or ``.parquet``) after any run, not only
-    as ``signals.parquet`` after the full run (``analyze signals -o``)."""
 
     def __post_init__(self):
         self.inputs = [Path(p) for p in self.inputs]
         self.out_dir = Path(self.out_dir)
         self.dem_dir = Path(self.dem_dir) if self.dem_dir is not None else None
         self.options = Options.of(self.options)
+        if not isinstance(self.results, Results):
+            self.results = Results(self.results)
 
     def skip(self, stage: str, reason: str) -> None:
         """Record and say that ``stage`` did not run, and why."""
@@ -167,6 +142,33 @@ def _index(name: str) -> int:
     return names.index(name)
 
 
+def run_stage(ctx: RunContext, stage: Stage) -> None:
+    """Run one stage: its result into ``ctx.results``, its summary into ``ctx.summary``."""
+    if stage.needs_signals and ctx.signals is None:
+        raise UserError("no signals: give logs or a signals table")
+    result = stage.run(ctx)
+    ctx.results[stage.name] = result
+    if result is None:
+        return
+    if stage.key:
+        ctx.summary[stage.key] = result.summary()
+    else:
+        ctx.summary.update(result.summary())
+
+
+def verdict(ctx: RunContext, stages=None) -> str | None:
+    """One line when a result did not meet its criteria or a required stage was skipped, else None."""
+    problems = []
+    for stage in stages if stages is not None else STAGES:
+        result = ctx.results.get(stage.name)
+        if stage.name in ctx.skipped and stage.required:
+            problems.append(f"no {stage.title or stage.name}: the {stage.name} stage was skipped "
+                            f"({ctx.skipped[stage.name]})")
+        elif result is not None and hasattr(result, "problem") and (problem := result.problem()):
+            problems.append(problem)
+    return "; ".join(problems) or None
+
+
 def run(ctx: RunContext, until: str | None = None, start: str | None = None, cache: bool = False,
         progress: bool = False) -> RunContext:
     """Run the stages from ``start`` (the first) up to and including ``until`` (the report: all),
@@ -195,7 +197,7 @@ def run(ctx: RunContext, until: str | None = None, start: str | None = None, cac
     RunContext
         ``ctx``, with ``signals``, ``results``, ``summary`` and ``skipped`` filled in.
     """
-    check_outputs(ctx)
+    check_outputs(ctx, STAGES)
     load_inputs(ctx)
     ctx.summary.setdefault("stages", [])
     last = _index(until) if until is not None else len(STAGES)
@@ -203,11 +205,9 @@ def run(ctx: RunContext, until: str | None = None, start: str | None = None, cac
     full = last >= len(STAGES)
     stages = STAGES[first:last + 1]
     if ctx.signals is not None:
-        stages = [stage for stage in stages if stage.name != "ingest"]
+        stages = [stage for stage in stages if stage.name != INGEST.name]
     store = StageCache(ctx, stages) if cache and ctx.inputs and not ctx.options.output.private else None
     done = store.restore() if store else 0
-    ctx.cache_dir = store.directory if store else None
-    ctx.from_cache = {stage.name for stage in stages[:done]}
     for stage in stages[:done]:
         ctx.say(f"[{stage.name}] unchanged, from cache")
     bar = _progress(stages[done:], progress)
@@ -216,15 +216,15 @@ def run(ctx: RunContext, until: str | None = None, start: str | None = None, cac
             bar.set_description(stage.name)
         else:
             ctx.say(f"[{stage.name}]")
-        if stage.needs_signals and ctx.signals is None:
-            raise UserError("no signals: give logs or a signals table")
         started = time.perf_counter()
-        stage.run(ctx)
+        run_stage(ctx, stage)
         ctx.say(f"[{stage.name}] {time.perf_counter() - started:.1f} s")
         ctx.summary["stages"].append(stage.name)
         if store:
             store.save(stage.name)
-    write_outputs(ctx, full)
+    if ctx.skipped:
+        ctx.summary["skipped"] = dict(ctx.skipped)
+    write_outputs(ctx, STAGES, full, store)
     return ctx
 
 

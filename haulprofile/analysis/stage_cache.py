@@ -69,9 +69,13 @@ class StageCache:
         self.stages = list(stages)
         self.directory = ctx.out_dir / ".cache"
         self.keys: dict[str, str] = {}
+        self.restored: set[str] = set()
+        """Stages whose state this run took from the cache."""
+        output = ctx.options.output
         previous = self._hash(["inputs", content_hash(ctx.inputs), _package_version()])
         for stage in self.stages:
-            parts = [previous, stage.name, getattr(ctx.options, stage.name, None), ctx.figures, ctx.subdirs]
+            parts = [previous, stage.name, getattr(ctx.options, stage.name, None), output.figures,
+                     stage.name in output.flat]
             # figures and folders: the files kept for the stage depend on them
             if stage.reads_vehicle and ctx.vehicle is not None:
                 parts.append(asdict(ctx.vehicle))
@@ -106,6 +110,7 @@ class StageCache:
             self.ctx.summary.update(state["summary"])
             self.ctx.results = state["results"]
             self.ctx.skipped.update(state["skipped"])
+            self.restored = {stage.name for stage in self.stages[:matched]}
         return matched
 
     def save(self, name: str) -> None:

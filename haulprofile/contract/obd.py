@@ -57,9 +57,3 @@ def response_frame(pid: int, value: float) -> bytes:
     """ISO-TP single frame of the positive response carrying ``value``."""
     payload = [SERVICE_CURRENT_DATA + POSITIVE_RESPONSE_OFFSET, pid, *PIDS[pid].encode(value)]
     return bytes([len(payload), *payload]).ljust(8, bytes([PAD_BYTE]))
-
-
-def is_response_id(arbitration_id: int, extended: bool) -> bool:
-    if extended:
-        return (arbitration_id & 0x1FFFFF00) == RESPONSE_ID_29BIT_BASE
-    return arbitration_id in RESPONSE_IDS_11BIT

@@ -33,9 +33,6 @@ class Clock:
             return time.time_ns()
         return self._real_unix0 + int((time.monotonic_ns() - self._real_mono0) * self.scale)
 
-    def monotonic_s(self) -> float:
-        return self.monotonic_ns() * 1e-9
-
     def mono_offset_ns(self) -> int:
         """realtime - monotonic [ns], to map kernel (realtime) frame stamps to monotonic time."""
         return self.realtime_ns() - self.monotonic_ns()

@@ -94,7 +94,7 @@ def bench_simulate_vs_fastsim(quick: bool):
         settings = DriverSettings(time_step_s=dt)
         holder["ours"] = simulate_cycle(cycle, ours_vehicle, settings=settings)
         t_ours = _best_of(repeats, lambda: simulate_cycle(cycle, ours_vehicle, settings=settings))
-        ours_kwh = holder["ours"].summary["wheel_positive_energy_kwh"]
+        ours_kwh = holder["ours"].numbers["wheel_positive_energy_kwh"]
         lines.append(result(f"simulate_{hours:g}h_trace_dt{dt:g}s_run_time", t_ours, "s (ratio>1: ours faster)",
                             "FASTSim 3 SimDrive.run (1 s steps)", t_fastsim))
         lines.append(result(f"simulate_{hours:g}h_trace_dt{dt:g}s_positive_wheel_energy", ours_kwh,
@@ -113,7 +113,7 @@ def bench_energy_per_km(quick: bool):
         cycles = [read_cycle(vecto / f"{n}.vdri", vehicle) for n in names if (vecto / f"{n}.vdri").is_file()]
         cycles += _virtual_truck_cycles(vehicle, quick)
         for cycle in cycles:
-            s = simulate_cycle(cycle, vehicle).summary
+            s = simulate_cycle(cycle, vehicle).numbers
             lines.append(result(f"energy_per_km_{vehicle_name}_{cycle.name}", s["battery_kwh_per_km"],
                                 "kWh/km at the battery", None, None,
                                 wheel_positive_kwh_per_km=s["wheel_positive_kwh_per_km"],

@@ -8,36 +8,37 @@ mass stages; ``--mass-kg`` gives a known constant total mass instead.
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 from .. import checks
 from ..errors import UserError
 from ..vehicle import load_vehicle
+from .arguments import add_cycle, add_dem, add_inputs, add_out, add_vehicle, in_flags, printer
 
 EXIT_UNTRUSTWORTHY_RESULT = 3
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("inputs", nargs="+", type=Path, help="signals tables (CSV/Parquet) or MCAP logs")
-    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, required=True, help="output directory")
-    parser.add_argument("--cycle-duration", "--duration", dest="cycle_duration", type=float, default=1800.0,
-                        help="cycle duration [s] (1800)")
-    parser.add_argument("--speed-class-kmh", type=float, default=1.0, help="speed class width [km/h] (1)")
-    parser.add_argument("--gradient-class-pct", type=float, default=0.5, help="gradient class width [%%] (0.5)")
-    parser.add_argument("--mass-class-kg", type=float, default=100.0, help="mass class width [kg] (100)")
+    from ..markov.classes import ClassWidths
+
+    widths = ClassWidths()
+    add_inputs(parser, "signals tables (CSV/Parquet) or MCAP logs")
+    add_out(parser)
+    add_cycle(parser)
+    parser.add_argument("--speed-class-kmh", type=float, default=widths.speed_kmh,
+                        help=f"speed class width [km/h] ({widths.speed_kmh:g})")
+    parser.add_argument("--gradient-class-pct", type=float, default=widths.gradient_pct,
+                        help=f"gradient class width [%%] ({widths.gradient_pct:g})")
+    parser.add_argument("--mass-class-kg", type=float, default=widths.mass_kg,
+                        help=f"mass class width [kg] ({widths.mass_kg:g})")
     parser.add_argument("--selection", choices=("refined", "paper"), default="refined",
                         help="refined: the best Monte Carlo walks improved towards the criteria (and the wheel "
                              "loads, with --vehicle); paper: the paper's Monte Carlo, best of --candidates")
-    parser.add_argument("--candidates", type=int,
-                        help="Monte Carlo candidates (paper: 100000, about 2-3 s; refined: its pool, 20000)")
     parser.add_argument("--cycles", type=int, default=1, help="number of representative cycles (1); more go to cycles/")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (0); same seed, same cycle")
     parser.add_argument("--update-counts", action="store_true",
                         help="draw without replacement from the measured transitions (paper's matrix update)")
     parser.add_argument("--mass-kg", type=float, help="known constant total mass [kg] when the input has none")
-    parser.add_argument("--vehicle", help="vehicle file (TOML) or example name, for the mass stage and the "
-                                          "wheel-load criteria of the refined selection")
-    parser.add_argument("--dem", type=Path, help="directory of SRTM tiles, for the gradient stage")
+    add_vehicle(parser, required=False, what="for the mass stage and the wheel-load criteria of the refined selection")
+    add_dem(parser, "for the gradient stage")
     parser.add_argument("--quiet", action="store_true", help="print only errors")
 
 
@@ -57,6 +58,7 @@ def run(args) -> int:
     from ..markov.classes import ClassWidths
     from ..markov.stage import CycleOptions
     from ..mass.stage import MassOptions
+    from ..outputs import OutputOptions
     from ..pipeline import Options, RunContext, run as run_pipeline
 
     widths = ClassWidths(args.speed_class_kmh, args.gradient_class_pct, args.mass_class_kg)
@@ -64,19 +66,18 @@ def run(args) -> int:
                       mass=MassOptions(known_mass_kg=args.mass_kg, keep_existing=True),
                       cycle=CycleOptions(duration_s=args.cycle_duration, widths=widths, n_candidates=args.candidates,
                                          seed=args.seed, update_counts=args.update_counts,
-                                         selection=args.selection, n_cycles=args.cycles))
+                                         selection=args.selection, n_cycles=args.cycles),
+                      output=OutputOptions(summary_files=("cycle",)))
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out,
                      vehicle=load_vehicle(args.vehicle) if args.vehicle else None, dem_dir=args.dem,
-                     say=(lambda _msg: None) if args.quiet else print, options=options,
-                     json_files={"cycle.json": lambda ctx: ctx.summary.get("cycle")})
+                     say=printer(args.quiet), options=options)
     ctx = run_pipeline(ctx, until="cycle")
     if ctx.results.cycle is None:
         reasons = [f"{name}: {reason}" for name, reason in ctx.skipped.items()]
         if "mass" in ctx.skipped and ctx.vehicle is None:
             reasons = ["the input has no mass_kg: give --vehicle for the mass stage, or --mass-kg"]
         raise UserError("no cycle: " + "; ".join(reasons))
-    if not ctx.summary["cycle"]["valid"]:
-        print(f"analyze cycle: warning: no valid cycle: {ctx.summary['cycle'].get('statement', '')} "
-              f"(try more --candidates or a longer --cycle-duration)", file=sys.stderr)
+    if (problem := ctx.results.cycle.problem()) is not None:
+        print(f"analyze cycle: warning: {in_flags(problem)}", file=sys.stderr)
         return EXIT_UNTRUSTWORTHY_RESULT
     return 0

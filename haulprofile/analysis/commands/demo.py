@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ..pipeline import RunContext, run as run_pipeline
 from ..virtual_truck import drive, load_scenario, realism_level, scenario_vehicle, write_dem, write_mcap, write_truth
+from .arguments import printer
 
 
 def add_arguments(parser) -> None:
@@ -35,7 +36,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    say = (lambda _msg: None) if args.quiet else print
+    say = printer(args.quiet)
     started = time.perf_counter()
     scenario = load_scenario(args.scenario)
     level = realism_level(args.realism)

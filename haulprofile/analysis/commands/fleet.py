@@ -14,10 +14,10 @@ from pathlib import Path
 
 from .. import checks, jsonable
 from ..fleet import FleetSpec, run_fleet
-from ..fleet.road_load import parse_fleet_known_masses
 from ..ingest.stage import IngestOptions
 from ..pipeline import Options
 from ..vehicle import load_vehicle
+from .arguments import add_dem, add_out, add_rate, parse_fleet_known_masses, printer
 
 EXIT_INCOMPLETE = 3
 
@@ -27,8 +27,8 @@ def add_arguments(parser) -> None:
                         help="a directory of logs (MCAP, CAN logs or signals tables) per vehicle group")
     parser.add_argument("--vehicle", action="append", required=True,
                         help="vehicle file (TOML) or shipped example name; once for all groups or once per LOGDIR")
-    parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles (or GeoTIFFs) covering every route")
-    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, required=True, help="output directory")
+    add_dem(parser, "covering every route")
+    add_out(parser)
     parser.add_argument("--workers", type=int, help="local worker processes (default: the CPU count; 1 = serial)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="run on an existing Dask distributed cluster, e.g. tcp://host:8786")
@@ -37,8 +37,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--candidates", type=int, default=100_000,
                         help="Monte Carlo candidates per group (100000, as analyze run)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
-    parser.add_argument("--rate-hz", "--rate", dest="rate_hz", type=float, default=10.0,
-                        help="rate of the signals tables (10 Hz)")
+    add_rate(parser)
     parser.add_argument("--known-mass", action="append", metavar="TRUCK:LOG:SEGMENT=KG",
                         help="a weighed total mass [kg] of one segment of one log (LOG: its file name or path under "
                              "LOGDIR, TRUCK: the LOGDIR's name): calibrates that truck's torque gain for all its logs")
@@ -60,7 +59,7 @@ def run(args) -> int:
                         figures=not args.no_figures, known_masses=parse_fleet_known_masses(args.known_mass))
     quiet = args.quiet or args.json
     fleet = run_fleet(spec, args.out, workers=args.workers, scheduler=args.scheduler,
-                      say=(lambda _msg: None) if quiet else print, debug=getattr(args, "debug", False),
+                      say=printer(quiet), debug=getattr(args, "debug", False),
                       progress=not quiet and sys.stderr.isatty())
     problems = []
     for group in fleet.groups:

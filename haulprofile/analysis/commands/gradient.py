@@ -9,13 +9,13 @@ import numpy as np
 
 from .. import checks
 from ..errors import UserError
+from .arguments import add_dem, add_inputs, add_out
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
-    parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles or GeoTIFFs (else barometer only)")
-    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("gradient-out"),
-                        help="output directory")
+    add_inputs(parser)
+    add_dem(parser, "else barometer only")
+    add_out(parser, Path("gradient-out"))
     parser.add_argument("--spacing", type=float, default=10.0, help="distance grid spacing [m] (default 10)")
     parser.add_argument("--no-figure", action="store_true", help="skip the figure")
     parser.add_argument("--gradient-method", choices=("smoother", "paper"), default="smoother",
@@ -25,13 +25,14 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from ..gradient import GradientSettings
     from ..gradient.stage import GradientOptions
+    from ..outputs import OutputOptions
     from ..pipeline import Options, RunContext, run as run_pipeline
 
     checks.positive(args.spacing, "--spacing", "m")
     options = Options(gradient=GradientOptions(GradientSettings(spacing_m=args.spacing, gradient_method=args.gradient_method),
-                                               barometer_off_map=True))
-    ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, dem_dir=args.dem, options=options,
-                     figures=not args.no_figure)
+                                               barometer_off_map=True),
+                      output=OutputOptions(figures=not args.no_figure))
+    ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, dem_dir=args.dem, options=options)
     ctx = run_pipeline(ctx, until="gradient")
     if ctx.results.gradient is None:
         raise UserError(ctx.skipped.get("gradient", "no gradient estimated"))

@@ -7,10 +7,11 @@ from pathlib import Path
 
 from .. import jsonable
 from ..ingest import ingest_logs
+from .arguments import add_inputs
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of them, or foreign CAN logs")
+    add_inputs(parser, "MCAP logs, directories of them, or foreign CAN logs")
     parser.add_argument("--dbc", type=Path, help="DBC file for further signals")
     parser.add_argument("--json", action="store_true", help="print the whole ingest summary as JSON")
 

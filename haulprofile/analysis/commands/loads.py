@@ -7,22 +7,23 @@ from pathlib import Path
 from ..errors import UserError
 from ..signals import missing_for, read_signals
 from ..vehicle import load_vehicle
+from .arguments import add_out, add_vehicle
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("signals", type=Path,
                         help="signals table (CSV/Parquet) with time_s, speed_mps, accel_mps2, gradient_pct, mass_kg "
                              "(as analyze run writes it)")
-    parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
+    add_vehicle(parser)
     parser.add_argument("--cycle", type=Path,
                         help="generated cycle CSV (time_s, speed_mps, accel_mps2, gradient_pct, mass_kg) to compare")
-    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("loads-out"),
-                        help="output directory")
+    add_out(parser, Path("loads-out"))
 
 
 def run(args) -> int:
     from ..loads import NEEDED
     from ..loads.stage import LoadsOptions
+    from ..outputs import OutputOptions
     from ..pipeline import Options, RunContext, run as run_pipeline
 
     signals = read_signals(args.signals)
@@ -31,8 +32,8 @@ def run(args) -> int:
         raise UserError(f"{args.signals}: the measured drive lacks {', '.join(missing)}; run 'analyze run' first "
                         f"to estimate them")
     ctx = RunContext(inputs=[], out_dir=args.out, vehicle=load_vehicle(args.vehicle), signals=signals,
-                     options=Options(loads=LoadsOptions(generated_file=args.cycle)), subdirs={"loads": ""},
-                     say=lambda _msg: None)
+                     options=Options(loads=LoadsOptions(generated_file=args.cycle),
+                                     output=OutputOptions(flat=("loads",))), say=lambda _msg: None)
     ctx = run_pipeline(ctx, start="loads", until="loads")
     result = ctx.summary["loads"]
     for name, s in result.items():

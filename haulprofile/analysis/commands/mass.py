@@ -12,16 +12,16 @@ import numpy as np
 from .. import checks
 from ..errors import UserError
 from ..vehicle import load_vehicle
+from .arguments import add_dem, add_inputs, add_out, add_vehicle
 
 EXIT_UNTRUSTWORTHY_RESULT = 3
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
-    parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
-    parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles or GeoTIFFs (for the gradient)")
-    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("mass-out"),
-                        help="output directory")
+    add_inputs(parser)
+    add_vehicle(parser)
+    add_dem(parser, "for the gradient")
+    add_out(parser, Path("mass-out"))
     parser.add_argument("--true-mass", type=float, nargs="+", metavar="KG",
                         help="the real total mass [kg], if weighed, for the figure: one value, or one per segment")
     parser.add_argument("--forgetting-factor", type=float, default=0.9985, help="lambda of RLS and LM (default 0.9985)")
@@ -53,18 +53,13 @@ def format_segments(segments: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def _mass_json(ctx):
-    if ctx.results.mass is None:
-        return None
-    return {"segments": ctx.summary["mass"]["segments"], "road_load": ctx.summary["mass"]["road_load"]}
-
-
 def run(args) -> int:
     from ..gradient.stage import GradientOptions
     from ..gradient import GradientSettings
     from ..mass import SegmentSettings
-    from ..mass.calibration import parse_known_masses
+    from .arguments import parse_known_masses
     from ..mass.stage import MassOptions
+    from ..outputs import OutputOptions
     from ..pipeline import Options, RunContext, run as run_pipeline
 
     checks.forgetting_factor(args.forgetting_factor)
@@ -75,10 +70,10 @@ def run(args) -> int:
                                                keep_existing=True),
                       mass=MassOptions(segments=SegmentSettings(forgetting_factor=args.forgetting_factor),
                                        true_mass_kg=tuple(args.true_mass) if args.true_mass else None,
-                                       weighed_masses_kg=weighed))
+                                       weighed_masses_kg=weighed),
+                      output=OutputOptions(figures=not args.no_figure, summary_files=("mass",)))
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle),
-                     dem_dir=args.dem, options=options, figures=not args.no_figure,
-                     json_files={"mass.json": _mass_json})
+                     dem_dir=args.dem, options=options)
     ctx = run_pipeline(ctx, until="mass")
     if ctx.results.mass is None:
         raise UserError(ctx.skipped.get("mass", "no mass estimated"))

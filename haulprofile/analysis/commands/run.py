@@ -16,28 +16,24 @@ from ..gradient import GradientSettings
 from ..gradient.stage import GradientOptions
 from ..ingest.stage import IngestOptions
 from ..markov.stage import CycleOptions
-from ..mass.calibration import parse_known_masses
 from ..mass.stage import MassOptions
 from ..outputs import OutputOptions
-from ..pipeline import Options, RunContext, run as run_pipeline
+from ..pipeline import Options, RunContext, run as run_pipeline, verdict
 from ..simulate.stage import SimulateOptions
 from ..vehicle import load_vehicle
+from .arguments import add_cycle, add_dem, add_inputs, add_out, add_rate, add_vehicle, in_flags, parse_known_masses, printer
 
 EXIT_UNTRUSTWORTHY_RESULT = 3
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("inputs", nargs="+", type=Path, help="MCAP logs, directories of logs, or signals tables")
-    parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
-    parser.add_argument("--dem", type=Path, help="directory of SRTM .hgt tiles (or GeoTIFFs)")
-    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, required=True, help="output directory")
-    parser.add_argument("--rate-hz", "--rate", dest="rate_hz", type=float, default=10.0,
-                        help="rate of the signals table (10 Hz)")
+    add_inputs(parser)
+    add_vehicle(parser)
+    add_dem(parser)
+    add_out(parser)
+    add_rate(parser)
     parser.add_argument("--dbc", type=Path, help="a DBC file whose signals are decoded as further columns")
-    parser.add_argument("--cycle-duration", "--duration", dest="cycle_duration", type=float, default=1800.0,
-                        help="generated cycle length [s] (1800)")
-    parser.add_argument("--candidates", type=int, default=100_000, help="Monte Carlo candidates (100000, about 2-3 s)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
+    add_cycle(parser)
     parser.add_argument("--payload-kg", type=float, help="payload of the simulated electric truck [kg]")
     parser.add_argument("--no-cache", action="store_true", help="rerun every stage (default: reuse unchanged ones)")
     parser.add_argument("--known-mass", action="append", metavar="SEGMENT=KG",
@@ -58,29 +54,15 @@ def options_from(args) -> Options:
                    gradient=GradientOptions(GradientSettings(gradient_method=args.gradient_method)),
                    mass=MassOptions(weighed_masses_kg=tuple(parse_known_masses(args.known_mass).items())),
                    cycle=CycleOptions(duration_s=args.cycle_duration, n_candidates=args.candidates, seed=args.seed),
-                   simulate=SimulateOptions(payload_kg=args.payload_kg),
+                   simulation=SimulateOptions(payload_kg=args.payload_kg),
                    output=OutputOptions(private=args.private))
-
-
-def verdict(summary: dict) -> str | None:
-    """One line when a result did not meet its criteria, else None."""
-    problems = [f"no {what}: the {stage} stage was skipped (see its message)"
-                for stage, what in (("mass", "mass estimate"), ("cycle", "cycle")) if stage not in summary]
-    segments = summary.get("mass", {}).get("segments")
-    if segments is not None and not any("ok" in (s["status"], s.get("mass_joint_status")) for s in segments):
-        problems.append("no segment has enough excitation for a confident mass (see the report's mass chapter)")
-    cycle = summary.get("cycle")
-    if cycle is not None and not cycle.get("valid", True):
-        problems.append(f"no valid cycle: {cycle.get('statement', '')} (try more --candidates or a longer "
-                        f"--cycle-duration)")
-    return "; ".join(problems) or None
 
 
 def check_arguments(args) -> None:
     """Every value of ``analyze run`` that can be checked before reading anything."""
     checks.rate_hz(args.rate_hz)
     checks.cycle_duration_s(args.cycle_duration)
-    if args.candidates < 1:
+    if args.candidates is not None and args.candidates < 1:
         raise UserError(f"--candidates must be at least 1, got {args.candidates}")
     if args.payload_kg is not None:
         checks.non_negative(args.payload_kg, "--payload-kg", "kg")
@@ -90,14 +72,14 @@ def run(args) -> int:
     check_arguments(args)
     quiet = args.quiet or args.json
     ctx = RunContext(inputs=list(args.inputs), out_dir=args.out, vehicle=load_vehicle(args.vehicle),
-                     dem_dir=args.dem, options=options_from(args), say=(lambda _msg: None) if quiet else print)
+                     dem_dir=args.dem, options=options_from(args), say=printer(quiet))
     run_pipeline(ctx, cache=not args.no_cache, progress=not quiet and sys.stderr.isatty())
-    problem = verdict(ctx.summary)
+    problem = verdict(ctx)
     if args.json:
         print(jsonable.dumps(ctx.summary))
     else:
         ctx.say(f"wrote {args.out / 'report.html'}, {args.out / 'signals.parquet'} and {args.out / 'summary.json'}")
     if problem:
-        print(f"analyze run: warning: {problem}", file=sys.stderr)
+        print(f"analyze run: warning: {in_flags(problem)}", file=sys.stderr)
         return EXIT_UNTRUSTWORTHY_RESULT
     return 0

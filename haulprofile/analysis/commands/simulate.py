@@ -9,13 +9,14 @@ import pandas as pd
 from .. import checks
 from ..errors import UserError
 from ..vehicle import load_vehicle
+from .arguments import add_out, add_vehicle
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("cycle", type=Path,
                         help="a VECTO .vdri, a time-based CSV/Parquet (time_s, speed_mps[, gradient_pct, "
                              "mass_kg]) or a signals table")
-    parser.add_argument("--vehicle", required=True, help="vehicle file (TOML) or a shipped example name")
+    add_vehicle(parser)
     parser.add_argument("--payload-kg", type=float, help="payload [kg] (default: half the vehicle's max payload)")
     parser.add_argument("--aux-power-w", help="auxiliary power [W]: a number, or a CSV with time_s, power_w "
                                               "(default: the vehicle file's)")
@@ -23,8 +24,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--obc-power-w", default="0",
                         help="on-board charger power into the battery [W]: a number or a CSV with time_s, power_w")
     parser.add_argument("--time-step-s", type=float, default=0.1, help="integration step [s] (default 0.1)")
-    parser.add_argument("-o", "--out", "--output", dest="out", type=Path, default=Path("simulation-out"),
-                        help="output directory")
+    add_out(parser, Path("simulation-out"))
 
 
 def power_input(text: str | None, name: str):
@@ -50,6 +50,7 @@ def power_input(text: str | None, name: str):
 
 
 def run(args) -> int:
+    from ..outputs import OutputOptions
     from ..pipeline import Options, RunContext, run as run_pipeline
     from ..simulate import DriverSettings
     from ..simulate.stage import SimulateOptions
@@ -63,9 +64,10 @@ def run(args) -> int:
                               obc_power_w=power_input(args.obc_power_w, "--obc-power-w"),
                               driver=DriverSettings(time_step_s=args.time_step_s), cycle_file=args.cycle)
     ctx = RunContext(inputs=[], out_dir=args.out, vehicle=load_vehicle(args.vehicle),
-                     options=Options(simulate=options), subdirs={"simulate": ""}, say=lambda _msg: None)
-    ctx = run_pipeline(ctx, start="simulate", until="simulate")
-    s = ctx.results.simulation.summary
+                     options=Options(simulation=options, output=OutputOptions(flat=("simulation",))),
+                     say=lambda _msg: None)
+    ctx = run_pipeline(ctx, start="simulation", until="simulation")
+    s = ctx.results.simulation.numbers
     print(f"{s['cycle']}: {s['distance_km']:.2f} km in {s['duration_s']:.0f} s, "
           f"battery {s['battery_kwh_per_km']:.3f} kWh/km, wheel (positive) {s['wheel_positive_kwh_per_km']:.3f} kWh/km, "
           f"SOC {s['initial_soc']:.3f} -> {s['final_soc']:.3f}, "

@@ -129,26 +129,6 @@ def _covariance(theta, normal, parts, n_seg, extra_meat=None):
     return inverse @ meat @ inverse.T
 
 
-def parse_fleet_known_masses(items: list[str] | None) -> list[tuple[str, str, int, float]]:
-    """``["TRUCK:LOG:SEGMENT=KG", ...]`` → (truck, log, segment number from 1, kg); ``LOG`` is the
-    log's path under its directory, its file name or its stem. UserError on anything else."""
-    out = []
-    for item in items or []:
-        where, _, kg = item.rpartition("=")
-        parts = where.split(":")
-        try:
-            truck, log, segment = parts if len(parts) == 3 else ([] if len(parts) != 2 else [*parts, "1"])
-            number, mass = int(segment), float(kg)
-        except ValueError:
-            raise UserError(f"--known-mass {item!r}: expected TRUCK:LOG:SEGMENT=KG (e.g. rigid:drive-00.mcap:2=18400)"
-                            ) from None
-        if not truck or not log or number < 1 or not mass > 0:
-            raise UserError(f"--known-mass {item!r}: give the truck (log directory), the log, a segment number "
-                            f"from 1 and a positive mass in kg")
-        out.append((truck, log, number, mass))
-    return out
-
-
 def fit_truck(parts: list[SegmentMoments], vehicle, known: dict[tuple[str, int], float] | None = None,
               settings: JointSettings = JointSettings()) -> dict:
     """The truck's shared c_r and c_d·A (value, std, identified, reason), its torque gain and every
@@ -159,7 +139,7 @@ def fit_truck(parts: list[SegmentMoments], vehicle, known: dict[tuple[str, int],
                  "drag_area_m2": vehicle.drag_coefficient * vehicle.frontal_area_m2}
     if not parts:
         if known:
-            raise UserError(f"--known-mass: no segment of this truck has a joint mass fit to calibrate against")
+            raise UserError("known_masses: no segment of this truck has a joint mass fit to calibrate against")
         return {"logs": 0, "segments": [], "notes": ["no segment with enough samples for the joint fit"],
                 **{name: {"value": value, "std": None, "identified": False,
                           "reason": "no segment with enough samples"} for name, value in datasheet.items()}}
@@ -179,7 +159,7 @@ def fit_truck(parts: list[SegmentMoments], vehicle, known: dict[tuple[str, int],
     index = {(part.log, part.segment): j for j, part in enumerate(parts)}
     missing = [f"{log} segment {number}" for log, number in known if (log, number) not in index]
     if missing:
-        raise UserError(f"--known-mass: {', '.join(missing)} has no joint mass fit to calibrate against (segments "
+        raise UserError(f"known_masses: {', '.join(missing)} has no joint mass fit to calibrate against (segments "
                         f"with one: {', '.join(f'{p.log} {p.segment}' for p in parts[:6])}"
                         f"{', …' if n_seg > 6 else ''})")
     weighed = {index[key]: kg for key, kg in known.items()}

@@ -66,7 +66,7 @@ class FleetSpec:
         if not log_dirs:
             raise FleetError("no log directory given: give one directory of logs per vehicle group")
         if len(vehicles) not in (1, len(log_dirs)):
-            raise FleetError(f"{len(vehicles)} vehicle files for {len(log_dirs)} log directories: give --vehicle "
+            raise FleetError(f"{len(vehicles)} vehicle files for {len(log_dirs)} log directories: give vehicle_file "
                              f"once for all groups or once per log directory, in the same order")
         vehicles = vehicles * len(log_dirs) if len(vehicles) == 1 else vehicles
         groups, names = [], set()
@@ -152,12 +152,12 @@ class DaskExecutor:
         try:
             from distributed import Client
         except ImportError:
-            raise FleetError("--scheduler needs Dask: pip install 'haulprofile[fleet]'") from None
+            raise FleetError("a Dask scheduler address needs Dask: pip install 'haulprofile[fleet]'") from None
         try:
             self.client = Client(address, timeout=DASK_CONNECT_TIMEOUT)
         except (OSError, TimeoutError, ValueError) as exc:
             raise FleetError(f"cannot reach the Dask scheduler at {address} ({exc}); start it with "
-                             f"'dask scheduler' and workers, or leave out --scheduler for the local pool") from None
+                             f"'dask scheduler' and workers, or give no scheduler address for the local pool") from None
         self.name = f"dask {address}"
 
     def map(self, fn, items):
@@ -174,7 +174,7 @@ def executor_for(workers: int | None = None, scheduler: str | None = None):
         return DaskExecutor(scheduler)
     workers = (os.cpu_count() or 1) if workers is None else workers
     if workers < 1:
-        raise FleetError(f"--workers must be at least 1, got {workers}")
+        raise FleetError(f"fleet.workers must be at least 1, got {workers}")
     return SerialExecutor() if workers == 1 else LocalExecutor(workers)
 
 
@@ -241,12 +241,12 @@ def known_masses_by_group(spec: FleetSpec) -> dict[str, dict[tuple[str, int], fl
     for truck, log, segment, kg in spec.known_masses:
         group = groups.get(truck)
         if group is None:
-            raise FleetError(f"--known-mass {truck}:{log}:{segment}={kg:g}: no truck (log directory) named {truck!r}; "
+            raise FleetError(f"known_masses {truck}:{log}:{segment}={kg:g}: no truck (log directory) named {truck!r}; "
                              f"the trucks are {', '.join(groups)}")
         names = [p.relative_to(group.log_dir).as_posix() for p in group.logs]
         matches = [n for n in names if log in (n, Path(n).name, Path(n).stem)]
         if len(matches) != 1:
-            raise FleetError(f"--known-mass {truck}:{log}:{segment}={kg:g}: {'no' if not matches else 'more than one'} "
+            raise FleetError(f"known_masses {truck}:{log}:{segment}={kg:g}: {'no' if not matches else 'more than one'} "
                              f"log of {truck} named {log!r} (its logs: {', '.join(names[:5])}"
                              f"{', …' if len(names) > 5 else ''})")
         out.setdefault(truck, {})[(matches[0], segment)] = kg

@@ -4,13 +4,13 @@ group's summed counts). Each takes and returns plain picklable objects."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..errors import UserError
 from ..markov import ClassWidths, select_cycle
 from ..mass.joint import JointSettings
-from ..pipeline import RunContext, run as run_pipeline
+from ..pipeline import Options, RunContext, run as run_pipeline
 from ..vehicle import Vehicle
 from .road_load import segment_moments
 from .statistics import FleetStatistics, LoadBins, log_statistics, sum_statistics
@@ -63,8 +63,10 @@ def map_log(task: LogTask) -> LogResult:
     so the other logs go on; with ``task.debug`` the exception is raised. What the stages said
     goes to ``messages.txt`` in the log's output directory."""
     messages: list[str] = []
+    options = Options.of(task.options)
+    options = options.replace(output=replace(options.output, figures=task.figures))
     ctx = RunContext(inputs=[task.path], out_dir=task.out_dir, vehicle=task.vehicle, dem_dir=task.dem_dir,
-                     options=task.options, say=messages.append, figures=task.figures)
+                     options=options, say=messages.append)
     try:
         run_pipeline(ctx, until="mass")
         statistics = log_statistics(str(task.path), ctx.signals, ctx.summary, task.vehicle, task.widths, task.bins)

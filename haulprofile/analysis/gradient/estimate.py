@@ -55,10 +55,35 @@ class GradientResult:
     """The map-matching smoothing used [m] (None without map-matching)."""
     smoother: dict | None = None
     """The smoother's data-estimated noise levels and calibrations (None if it could not run)."""
+    settings: GradientSettings | None = None
+    """The settings it was estimated with."""
+    sensor_set: str | None = None
+    """The sensors the log held (`sensor_sets.sensor_set`), set by the gradient stage."""
 
     def __post_init__(self):
         if self.smoother is None:
             self.smoother = {}
+
+    def summary(self) -> dict:
+        """Sources, method, the gradient's range, height gained, the smoother's calibrations, notes."""
+        settings = self.settings or GradientSettings()
+        grid = self.grid
+        gradient = grid["gradient_pct"].to_numpy()
+        return {
+            "grid_spacing_m": settings.spacing_m,
+            "sensor_set": self.sensor_set,
+            "sources": [s for s, c in (("map", "gradient_map_pct"), ("baro", "gradient_baro_pct"),
+                                       ("imu", "gradient_imu_pct"), ("force_balance", "gradient_force_balance_pct"))
+                        if c in grid.columns],
+            "method": settings.gradient_method,
+            "mean_map_weight": float(np.mean(grid["weight_map"])),
+            "smoother": self.smoother,
+            "map_sigma_m": self.map_sigma_m,
+            "gradient_pct": {"mean": float(np.nanmean(gradient)), "min": float(np.nanmin(gradient)),
+                             "max": float(np.nanmax(gradient))},
+            "height_gain_m": float(np.sum(np.clip(np.diff(grid["height_m"].to_numpy()), 0, None))),
+            "notes": self.notes,
+        }
 
 
 def _column(frame: pd.DataFrame, name: str) -> np.ndarray | None:
@@ -145,7 +170,7 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
         if not _has_gps_altitude(frame) and known_bias:
             notes.append("no height source: the gradient is the accelerometer's with its bias known beforehand")
         elif not _has_gps_altitude(frame):
-            raise UserError("gradient: needs a DEM (--dem DIR) with GPS positions, a barometer (pressure_pa) or "
+            raise UserError("gradient: needs a DEM (dem_dir) with GPS positions, a barometer (pressure_pa) or "
                             "GPS altitude with its accuracy (gps_altitude_m, gps_v_acc_m); this input has none")
         else:
             notes.append("GPS altitude is the only height source: the gradient is its smoothed slope, good to the "

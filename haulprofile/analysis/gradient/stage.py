@@ -1,17 +1,18 @@
 """The gradient stage: `estimate_gradient` on the signals table, its columns added in memory;
-`write_gradient` is its part of the output step (``gradient.csv``, ``gradient.png``)."""
+`write_gradient` is its part of the output step (``gradient.csv``, ``gradient.png``),
+`gradient_chapter` its report chapter."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from ..dem import MissingTileError, open_dem
 from ..dem.plausible import ImplausibleDemError
 from ..errors import UserError
-from .estimate import GradientResult, GradientSettings, estimate_gradient
+from ..stage import Stage
+from .chapter import TITLE, gradient_chapter
+from .estimate import GradientResult, GradientSettings
 from .figure import draw_sources
 from .force_balance import estimate_gradient_for_log
 from .sensor_sets import describe, sensor_set
@@ -31,10 +32,9 @@ class GradientOptions:
     """Keep a ``gradient_pct`` column the input already has instead of estimating it again."""
 
 
-def gradient_stage(ctx) -> None:
+def gradient_stage(ctx) -> GradientResult | None:
     """Add ``height_m``, ``gradient_pct`` (the smoother's or the paper's fusion (8), by
-    ``options.settings.gradient_method``), both methods' and each source's columns to ``ctx.signals``; the result
-    goes to ``ctx.results.gradient`` and its figures to ``ctx.summary["gradient"]``.
+    ``options.settings.gradient_method``), both methods' and each source's columns to ``ctx.signals``.
 
     Parameters
     ----------
@@ -49,46 +49,31 @@ def gradient_stage(ctx) -> None:
     options: GradientOptions = ctx.options.gradient
     frame = ctx.signals
     if options.keep_existing and "gradient_pct" in frame.columns and frame["gradient_pct"].notna().any():
-        return
+        return None
     ctx.say(f"gradient: {describe(frame)}")
     if ctx.dem_dir is None:
-        ctx.say("gradient: no --dem DIR given: barometric height only (no map-matching)")
+        ctx.say("gradient: no DEM given: barometric height only (no map-matching)")
     dem = open_dem(ctx.dem_dir) if ctx.dem_dir is not None else None
     try:
         try:
             result = estimate_gradient_for_log(frame, dem, options.settings, ctx.vehicle)
         except (MissingTileError, ImplausibleDemError) as exc:
             if not options.barometer_off_map:
-                raise type(exc)(f"{exc}; or run without --dem for barometric height only") from None
+                raise type(exc)(f"{exc}; or run without dem_dir for barometric height only") from None
             ctx.say(f"gradient: {exc}; using the barometer alone")
             result = estimate_gradient_for_log(frame, None, options.settings, ctx.vehicle)
     except (MissingTileError, ImplausibleDemError):
         raise
     except UserError as exc:
         ctx.skip("gradient", str(exc))
-        return
+        return None
     for note in result.notes:
         ctx.say(f"gradient: {note}")
     for name, values in result.samples.items():
         frame[name] = values
-    ctx.results.gradient = result
-    grid = result.grid
-    gradient = grid["gradient_pct"].to_numpy()
-    ctx.summary["gradient"] = {
-        "grid_spacing_m": options.settings.spacing_m,
-        "sensor_set": sensor_set(frame),
-        "sources": [s for s, c in (("map", "gradient_map_pct"), ("baro", "gradient_baro_pct"),
-                                   ("imu", "gradient_imu_pct"), ("force_balance", "gradient_force_balance_pct"))
-                    if c in grid.columns],
-        "method": options.settings.gradient_method,
-        "mean_map_weight": float(np.mean(grid["weight_map"])),
-        "smoother": result.smoother,
-        "map_sigma_m": result.map_sigma_m,
-        "gradient_pct": {"mean": float(np.nanmean(gradient)), "min": float(np.nanmin(gradient)),
-                         "max": float(np.nanmax(gradient))},
-        "height_gain_m": float(np.sum(np.clip(np.diff(grid["height_m"].to_numpy()), 0, None))),
-        "notes": result.notes,
-    }
+    result.settings = options.settings
+    result.sensor_set = sensor_set(frame)
+    return result
 
 
 def write_gradient(result: GradientResult, directory: Path, figures: bool = True) -> list[str]:
@@ -98,3 +83,7 @@ def write_gradient(result: GradientResult, directory: Path, figures: bool = True
     if figures:
         files.append(draw_sources(result.grid, directory / "gradient.png").name)
     return files
+
+
+STAGE = Stage("gradient", GradientOptions, gradient_stage, write=write_gradient, files=("gradient.csv", "gradient.png"),
+              chapter=gradient_chapter, title=TITLE, reads_dem=True, reads_vehicle=True)

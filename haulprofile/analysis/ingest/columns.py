@@ -11,7 +11,7 @@ import re
 import numpy as np
 import pandas as pd
 
-from .. import checks, kinematics
+from .. import checks
 from . import align
 from .logs import LogError
 
@@ -31,7 +31,7 @@ class _Columns:
         grid = self.acc.grid()
         if grid is None:
             raise LogError("the logs hold no data (no CAN frames, sensor samples or GPS fixes)")
-        checks.rows(grid.n, f"the signals table at {ingest.rate_hz:g} Hz", "give a lower --rate-hz or fewer logs")
+        checks.rows(grid.n, f"the signals table at {ingest.rate_hz:g} Hz", "give a lower ingest.rate_hz or fewer logs")
         self.grid, self.n = grid, grid.n
         self.first_bin = int(grid.run_bins[0])
         self.recorded = self.acc.recorded(grid)
@@ -139,10 +139,6 @@ def build_table(ingest) -> tuple[pd.DataFrame, dict]:
     else:
         table["valid"] = c.recorded
     table.update({k: v for k, v in columns.items() if v is not None})
-    if speed is not None:
-        table["distance_m"] = kinematics.distance_m(table["time_s"], speed)
-        accel = kinematics.acceleration_mps2(table["time_s"], speed)
-        table["accel_mps2"] = np.where(table["valid"], accel, np.nan)
     frame = pd.DataFrame(table)
     return frame, _summary(ingest, c, frame)
 

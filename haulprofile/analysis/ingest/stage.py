@@ -1,4 +1,5 @@
-"""The ingest stage: logs (or signals tables) → the signals table, in memory."""
+"""The ingest stage: logs (or other loggers' CAN logs) → the signals table of aligned measured
+columns, in memory; kinematics adds distance and acceleration after it."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import UserError
+from ..stage import Stage
 from . import ingest_logs
 
 
@@ -21,8 +23,18 @@ class IngestOptions:
     """A progress bar on stderr."""
 
 
-def ingest_stage(ctx) -> None:
-    """Read ``ctx.inputs`` into ``ctx.signals`` and ``ctx.summary["ingest"]``.
+@dataclass
+class IngestResult:
+    """What the ingest read: rows, rate, gaps, CAN frames, sources chosen per column, notes."""
+
+    report: dict
+
+    def summary(self) -> dict:
+        return self.report
+
+
+def ingest_stage(ctx) -> IngestResult:
+    """Read ``ctx.inputs`` into ``ctx.signals``.
 
     Parameters
     ----------
@@ -37,9 +49,12 @@ def ingest_stage(ctx) -> None:
         raise UserError("the logs hold no vehicle speed (neither J1939 CCVS1 wheel-based speed nor OBD-II "
                         "PID 0x0D nor GPS speed): log the vehicle's CAN bus, or give a signals table with speed_mps")
     ctx.signals = frame
-    ctx.summary["ingest"] = summary
     if "can_frames" in summary:
         ctx.say(f"ingest: {summary['rows']} rows at {summary['rate_hz']:g} Hz, "
                 f"{summary['valid_fraction']:.0%} valid, {summary['can_frames']} CAN frames")
     else:
         ctx.say(f"ingest: signals table, {summary['rows']} rows")
+    return IngestResult(summary)
+
+
+STAGE = Stage("ingest", IngestOptions, ingest_stage, needs_signals=False)

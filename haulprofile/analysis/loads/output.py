@@ -16,6 +16,14 @@ from .collectives import QUANTITIES  # noqa: E402
 from .summary import Collectives  # noqa: E402
 
 
+DRIVES = ("measured", "generated")
+COLLECTIVES = (*(f"time_at_level_{quantity}" for quantity in QUANTITIES), "residence_speed_torque_s",
+               "rainflow_range_mean_counts", "level_crossings_torque", "damage_equivalent_torque")
+FIGURES = ("time_at_level.png", "matrices.png", "crossings_damage.png")
+FILES = (*(f"{drive}_{what}.csv" for drive in DRIVES for what in COLLECTIVES), "comparison.csv", *FIGURES)
+"""Every file the loads stage may write into its folder."""
+
+
 def _bin_labels(edges) -> list[str]:
     return [f"{a:.6g}..{b:.6g}" for a, b in zip(edges[:-1], edges[1:])]
 

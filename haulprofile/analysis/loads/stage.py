@@ -1,5 +1,6 @@
 """The loads stage: wheel load collectives of the measured drive and of the selected cycle (in
-memory, `LoadsResult`); `write_loads` is its part of the output step (CSVs and figures)."""
+memory, `LoadsResult`); `write_loads` is its part of the output step (CSVs and figures),
+`loads_chapter` its report chapter."""
 
 from __future__ import annotations
 
@@ -11,8 +12,10 @@ import pandas as pd
 
 from ..errors import UserError
 from ..signals import missing_for, read_signals
+from ..stage import Stage
 from . import NEEDED, collectives_of
-from .output import write_csvs, write_figures
+from .chapter import TITLE, loads_chapter
+from .output import FILES, write_csvs, write_figures
 from .summary import Collectives, compare, summary
 
 
@@ -34,10 +37,18 @@ class LoadsResult:
     comparison: pd.DataFrame | None
     """Measured against generated, one row per criterion (both drives only)."""
 
+    def summary(self) -> dict:
+        """Per drive its collectives' figures and, with both drives, the relative deviations."""
+        result = {name: summary(c) for name, c in self.collectives.items()}
+        if self.comparison is not None:
+            result["comparison"] = {row.criterion: (float(row.relative_deviation)
+                                                    if np.isfinite(row.relative_deviation) else None)
+                                    for row in self.comparison.itertuples()}
+        return result
 
-def loads_stage(ctx) -> None:
-    """Load collectives of the measured drive and, if there is one, the selected cycle, into
-    ``ctx.results.loads`` and ``ctx.summary["loads"]``.
+
+def loads_stage(ctx) -> LoadsResult | None:
+    """Load collectives of the measured drive and, if there is one, the selected cycle.
 
     Parameters
     ----------
@@ -53,37 +64,34 @@ def loads_stage(ctx) -> None:
     missing = missing_for(ctx.signals, NEEDED) if ctx.signals is not None else NEEDED
     if missing:
         ctx.skip("loads", f"the signals lack {', '.join(missing)}")
-        return
+        return None
     if ctx.vehicle is None:
         ctx.skip("loads", "no vehicle file")
-        return
+        return None
     drives = {"measured": ctx.signals}
     if options.generated_file is not None:
         generated = read_signals(options.generated_file)
         lacking = missing_for(generated, NEEDED)
         if lacking:
-            raise UserError(f"{options.generated_file}: the generated cycle lacks {', '.join(lacking)}; run "
-                            f"'analyze run' first to estimate them")
+            raise UserError(f"{options.generated_file}: the generated cycle lacks {', '.join(lacking)}; "
+                            f"estimate them first (the gradient and mass stages)")
         drives["generated"] = generated
     elif ctx.results.cycle is not None:
         drives["generated"] = ctx.results.cycle.frame
     collectives = collectives_of(drives, ctx.vehicle, options.common_rate)
     comparison = (compare(collectives["measured"], collectives["generated"])
                   if {"measured", "generated"} <= set(collectives) else None)
-    ctx.results.loads = LoadsResult(collectives, comparison)
-    result = {name: summary(c) for name, c in collectives.items()}
-    if comparison is not None:
-        result["comparison"] = {row.criterion: (float(row.relative_deviation) if np.isfinite(row.relative_deviation)
-                                                else None) for row in comparison.itertuples()}
-    ctx.summary["loads"] = result
-    for name, s in result.items():
-        if name != "comparison":
-            ctx.say(f"loads: {name}: {s['rainflow_cycles']:.0f} rainflow cycles, damage-equivalent torque range "
-                    f"(k=5) {s['damage_equivalent_torque_range_nm']['5']:.0f} Nm")
+    result = LoadsResult(collectives, comparison)
+    for name, c in collectives.items():
+        s = summary(c)
+        ctx.say(f"loads: {name}: {s['rainflow_cycles']:.0f} rainflow cycles, damage-equivalent torque range "
+                f"(k=5) {s['damage_equivalent_torque_range_nm']['5']:.0f} Nm")
+    return result
 
 
-def write_loads(result: LoadsResult, directory: Path) -> list[str]:
-    """Each drive's collectives as CSV files, ``comparison.csv`` and the figures; returns the names."""
+def write_loads(result: LoadsResult, directory: Path, figures: bool = True) -> list[str]:
+    """Each drive's collectives as CSV files, ``comparison.csv`` and, with ``figures``, the figures;
+    returns the names."""
     directory.mkdir(parents=True, exist_ok=True)
     written = []
     for c in result.collectives.values():
@@ -91,5 +99,10 @@ def write_loads(result: LoadsResult, directory: Path) -> list[str]:
     if result.comparison is not None:
         result.comparison.to_csv(directory / "comparison.csv", index=False)
         written.append(directory / "comparison.csv")
-    written += write_figures(list(result.collectives.values()), result.comparison, directory)
+    if figures:
+        written += write_figures(list(result.collectives.values()), result.comparison, directory)
     return [path.name for path in written]
+
+
+STAGE = Stage("loads", LoadsOptions, loads_stage, write=write_loads, files=FILES, folder="loads",
+              chapter=loads_chapter, title=TITLE, reads_vehicle=True)

@@ -55,11 +55,6 @@ class Chain:
     def n_states(self) -> int:
         return len(self.keys)
 
-    def probabilities(self) -> np.ndarray:
-        """Transition probability of each stored transition (its row normalised)."""
-        totals = np.add.reduceat(self.count, self.row_ptr[:-1])
-        return self.count / np.repeat(totals, np.diff(self.row_ptr))
-
 
 def _parking(src: np.ndarray, dst: np.ndarray, n: int, standstill: np.ndarray) -> np.ndarray:
     """States in a closed set of standstill states only (a stop the data never left)."""

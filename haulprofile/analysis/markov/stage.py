@@ -1,7 +1,7 @@
 """The cycle stage: count the measured transitions, generate candidates, select the cycle(s) (in
 memory, `CycleResult`); `write_cycle_files` is its part of the output step (``cycle.csv``,
 ``cycle.parquet``, ``cycle.vdri``, ``cycle.png``, ``cycle-scores.png`` and, for a cycle set,
-``cycles/cycle-1..N``)."""
+``cycles/cycle-1..N``), `cycle_chapter` its report chapter."""
 
 from __future__ import annotations
 
@@ -13,16 +13,17 @@ import pandas as pd
 
 from .. import signals as signals_table
 from ..errors import UserError
+from ..stage import Stage
 from .chain import build_chain
+from .chapter import TITLE, cycle_chapter
 from .classes import ClassWidths
 from .converge import MOVES, POOL, select_refined
-from .counting import TransitionCounts, count_transitions, resample_1hz
+from .counting import NEEDED, TransitionCounts, count_transitions, resample_1hz
 from .export import write_cycle
 from .figure import plot_cycle, plot_scores
 from .load_criteria import load_target
 from .select import Selection, select_cycle
 
-NEEDED = ["time_s", "speed_mps", "gradient_pct", "mass_kg"]
 SELECTIONS = ("refined", "paper")
 PAPER_CANDIDATES = 100_000
 CYCLES_DIR = "cycles"
@@ -64,10 +65,33 @@ class CycleResult:
     selections: list[Selection] = field(default_factory=list)
     """Every selected cycle, best first (``selections[0]`` is ``selection``); more than one is a
     cycle set."""
+    options: CycleOptions = field(default_factory=CycleOptions)
+    """The options it was selected with."""
 
     @property
     def frame(self) -> pd.DataFrame:
         return self.selection.cycle
+
+    def summary(self) -> dict:
+        """The chosen cycle's criteria and score, the chain's classes and counts, a cycle set's spread."""
+        selection, counts, options = self.selection, self.counts, self.options
+        summary = {**selection.as_dict(), "duration_s": float(options.duration_s),
+                   "class_widths": options.widths.as_dict(), "update_counts": bool(options.update_counts),
+                   "samples_1hz": counts.n_samples, "transitions_dropped": counts.n_dropped,
+                   "loops_closed": counts.n_closed}
+        if len(self.selections) > 1:
+            summary["cycle_set"] = {"n_cycles": len(self.selections), "spread": _spread(self.selections),
+                                    "cycles": [{"file": f"{CYCLES_DIR}/cycle-{i + 1}.csv", "score": s.criteria.score,
+                                                "valid": s.criteria.valid, "objective": s.objective,
+                                                "loads_within_allowance": s.loads_within_allowance}
+                                               for i, s in enumerate(self.selections)]}
+        return summary
+
+    def problem(self) -> str | None:
+        if self.selection.criteria.valid:
+            return None
+        return (f"no valid cycle: {self.selection.criteria.statement()} (try a larger cycle.n_candidates or a "
+                f"longer cycle.duration_s)")
 
 
 def _select(ctx, options: CycleOptions, counts) -> list[Selection]:
@@ -90,7 +114,7 @@ def _select(ctx, options: CycleOptions, counts) -> list[Selection]:
     if ctx.vehicle is not None:
         target = load_target(ctx.signals, ctx.vehicle, chain)
     else:
-        ctx.say("cycle: no vehicle file, so the wheel loads are not part of the score (give --vehicle)")
+        ctx.say("cycle: no vehicle file, so the wheel loads are not part of the score (give vehicle_file)")
     return select_refined(counts, options.duration_s, int(options.seed), chain, target, ctx.vehicle,
                           n_cycles, int(options.n_candidates or POOL), n_moves=int(options.n_moves),
                           update_counts=bool(options.update_counts))
@@ -112,9 +136,8 @@ def _spread(selections) -> dict:
     return result
 
 
-def cycle_stage(ctx) -> None:
-    """Select a representative cycle (or a set of them) of the measured drive into
-    ``ctx.results.cycle`` and ``ctx.summary["cycle"]``.
+def cycle_stage(ctx) -> CycleResult | None:
+    """Select a representative cycle (or a set of them) of the measured drive.
 
     Parameters
     ----------
@@ -131,24 +154,13 @@ def cycle_stage(ctx) -> None:
     missing = signals_table.missing_for(ctx.signals, NEEDED)
     if missing:
         ctx.skip("cycle", f"the signals have no {', '.join(missing)} (the gradient and mass stages provide them)")
-        return
+        return None
     options: CycleOptions = ctx.options.cycle
     measured = resample_1hz(ctx.signals)
     counts = count_transitions(measured, options.widths)
     selections = _select(ctx, options, counts)
     selection = selections[0]
-    ctx.results.cycle = CycleResult(selection, counts, measured, selections)
-    summary = {**selection.as_dict(), "duration_s": float(options.duration_s),
-               "class_widths": options.widths.as_dict(), "update_counts": bool(options.update_counts),
-               "samples_1hz": counts.n_samples, "transitions_dropped": counts.n_dropped,
-               "loops_closed": counts.n_closed}
-    if len(selections) > 1:
-        summary["cycle_set"] = {"n_cycles": len(selections), "spread": _spread(selections),
-                                "cycles": [{"file": f"{CYCLES_DIR}/cycle-{i + 1}.csv", "score": s.criteria.score,
-                                            "valid": s.criteria.valid, "objective": s.objective,
-                                            "loads_within_allowance": s.loads_within_allowance}
-                                           for i, s in enumerate(selections)]}
-    ctx.summary["cycle"] = summary
+    result = CycleResult(selection, counts, measured, selections, options)
     left_out = selection.chain.transitions_left_out / max(int(counts.count.sum()), 1)
     if left_out > 0.1:
         ctx.say(f"cycle: {left_out:.0%} of the measured transitions lead only to the end of a log or a stop "
@@ -162,8 +174,9 @@ def cycle_stage(ctx) -> None:
         loads = "; loads " + ("within" if selection.loads_within_allowance else "NOT all within") + " allowance"
     ctx.say(f"cycle: {selection.criteria.statement()} ({how}){loads}")
     if len(selections) > 1:
-        spread = summary["cycle_set"]["spread"]["score"]
+        spread = _spread(selections)["score"]
         ctx.say(f"cycle: {len(selections)} cycles in {CYCLES_DIR}/, score {spread['min']:.3f} … {spread['max']:.3f}")
+    return result
 
 
 def write_cycle_files(result: CycleResult, directory: Path, figures: bool = True) -> dict[str, str]:
@@ -179,3 +192,8 @@ def write_cycle_files(result: CycleResult, directory: Path, figures: bool = True
             write_cycle(s.cycle, directory / CYCLES_DIR, stem=f"cycle-{i + 1}")
         paths["set"] = directory / CYCLES_DIR
     return {kind: path.name for kind, path in paths.items()}
+
+
+STAGE = Stage("cycle", CycleOptions, cycle_stage, write=write_cycle_files,
+              files=("cycle.csv", "cycle.parquet", "cycle.vdri", "cycle.png", "cycle-scores.png", CYCLES_DIR),
+              chapter=cycle_chapter, title=TITLE, reads_vehicle=True, required=True)

@@ -38,6 +38,20 @@ class MassResult:
     road_load: dict = field(default_factory=dict)
     """The joint fit: regressor, c_r and c_d·A (value, std, identified, reason), torque gain."""
     joint: JointFit | None = None
+    drive: pd.DataFrame | None = None
+    """The drive's time_s [s] (and the truck's own reported_mass_kg), for the figure."""
+    true_mass_kg: tuple[float, ...] | None = None
+    """A weighed total mass [kg], one or one per segment, for the figure."""
+
+    def summary(self) -> dict:
+        """The segments, samples used, the joint road-load fit, why samples were left out, notes."""
+        return {"segments": self.segments, "samples_used": int(self.regression.usable.sum()),
+                "road_load": self.road_load, "rejected_by": self.regression.rejected, "notes": self.notes}
+
+    def problem(self) -> str | None:
+        if self.segments and not any("ok" in (s["status"], s.get("mass_joint_status")) for s in self.segments):
+            return "no segment has enough excitation for a confident mass (see the report's mass chapter)"
+        return None
 
 
 def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings = FilterSettings(),
@@ -194,7 +208,7 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
                            "identified": chosen.identified[name], "reason": chosen.reasons[name]}
     if gain["calibrated_from"] is None:
         notes.append(f"mass uncertainty includes {100 * gain_uncertainty:.1f} % for the engine torque report and "
-                     f"driveline efficiency gain (give one weighed segment with --known-mass to calibrate it)")
+                     f"driveline efficiency gain (give one weighed segment in mass.weighed_masses_kg to calibrate it)")
     else:
         notes.append(f"torque gain calibrated from segment(s) {gain['calibrated_from']}: {gain['gain']:.4f} "
                      f"± {100 * gain['relative_std']:.2f} %")

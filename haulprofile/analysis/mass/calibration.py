@@ -13,23 +13,6 @@ import numpy as np
 from ..errors import UserError
 
 
-def parse_known_masses(items: list[str] | None) -> dict[int, float]:
-    """``["SEGMENT=KG", ...]`` (segment numbers from 1, as printed) -> {index from 0: kg}; a bare
-    ``KG`` means the first segment. UserError on anything else."""
-    known = {}
-    for item in items or []:
-        segment, _, kg = item.rpartition("=")
-        try:
-            index = int(segment) - 1 if segment else 0
-            mass = float(kg)
-        except ValueError:
-            raise UserError(f"--known-mass {item!r}: expected SEGMENT=KG (e.g. 2=18400) or KG") from None
-        if index < 0 or not mass > 0:
-            raise UserError(f"--known-mass {item!r}: segment numbers start at 1 and the mass must be positive")
-        known[index] = mass
-    return known
-
-
 def calibrate(masses_kg, statistical_kg, other_kg, known: dict[int, float], gain_uncertainty: float):
     """Masses [kg] corrected by the torque gain from the known masses, their total 1-sigma [kg],
     and the gain (value, relative 1-sigma, source). ``statistical_kg``: each estimate's own
@@ -39,7 +22,7 @@ def calibrate(masses_kg, statistical_kg, other_kg, known: dict[int, float], gain
     other = np.asarray(other_kg, dtype=float)
     usable = {j: kg for j, kg in known.items() if j < len(masses) and np.isfinite(masses[j])}
     if known and not usable:
-        raise UserError(f"--known-mass: segment(s) {', '.join(str(j + 1) for j in known)} have no mass estimate "
+        raise UserError(f"mass.weighed_masses_kg: segment(s) {', '.join(str(j + 1) for j in known)} have no mass estimate "
                         f"to calibrate against (there are {len(masses)} segments; see the table)")
     if not usable:
         total = np.sqrt(statistical ** 2 + other ** 2 + (masses * gain_uncertainty) ** 2)

@@ -1,5 +1,6 @@
 """The mass stage: `estimate_mass` per segment between stops, ``mass_kg`` and each method's
-column added in memory; `write_mass` is its part of the output step (``mass.png``)."""
+column added in memory; `write_mass` is its part of the output step (``mass.png``), `mass_chapter`
+its report chapter."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import UserError
+from ..stage import Stage
 from . import MassResult, estimate_mass
+from .chapter import TITLE, mass_chapter
 from .figure import draw_estimates
 from .joint import JointSettings
 from .regression import FilterSettings
@@ -25,8 +28,8 @@ class MassOptions:
     joint: JointSettings = field(default_factory=JointSettings)
     """The joint fit of all segments' masses with c_r and c_d·A, and its uncertainty terms."""
     weighed_masses_kg: tuple[tuple[int, float], ...] = ()
-    """Weighed total masses [kg] as (segment index from 0, kg) pairs (``--known-mass``): they
-    calibrate the engine torque gain for every segment."""
+    """Weighed total masses [kg] as (segment index from 0, kg) pairs: they calibrate the engine
+    torque gain for every segment."""
     known_mass_kg: float | None = None
     """A known constant total mass [kg]: written as ``mass_kg`` instead of estimating one."""
     keep_existing: bool = False
@@ -35,10 +38,9 @@ class MassOptions:
     """The weighed total mass [kg], one value or one per segment, drawn in the figure."""
 
 
-def mass_stage(ctx) -> None:
+def mass_stage(ctx) -> MassResult | None:
     """Add ``mass_kg`` (the joint estimate where confident, else LS; and ``mass_ls_kg``,
-    ``mass_rls_kg``, ``mass_lm_kg``) to ``ctx.signals``;
-    the result goes to ``ctx.results.mass`` and the segments to ``ctx.summary["mass"]``.
+    ``mass_rls_kg``, ``mass_lm_kg``) to ``ctx.signals``.
 
     Parameters
     ----------
@@ -54,20 +56,20 @@ def mass_stage(ctx) -> None:
     frame = ctx.signals
     if options.known_mass_kg is not None:
         if not options.known_mass_kg > 0:
-            raise UserError(f"--mass-kg must be a positive mass in kg, got {options.known_mass_kg}")
+            raise UserError(f"known_mass_kg must be a positive mass in kg, got {options.known_mass_kg}")
         frame["mass_kg"] = float(options.known_mass_kg)
-        return
+        return None
     if options.keep_existing and "mass_kg" in frame.columns and frame["mass_kg"].notna().any():
-        return
+        return None
     if ctx.vehicle is None:
-        ctx.skip("mass", "needs a vehicle file (--vehicle)")
-        return
+        ctx.skip("mass", "needs a vehicle file")
+        return None
     try:
         result = estimate_mass(frame, ctx.vehicle, options.filter, options.segments, options.joint,
                                dict(options.weighed_masses_kg))
     except UserError as exc:
         ctx.skip("mass", str(exc))
-        return
+        return None
     for note in result.notes:
         ctx.say(f"mass: {note}")
     for name, values in result.columns.items():
@@ -76,15 +78,18 @@ def mass_stage(ctx) -> None:
         if segment["status"] != "ok":
             ctx.say(f"mass: segment {segment['start_s']:.0f}-{segment['end_s']:.0f} s: no confident mass "
                     f"({segment['reason']})")
-    ctx.results.mass = result
-    ctx.summary["mass"] = {"segments": result.segments, "samples_used": int(result.regression.usable.sum()),
-                           "road_load": result.road_load, "rejected_by": result.regression.rejected, "notes": result.notes}
+    result.drive = frame[[c for c in ("time_s", "reported_mass_kg") if c in frame.columns]].copy()
+    result.true_mass_kg = options.true_mass_kg
+    return result
 
 
-def write_mass(result: MassResult, signals, directory: Path, figures: bool = True,
-               true_mass_kg=None) -> list[str]:
+def write_mass(result: MassResult, directory: Path, figures: bool = True) -> list[str]:
     """With ``figures``, ``mass.png`` (each method over time beside the CAN estimate); returns the names."""
-    if not figures:
+    if not figures or result.drive is None:
         return []
-    return [draw_estimates(signals, result, directory / "mass.png",
-                           list(true_mass_kg) if true_mass_kg is not None else None).name]
+    return [draw_estimates(result.drive, result, directory / "mass.png",
+                           list(result.true_mass_kg) if result.true_mass_kg is not None else None).name]
+
+
+STAGE = Stage("mass", MassOptions, mass_stage, write=write_mass, files=("mass.png",), chapter=mass_chapter,
+              title=TITLE, reads_vehicle=True, required=True)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import base64
 import html
 import io
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -93,3 +94,16 @@ def render(title: str, lead: str, sections: list[Section]) -> str:
         parts.append("</section>")
     parts.append("</body></html>")
     return "".join(parts)
+
+
+def figures_present(out_dir: Path, names: list[tuple[str, str]]) -> list[tuple[Path, str]]:
+    """(path, caption) of each named figure that exists in ``out_dir``."""
+    return [(out_dir / name, caption) for name, caption in names if (out_dir / name).is_file()]
+
+
+def deviation_pct(measured, generated) -> str:
+    """Generated relative to measured, as a signed percentage ("–" where undefined)."""
+    if measured is None or generated is None or not math.isfinite(measured) or not math.isfinite(generated) \
+            or measured == 0:
+        return "–"
+    return f"{(generated / measured - 1) * 100:+.1f} %"

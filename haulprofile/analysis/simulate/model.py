@@ -31,12 +31,18 @@ class DriverSettings:
 
 @dataclass
 class SimulationResult:
+    """One simulated cycle: the trace, its numbers, the machine's residence and the missed targets."""
+
     trace: pd.DataFrame
-    summary: dict
+    numbers: dict
+    """Energy per km [kWh/km], SOC, missed targets, distances and masses (`summarise`)."""
     residence_s: np.ndarray
     residence_speed_edges_rpm: np.ndarray
     residence_torque_edges_nm: np.ndarray
     misses: pd.DataFrame = field(default_factory=pd.DataFrame)
+
+    def summary(self) -> dict:
+        return self.numbers
 
 
 def efficiency_map(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -151,7 +157,7 @@ def simulate_cycle(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, epto_
     -------
     SimulationResult
         ``trace`` (per step: speed [m/s], wheel and machine torque [Nm], battery power [W], SOC),
-        ``summary`` (energy per km [kWh/km], SOC, missed targets), machine residence [s], ``misses``.
+        ``numbers`` (energy per km [kWh/km], SOC, missed targets), machine residence [s], ``misses``.
 
     References
     ----------

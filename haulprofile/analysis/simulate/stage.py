@@ -1,6 +1,6 @@
 """The simulate stage: the electric truck on the selected cycle (or the measured drive, or a
-cycle file), in memory (`SimulationResult`); `write_simulation` in `analysis.simulate.output` is
-its part of the output step."""
+cycle file), in memory (`SimulationResult`); `write_simulation` is its part of the output step,
+`simulation_chapter` its report chapter."""
 
 from __future__ import annotations
 
@@ -12,8 +12,11 @@ import pandas as pd
 
 from ..markov.export import cycle_to_vdri
 from ..signals import missing_for
+from ..stage import Stage
+from .chapter import TITLE, simulation_chapter
 from .cycle import SimCycle, SimulationInputError, default_mass_kg, distance_cycle, read_cycle, time_cycle
-from .model import DriverSettings, simulate_cycle
+from .model import DriverSettings, SimulationResult, simulate_cycle
+from .output import FILES, write_outputs
 
 MIN_DISTANCE_KM = 0.1
 """Below this a drive gives no meaningful energy per km: the simulation is skipped, saying so."""
@@ -76,7 +79,7 @@ def cycle_for(ctx, options: SimulateOptions, measured: SimCycle | None = None) -
     return measured
 
 
-def simulate_stage(ctx) -> None:
+def simulate_stage(ctx) -> SimulationResult | None:
     """Simulate the vehicle's electric powertrain into ``ctx.results.simulation`` and
     ``ctx.summary["simulation"]``; on the selected cycle, the measured drive is simulated beside it
     (``summary["simulation"]["measured_drive"]``). Why it was skipped goes to
@@ -87,13 +90,13 @@ def simulate_stage(ctx) -> None:
     ctx : pipeline.RunContext
         Reads ``results.cycle`` (the selected cycle) or ``signals`` (time_s [s], speed_mps [m/s],
         gradient_pct [%], mass_kg [kg]), ``vehicle`` (its ``[electric_powertrain]``) and
-        ``options.simulate`` (`SimulateOptions`).
+        ``options.simulation`` (`SimulateOptions`).
 
     References
     ----------
     physics.md, simulation section: the road forces (2)-(3) of the one vehicle model.
     """
-    options: SimulateOptions = ctx.options.simulate
+    options: SimulateOptions = ctx.options.simulation
     vehicle = ctx.vehicle
     if options.cycle_file is None and (vehicle is None or vehicle.electric_powertrain is None):
         return _skip(ctx, "the vehicle file has no [electric_powertrain] table")
@@ -112,24 +115,30 @@ def simulate_stage(ctx) -> None:
         if options.cycle_file is not None:
             raise
         return _skip(ctx, str(exc))
-    if options.cycle_file is None and not result.summary["distance_km"] >= MIN_DISTANCE_KM:
-        return _skip(ctx, f"the {cycle.name} covers {result.summary['distance_km']:.2f} km (the truck hardly "
+    if options.cycle_file is None and not result.numbers["distance_km"] >= MIN_DISTANCE_KM:
+        return _skip(ctx, f"the {cycle.name} covers {result.numbers['distance_km']:.2f} km (the truck hardly "
                           f"moved): no energy per km to give")
     if measured is not None and cycle is not measured:
         try:
-            drive = run(measured).summary
+            drive = run(measured).numbers
         except SimulationInputError as exc:
-            ctx.say(f"simulate: measured drive not simulated, {exc}")
+            ctx.say(f"simulation: measured drive not simulated, {exc}")
         else:
             if drive["distance_km"] >= MIN_DISTANCE_KM:
-                result.summary["measured_drive"] = {key: drive[key] for key in MEASURED_KEYS}
-    ctx.results.simulation = result
-    ctx.summary["simulation"] = result.summary
-    ctx.say(f"simulate: {result.summary['cycle']}, {result.summary['battery_kwh_per_km']:.3f} kWh/km at the "
-            f"battery, {result.summary['missed_target_intervals']} interval(s) below target")
+                result.numbers["measured_drive"] = {key: drive[key] for key in MEASURED_KEYS}
+    ctx.say(f"simulation: {result.numbers['cycle']}, {result.numbers['battery_kwh_per_km']:.3f} kWh/km at the "
+            f"battery, {result.numbers['missed_target_intervals']} interval(s) below target")
+    return result
 
 
 def _skip(ctx, reason: str) -> None:
-    """Skip the stage, and keep why in ``summary["skipped"]["simulation"]`` for the report."""
-    ctx.summary.setdefault("skipped", {})["simulation"] = reason
-    ctx.skip("simulate", reason)
+    ctx.skip("simulation", reason)
+
+
+def write_simulation(result: SimulationResult, directory: Path, figures: bool = True) -> list[str]:
+    """The trace, numbers, residence and misses and, with ``figures``, the figures; returns the names."""
+    return [path.name for path in write_outputs(result, directory, figures)]
+
+
+STAGE = Stage("simulation", SimulateOptions, simulate_stage, write=write_simulation, files=FILES,
+              folder="simulation", chapter=simulation_chapter, title=TITLE, reads_vehicle=True, needs_signals=False)

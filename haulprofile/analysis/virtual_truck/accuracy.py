@@ -260,7 +260,7 @@ def run_case(case: Case, sensor_sets: tuple[str, ...] = SENSOR_SETS) -> dict:
         write_dem(virtual, root / "dem", arc_seconds=1 if case.dem == "hgt1" else 3, fmt=fmt)
         write_mcap(virtual, root / "logs" / f"{scenario.name}.mcap")
         ctx = RunContext(inputs=[root / "logs"], out_dir=root / "out", vehicle=virtual.vehicle,
-                         dem_dir=root / "dem", say=lambda _msg: None, figures=False)
+                         dem_dir=root / "dem", say=lambda _msg: None, options={"output": {"figures": False}})
         run(ctx, until="gradient")
         base = ctx.signals.drop(columns=[c for c in ctx.results.gradient.samples if c in ctx.signals.columns])
         for set_name in sensor_sets:

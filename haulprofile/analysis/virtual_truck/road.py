@@ -1,9 +1,10 @@
-"""The virtual truck's world: route (target speed, stops), road height, horizontal path, terrain.
+"""The road the virtual truck drives (`Road`): route (target speed, stops), road height, horizontal
+path and the terrain around it, and the ideal world's road (`ideal_road`).
 
 Everything is a function of the driven distance s [m] on a 1 m grid, except the terrain, which is a
 field over (latitude, longitude). In the ideal world (`ideal_road` here) it is built so that along
 the route it lies exactly ``cut_fill`` above the road, and in a tunnel up to ``depth_m`` above it;
-the realistic levels build the terrain first and the road into it (`engineered`). Away from the road seeded Gaussian hills rise
+the realistic levels build the terrain first and the road into it (`realistic_road`). Away from the road seeded Gaussian hills rise
 smoothly, so a 3 arc-second DEM represents the field well. Horizontal positions use a local
 equirectangular projection around the start point (good to well under 1 m over 100 km).
 """
@@ -59,7 +60,7 @@ class Road:
     initial_stop_s: float
     base_altitude_m: float
     structure: np.ndarray | None = None
-    """Structure code per grid point (`engineering.STRUCTURES`), None in the ideal world."""
+    """Structure code per grid point (`road_design.STRUCTURES`), None in the ideal world."""
     natural_cover_m: np.ndarray | None = None
     """Natural ground minus road before earthworks [m] (cutting depth > 0, fill height < 0)."""
     terrain: GridField | None = None

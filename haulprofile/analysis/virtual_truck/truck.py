@@ -11,7 +11,7 @@ from ..errors import UserError
 from ..vehicle import EXAMPLES, Vehicle, load_vehicle
 from . import sensors as sensor_models
 from .driver import OUTPUTS, simulate_kernel
-from .loads import engine_loads, head_wind_mps, trailer_change
+from .disturbances import engine_loads, head_wind_mps, trailer_change
 from .realism import IDEAL, Realism
 from .realism import realism_level as make_realism
 from .road import Road

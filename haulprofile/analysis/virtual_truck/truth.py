@@ -11,13 +11,13 @@ import pandas as pd
 
 from ..signals import write_signals
 from .dem import dem_errors
-from .engineering import STRUCTURES, TUNNEL
+from .road_design import STRUCTURES, TUNNEL
 
 GRID_SPACING_M = 10.0
 
 
 def structure_codes(road) -> np.ndarray:
-    """Structure code per road grid point (`engineering.STRUCTURES`; the ideal world knows only tunnels)."""
+    """Structure code per road grid point (`road_design.STRUCTURES`; the ideal world knows only tunnels)."""
     if road.structure is not None:
         return road.structure
     return np.where(road.in_tunnel, TUNNEL, 0).astype(np.int8)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .engineered import engineered_road
+from .realistic_road import engineered_road
 from .realism import IDEAL, Realism
 from .road import Road, ideal_road
 from .scenario import Scenario
@@ -13,7 +13,7 @@ def build_road(scenario: Scenario, seed: int = 0, realism: Realism = IDEAL) -> R
 
     The ideal level builds the terrain around the road (`road.ideal_road`: the DEM is the road plus
     ``cut_fill``); realistic levels build terrain first and engineer the road into it
-    (`engineered.engineered_road`).
+    (`realistic_road.engineered_road`).
     """
     if realism.terrain_first:
         return engineered_road(scenario, seed)

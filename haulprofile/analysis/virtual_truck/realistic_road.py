@@ -1,11 +1,11 @@
-"""The realistic world: natural terrain first, the road engineered into it (`engineering`)."""
+"""The realistic levels' road: natural terrain first, the road engineered into it (`road_design`)."""
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from . import engineering as eng
+from . import road_design as eng
 from .road import GRID_STEP_M, KMH_PER_MPS, Road, _path, route_grid
 from .scenario import Scenario, ScenarioFileError
 from .terrain import cover_fraction_field, natural_terrain

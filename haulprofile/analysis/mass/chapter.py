@@ -1,0 +1,57 @@
+"""The mass stage's report chapter: what a reader should take from its summary and figures."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..report.html import Section, figures_present
+
+TITLE = "Vehicle mass per segment"
+
+
+def mass_chapter(m: dict, out_dir: Path) -> Section:
+    """The report chapter from the stage's summary and the files in ``out_dir``."""
+    section = Section(TITLE)
+    rows = []
+    for s in m["segments"]:
+        rows.append({"from [s]": round(s["start_s"]), "to [s]": round(s["end_s"]), "samples": s["n_samples"],
+                     "mass [kg]": s.get("mass_kg"), "± [kg] (1σ)": s.get("mass_uncertainty_kg"),
+                     "IMU-based [kg]": s.get("mass_imu_kg"), "± IMU": s.get("mass_imu_uncertainty_kg"),
+                     "gradient-based [kg]": s.get("mass_gradient_kg"), "± gradient": s.get("mass_gradient_uncertainty_kg"),
+                     "LS [kg]": s.get("mass_ls_kg"), "± [kg]": s.get("uncertainty_kg"),
+                     "RLS [kg]": s.get("mass_rls_kg"), "LM [kg]": s.get("mass_lm_kg"),
+                     "truck's CAN [kg]": s.get("reported_mass_kg"),
+                     "status": s["status"] + (f": {s['reason']}" if s.get("reason") else "")})
+    section.paragraphs.append(
+        "The mass changes only at standstill, so the drive is cut at stops and one mass is estimated per segment "
+        "from equation (10) with least squares (9), recursive least squares with forgetting (11)–(13) and the "
+        "damped Levenberg–Marquardt form (14). The ± column is one standard uncertainty of the LS estimate. "
+        "A segment without enough excitation gets no number, and the status says why.")
+    section.paragraphs.append(
+        "The mass column is the joint estimate: all segments together with the drive's own rolling-resistance "
+        "coefficient and drag area, from the accelerometer where there is one (it measures a + g sin α itself, "
+        "so the mass does not inherit the gradient estimate's errors), else from wheel speed and the gradient. "
+        "Samples whose force balance is broken (air compressor, fan, PTO, unflagged braking) get weight zero. "
+        "A gain error in the engine's torque report cannot be told apart from mass within one drive: unless a "
+        "weighed segment calibrates it (--known-mass), it is part of the ± column.")
+    road_load = m.get("road_load") or {}
+    section.kpis = [("segments", str(len(m["segments"]))), ("samples used", f"{m['samples_used']:,}")]
+    if road_load:
+        section.kpis.append(("mass from", road_load.get("regressor", "")))
+        gain = road_load.get("torque_gain", {})
+        section.kpis.append(("torque gain", f"{gain.get('gain', 1.0):.4f} ± {100 * gain.get('relative_std', 0):.1f} %"
+                             + ("" if gain.get("calibrated_from") else " (not calibrated)")))
+    section.tables.append(("Per-segment estimates", rows))
+    coefficients = [{"coefficient": name, "value": f"{entry['value']:.4g}",
+                     "± (1σ)": f"{entry['std']:.2g}" if entry.get("std") is not None else "-",
+                     "identified": "yes" if entry["identified"] else "no", "note": entry["reason"]}
+                    for name, entry in road_load.items() if isinstance(entry, dict) and "identified" in entry]
+    if coefficients:
+        section.tables.append(("Road load estimated with the masses (shared by all segments)", coefficients))
+    if m.get("rejected_by"):
+        section.tables.append(("Why samples were left out of the regression (a sample may fail several tests)",
+                               [{"filter": k, "samples": v} for k, v in m["rejected_by"].items()]))
+    section.notes.extend(m.get("notes", []))
+    section.figures = figures_present(out_dir, [("mass.png", "Estimates over time by method, the truck's own CAN estimate "
+                                                      "and the LS band of ±2 uncertainties (cf. the paper's Fig. 6).")])
+    return section
