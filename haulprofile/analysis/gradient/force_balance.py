@@ -83,8 +83,8 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     """`estimate_gradient` with the force balance as the accelerometer of a log that has none.
     ``mass_kg``: the truck's mass [kg] when it is known (weighed; one value or one per sample),
     which also makes the bias known (to the rolling resistance's 15 %) so that the force balance
-    is a height source on its own; otherwise each segment's mass from a first pass without it. Raises `UserError` as `estimate_gradient` does, or
-    when the log has an accelerometer of its own."""
+    is a height source on its own; otherwise each segment's mass from a first pass without it.
+    Raises `UserError` as `estimate_gradient` does, or when the log has an accelerometer."""
     if "accel_x_mps2" in frame.columns and frame["accel_x_mps2"].notna().any():
         raise UserError("gradient: the log has an accelerometer (accel_x_mps2); the force balance is for logs without")
     try:

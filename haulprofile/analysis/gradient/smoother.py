@@ -333,7 +333,8 @@ class GradientSmoother:
         self.curvature_psd = best
         r[:, kalman.IMU] = best_r
         tied = "tied to GPS altitude" if np.isfinite(self.m.z[:, kalman.GPS]).any() else "known beforehand"
-        self.notes.append(f"no barometer: the IMU carries the gradient (noise {np.sqrt(np.nanmedian(best_r)):.3f} m/s² "
+        noise = float(np.sqrt(np.nanmedian(best_r)))
+        self.notes.append(f"no barometer: the IMU carries the gradient (noise {noise:.3f} m/s² "
                           f"per bin, estimated with the profile), its bias and mounting pitch {tied}")
 
     def _most_likely_curvature(self, r):

@@ -99,11 +99,12 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
         notes.append(f"no sample passes the data filter (most fail: {worst}, {regression.rejected[worst]} "
                      f"of {len(frame)}): no mass estimated")
     wind = _wind_regressors(frame, speed, time_s) if joint_settings.fit_wind else None
+    offset = _offset_regressor(frame, regression, vehicle) if joint_settings.fit_torque_offset else None
     if wind is not None:
         notes.append("the drive's wind fitted with the masses from the heading along the GPS track")
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
                               columns, max_mass, notes, segment_settings, wind,
-                              _offset_regressor(frame, regression, vehicle) if joint_settings.fit_torque_offset else None)
+                              offset)
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint)
 
