@@ -21,7 +21,7 @@ from ..road_load import G_MPS2
 from . import calibration
 from .joint import JointFit, JointSettings, fit_joint, offset_regressor, wind_regressors
 from .regression import FilterSettings, Regression, build_regression
-from .segments import SegmentSettings, estimate_segment, segment_bounds
+from .segments import SegmentSettings, estimate_segment, segment_bounds, split_at_payload_changes
 
 __all__ = ["estimate_mass", "MassResult", "FilterSettings", "SegmentSettings", "JointSettings"]
 
@@ -74,7 +74,8 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     max_mass = vehicle.curb_mass_kg + 2.0 * (vehicle.max_payload_kg or 3.0 * vehicle.curb_mass_kg)
     columns = {name: np.full(len(frame), np.nan) for name in ("mass_kg", "mass_ls_kg", "mass_rls_kg", "mass_lm_kg")}
     segments = []
-    bounds = segment_bounds(time_s, speed, segment_settings)
+    bounds = split_at_payload_changes(segment_bounds(time_s, speed, segment_settings), time_s, speed,
+                                      *_change_regression(regression, vehicle), segment_settings)
     for start, end in bounds:
         part = slice(start, end)
         estimate = estimate_segment(regression.phi[part], regression.y[part], vehicle.curb_mass_kg, max_mass,
@@ -120,6 +121,17 @@ def regressor_bias_kg(fit: JointFit, regressor_std, bounds) -> np.ndarray:
             sigma = float(np.sum(w * regressor_std[start:end]) / max(np.sum(w), 1e-12))
             out[j] = abs(fit.masses_kg[j]) * sigma * np.sum(w * phi) / np.sum(w * phi * phi)
     return out
+
+
+def _change_regression(regression, vehicle):
+    """(phi, y) for telling payload changes at short stops: the accelerometer's regressor where
+    there is one (independent of the gradient estimate, whose error differs between stretches),
+    else the gradient one."""
+    if regression.excess_imu is None:
+        return regression.phi, regression.y
+    rolling = G_MPS2 * vehicle.rolling_resistance_coefficient * regression.cos_angle
+    phi = np.where(regression.usable_imu, regression.excess_imu + rolling, np.nan)
+    return phi, np.where(regression.usable_imu, regression.y, np.nan)
 
 
 def _wind_regressors(frame, speed, time_s):
