@@ -67,3 +67,24 @@ def test_the_new_estimator_is_used_when_the_gradient_stage_offers_it(monkeypatch
     monkeypatch.setattr(dem, "open_dem", lambda _directory: None)
     out = accuracy._gradient_columns(signals, tmp_path)
     assert list(out["gradient_pct"]) == [1.0, 1.0] and list(out["gradient_smooth_pct"]) == [2.0, 2.0]
+
+
+def test_every_sensor_set_is_scored_and_none_is_broken(ideal, typical):
+    """The sensor sets real loggers have, with loose floors: without a barometer the IMU leads,
+    without both the force balance, with nothing but CAN the force balance on the given mass
+    still beats a flat road."""
+    from haulprofile.analysis.virtual_truck.accuracy import SENSOR_SETS
+    for case in (ideal, typical):
+        assert set(case["sensor_sets"]) == set(SENSOR_SETS)
+        assert case["sensor_sets"]["full"]["gradient"] == case["gradient"]
+        assert case["sensor_sets"]["can-only"]["mass"] == {}, "the mass is given there"
+    sets = typical["sensor_sets"]
+    assert sets["no-baro"]["gradient"]["smoother"]["outside"] < 0.3
+    assert sets["no-baro"]["gradient_within_2_sigma"]["smoother"] > 0.8
+    assert sets["no-imu"]["gradient"]["smoother"]["outside"] < 0.3
+    assert sets["gps+can"]["gradient"]["smoother"]["outside"] < 0.6 * sets["gps+can"]["gradient"]["map"]["outside"]
+    assert "baro" not in sets["gps+can"]["gradient"] and "fusion" not in sets["can-only"]["gradient"] or \
+        sets["can-only"]["gradient"]["fusion"]["outside"] is None
+    flat = sets["can-only"]["gradient"]["flat"]["outside"]
+    assert sets["can-only"]["gradient"]["smoother"]["outside"] < 0.6 * flat
+    assert ideal["sensor_sets"]["no-baro"]["gradient"]["smoother"]["outside"] < 0.15

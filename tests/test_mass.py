@@ -130,3 +130,17 @@ def test_survives_nans_and_gaps(payload_change_drive):
     result = estimate_mass(broken, vehicle)
     for segment, truth in zip(result.segments, (12_500, 17_800)):
         assert abs(segment["mass_ls_kg"] / truth - 1) < 0.03, segment
+
+
+@pytest.mark.parametrize("after_kg", [None, 14_000.0])
+def test_a_payload_change_at_a_short_stop_is_found_from_the_data(after_kg):
+    """A 20 s stop (shorter than the 60 s that always cuts): cut where the mass changed there,
+    not where it did not (a red light)."""
+    drive = synthetic_drive(stops_s=(900.0,), stop_duration_s=20.0, mass_after_stop_kg=after_kg)
+    result = estimate_mass(drive.assign(gradient_pct=drive["true_gradient_pct"]), load_vehicle("rigid-18t"))
+    if after_kg is None:
+        assert len(result.segments) == 1
+        return
+    assert len(result.segments) == 2 and result.segments[0]["end_s"] < 900 < result.segments[1]["start_s"]
+    for segment, true in zip(result.segments, (20_000.0, after_kg)):
+        assert abs(segment["mass_kg"] / true - 1) < 0.02

@@ -143,3 +143,57 @@ def test_without_an_imu_the_gradient_regressor_is_the_fallback(imperfect_drive):
     true = _true_masses(result, truth)
     masses = np.array([s["mass_kg"] for s in result.segments])
     assert np.all(np.abs(masses / true - 1) < 0.06)
+
+
+def test_a_wind_the_route_turns_against_is_fitted_instead_of_read_as_mass():
+    """A 6 m/s wind from the north; each segment drives a different way (north, east, south),
+    so its head wind differs and a fit without the wind puts it into the masses."""
+    from haulprofile.analysis.mass.joint import wind_regressors
+    force, excess, cos_angle, aero, time_s, bounds, usable = _drive(aux_fraction=0.0)
+    speed = np.sqrt(aero / 0.6)
+    heading = np.repeat([np.pi / 2, 0.1, -np.pi / 2], bounds[0][1]) + 0.3 * np.sin(time_s / 40)
+    east = np.cumsum(speed * np.cos(heading) * 0.1)
+    north = np.cumsum(speed * np.sin(heading) * 0.1)
+    wind = np.array([0.0, -6.0])  # the air moves south
+    head = -(wind[0] * np.cos(heading) + wind[1] * np.sin(heading))
+    force = force + CDA * 0.6 * ((speed + head) ** 2 - speed ** 2)
+    columns = wind_regressors(speed, east, north, time_s)
+    without = fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE)
+    fitted = fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE, wind_regressors=columns)
+    error_without = np.abs(without.masses_kg / np.array(MASSES) - 1).max()
+    error_with = np.abs(fitted.masses_kg / np.array(MASSES) - 1).max()
+    assert error_without > 0.03 and error_with < 0.3 * error_without
+    assert fitted.identified["wind_north_mps"]
+    assert abs(fitted.coefficients["wind_north_mps"] + 6.0) < 1.5 and abs(fitted.coefficients["wind_east_mps"]) < 1.5
+
+
+def test_an_offset_of_the_torque_report_is_fitted_through_the_gears():
+    """A torque report 3 % of the reference torque high adds force in proportion to the gear's
+    ratio; with the gears changing with speed it is told apart from the masses."""
+    from haulprofile.analysis.mass.joint import offset_regressor
+    force, excess, cos_angle, aero, time_s, bounds, usable = _drive(aux_fraction=0.0)
+    speed = np.sqrt(aero / 0.6)
+    newton_per_nm = np.select([speed < 12, speed < 17, speed < 21], [40.0, 28.0, 20.0], 14.0)
+    reference_nm = 2000.0
+    torque = force / newton_per_nm + 0.03 * reference_nm
+    reported = torque * newton_per_nm
+    column = offset_regressor(reported, torque, reference_nm)
+    without = fit_joint(reported, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE)
+    fitted = fit_joint(reported, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE, offset_regressor=column)
+    error_without = np.abs(without.masses_kg / np.array(MASSES) - 1).max()
+    error_with = np.abs(fitted.masses_kg / np.array(MASSES) - 1).max()
+    assert error_without > 0.03 and error_with < 0.5 * error_without
+    assert fitted.identified["torque_offset"] and abs(fitted.coefficients["torque_offset"] - 0.03) < 0.01
+
+
+def test_a_segment_whose_force_balance_mostly_fails_is_told_apart():
+    """An auxiliary load on most of one segment's samples: the robust fit rejects them there and
+    hardly anywhere else, so that segment can be called not confident."""
+    force, excess, cos_angle, aero, time_s, bounds, usable = _drive(aux_fraction=0.0)
+    start, end = bounds[1]
+    on = np.zeros(len(force), bool)
+    on[start:end] = (time_s[start:end] % 40.0) < 18.0  # 18 s on in every 40 s
+    force = force + np.where(on, 6000.0, 0.0)
+    fit = fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, VEHICLE)
+    assert fit.rejected_share[1] > JointSettings().max_rejected_share
+    assert fit.rejected_share[0] < 0.1 and fit.rejected_share[2] < 0.1

@@ -4,8 +4,12 @@ levels through the real analysis (MCAP log -> ingest -> gradient -> mass), score
 truth. One JSON line per vehicle file (exact / datasheet-mismatched), level and gradient method:
 gradient RMSE [%-pt] on the 10 m grid per road category (median and p95 over drives) and the mass
 error per segment (median and worst of |error| over all segments, LS, RLS and ``mass_kg``, the
-joint estimate, with the share of segments whose truth is inside its stated ±2σ). Drives run in a
-process pool of 2 workers."""
+joint estimate, with the share of segments whose truth is inside its stated ±2σ; and
+``mass_kg_weighed``, the other segments with the first one weighed), and for the
+smoother the share of 10 m bins whose true gradient is inside its stated ±2σ. Each drive is
+analysed with each sensor set (`SENSOR_SETS`: the full log and the same log without barometer,
+IMU or GPS); lines of a set other than ``full`` have it in their name and ``sensor_set``. Drives
+run in a process pool of 2 workers."""
 
 from __future__ import annotations
 
@@ -17,7 +21,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from bench import CACHE_DIR, result
-from haulprofile.analysis.virtual_truck.accuracy import CATEGORIES, MASS_KEYS, METHODS, Case, run_case
+from haulprofile.analysis.virtual_truck.accuracy import CATEGORIES, MASS_KEYS, METHODS, SENSOR_SETS, Case, run_case
 
 LEVELS = ("ideal", "typical", "harsh")
 WORKERS = 2
@@ -47,7 +51,19 @@ def _stats(values: list[float]) -> dict:
 
 
 def summarise(results: list[dict]) -> list[dict]:
+    """One line per vehicle file, level, sensor set and method; the ``full`` set's lines keep
+    the names they had before sensor sets were an axis."""
     lines = []
+    for sensor_set in SENSOR_SETS:
+        runs = [r["sensor_sets"][sensor_set] | {"case": r["case"]} for r in results
+                if sensor_set in r.get("sensor_sets", {})]
+        lines += _summarise_set(runs, sensor_set)
+    return lines
+
+
+def _summarise_set(results: list[dict], sensor_set: str) -> list[dict]:
+    lines = []
+    prefix = "" if sensor_set == "full" else f"{sensor_set}_"
     for vehicle in ("exact", "datasheet"):
         for level in LEVELS:
             runs = [r for r in results if r["case"]["level"] == level]
@@ -55,7 +71,9 @@ def summarise(results: list[dict]) -> list[dict]:
                 continue
             for method in METHODS:
                 have = [r for r in runs if method in r["gradient"]]
-                name = f"accuracy_{level}_{method}_{vehicle}_vehicle"
+                name = f"accuracy_{level}_{prefix}{method}_{vehicle}_vehicle"
+                if not have and sensor_set != "full":
+                    continue
                 if not have:
                     lines.append(result(name, None, "%-pt", available=False, level=level, method=method,
                                         vehicle=vehicle, column=METHODS[method],
@@ -64,17 +82,23 @@ def summarise(results: list[dict]) -> list[dict]:
                 gradient = {cat: _stats([r["gradient"][method][cat] for r in have]) for cat in CATEGORIES}
                 mass = {}
                 for key in MASS_KEYS:
-                    errors = [abs(e) for r in have for e in r["mass"][vehicle][method][key]]
+                    errors = [abs(e) for r in have if r["mass"] for e in r["mass"][vehicle][method].get(key, [])]
                     mass[key] = {"segments": len(errors)}
                     if errors:
                         mass[key] |= {"median_pct": 100 * float(np.median(errors)),
                                       "worst_pct": 100 * float(np.max(errors))}
-                covered = [c for r in have for c in r["mass"][vehicle][method].get("mass_kg_within_2_sigma", [])]
-                if "mass_kg" in mass and covered:
-                    mass["mass_kg"]["within_2_sigma"] = float(np.mean(covered))
+                for key in ("mass_kg", "mass_kg_weighed"):
+                    covered = [c for r in have if r["mass"]
+                               for c in r["mass"][vehicle][method].get(f"{key}_within_2_sigma", [])]
+                    if covered:
+                        mass[key]["within_2_sigma"] = float(np.mean(covered))
+                covered = [r["gradient_within_2_sigma"].get(method) for r in have]
+                covered = [c for c in covered if c is not None]
+                coverage = {"median": float(np.median(covered)), "min": float(np.min(covered))} if covered else None
                 lines.append(result(name, gradient["outside"]["median"], "%-pt", available=True, level=level,
-                                    method=method, vehicle=vehicle, column=METHODS[method], drives=len(have),
-                                    gradient_rmse_pct=gradient, mass_error=mass))
+                                    sensor_set=sensor_set, method=method, vehicle=vehicle, column=METHODS[method],
+                                    drives=len(have), gradient_rmse_pct=gradient, gradient_within_2_sigma=coverage,
+                                    mass_error=mass))
     return lines
 
 

@@ -18,6 +18,8 @@ def gradient_chapter(g: dict, out_dir: Path) -> Section:
     section.kpis = [("sources", ", ".join(g["sources"])), ("gradient_pct from", method),
                     ("gradient range", f"{g['gradient_pct']['min']:+.1f} … {g['gradient_pct']['max']:+.1f} %"),
                     ("climbed", f"{g['height_gain_m']:.0f} m"), ("paper's mean w_map", f"{g['mean_map_weight']:.2f}")]
+    if g.get("sensor_set"):
+        section.kpis.append(("sensor set", g["sensor_set"]))
     if smoother.get("map_gated_km") is not None:
         section.kpis.append(("map gated out", f"{smoother['map_gated_km']:.2f} km"))
     if smoother.get("imu_bias_mps2") is not None:

@@ -12,7 +12,7 @@ from .. import checks, kinematics
 from ..errors import UserError
 from . import grid as distance_grid
 from . import kalman, sources
-from .smoother import GradientSmoother, Measurements, SmootherSettings, bin_times, standstill_bins
+from .smoother import KNOWN_BIAS_MPS2, GradientSmoother, Measurements, SmootherSettings, bin_times, standstill_bins
 
 METHODS = ("smoother", "paper")
 
@@ -57,6 +57,8 @@ class GradientResult:
     """The smoother's data-estimated noise levels and calibrations (None if it could not run)."""
     settings: GradientSettings | None = None
     """The settings it was estimated with."""
+    sensor_set: str | None = None
+    """The sensors the log held (`sensor_sets.sensor_set`), set by the gradient stage."""
 
     def __post_init__(self):
         if self.smoother is None:
@@ -69,8 +71,10 @@ class GradientResult:
         gradient = grid["gradient_pct"].to_numpy()
         return {
             "grid_spacing_m": settings.spacing_m,
+            "sensor_set": self.sensor_set,
             "sources": [s for s, c in (("map", "gradient_map_pct"), ("baro", "gradient_baro_pct"),
-                                       ("imu", "gradient_imu_pct")) if c in grid.columns],
+                                       ("imu", "gradient_imu_pct"), ("force_balance", "gradient_force_balance_pct"))
+                        if c in grid.columns],
             "method": settings.gradient_method,
             "mean_map_weight": float(np.mean(grid["weight_map"])),
             "smoother": self.smoother,
@@ -160,13 +164,26 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
         level, _, _ = distance_grid.local_linear(sin_angle, np.ones(n_bins), spacing, settings.imu_sigma_m)
         out["gradient_imu_pct"] = 100 * np.tan(np.arcsin(np.clip(level, -1, 1)))
 
-    if map_slope is None and baro_slope is None:
-        raise UserError("gradient: needs a DEM (dem_dir) with GPS positions, or a barometer (pressure_pa); "
-                        "this input has neither")
     paper_notes: list[str] = []
-    fused_slope = _fuse(map_slope, weight_map, baro_slope, s_grid, paper_notes)
-    fused_height = _integrate(fused_slope, spacing)
-    fused_height += _height_offset(fused_height, map_level, weight_map, baro_level)
+    if map_slope is None and baro_slope is None:
+        known_bias = imu_excess is not None and settings.smoother.imu_bias_prior_sigma_mps2 <= KNOWN_BIAS_MPS2
+        if not _has_gps_altitude(frame) and known_bias:
+            notes.append("no height source: the gradient is the accelerometer's with its bias known beforehand")
+        elif not _has_gps_altitude(frame):
+            raise UserError("gradient: needs a DEM (dem_dir) with GPS positions, a barometer (pressure_pa) or "
+                            "GPS altitude with its accuracy (gps_altitude_m, gps_v_acc_m); this input has none")
+        else:
+            notes.append("GPS altitude is the only height source: the gradient is its smoothed slope, good to the "
+                         "stated gradient_smooth_std_pct (the paper's fusion (8) needs a DEM or a barometer)")
+        if settings.gradient_method == "paper":
+            notes.append("gradient_pct is the smoother's: the paper's fusion has no source here")
+            settings = replace(settings, gradient_method="smoother")
+        fused_slope = np.full(n_bins, np.nan)
+        fused_height = np.full(n_bins, np.nan)
+    else:
+        fused_slope = _fuse(map_slope, weight_map, baro_slope, s_grid, paper_notes)
+        fused_height = _integrate(fused_slope, spacing)
+        fused_height += _height_offset(fused_height, map_level, weight_map, baro_level)
     out["height_paper_m"] = fused_height
     out["gradient_paper_pct"] = 100 * fused_slope
 
@@ -198,6 +215,10 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
                                                       if imu_excess is not None else None),
                                     "map_gated_km": float(smoothed.map_gated.sum() * spacing / 1000),
                                     "mean_weights": {k: float(np.mean(v)) for k, v in smoothed.weights.items()}})
+
+
+def _has_gps_altitude(frame) -> bool:
+    return _column(frame, "gps_altitude_m") is not None and _column(frame, "gps_v_acc_m") is not None
 
 
 def _bin_count(index, values, n_bins):

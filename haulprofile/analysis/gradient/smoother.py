@@ -19,6 +19,8 @@ from ..road_load import G_MPS2
 from . import kalman
 
 CHI2_MEDIAN_1DOF = 0.454936
+KNOWN_BIAS_MPS2 = 0.05
+"""An accelerometer bias known to this [m/s²] (0.3 %-pt of gradient) needs no height source."""
 SOURCE_NAMES = ("baro", "map", "imu", "gps")
 
 
@@ -49,6 +51,14 @@ class SmootherSettings:
     """False-alarm probability of the map gate's chi-square test per window."""
     gate_detrend_m: float = 2000.0
     """Running-median length [m] that takes the slow barometric drift out of the DEM residual."""
+    imu_bias_prior_sigma_mps2: float = 0.5
+    """Prior sigma of the accelerometer's bias [m/s²]: unknown (0.5, a 3° mounting pitch) for an
+    IMU; the force balance with a given mass (`force_balance`) knows it to the rolling
+    resistance's uncertainty, and at or below `KNOWN_BIAS_MPS2` it is a height source on its own."""
+    imu_led_start_sigma_mps2: float = 0.005
+    """Without a barometer: the IMU noise's estimate starts here [m/s²] (below any IMU's noise
+    per 10 m bin) and climbs to its fixed point (`GradientSmoother._imu_led_noise`)."""
+    imu_led_iterations: int = 12
     stop_offset_sigma_m: float = 1.0
     """Step of the barometric offset at a standstill [m] (1 m is 12 Pa): the door opens, the
     ventilation restarts at another level, the door slams; the cab's overpressure changes by tens
@@ -112,6 +122,14 @@ def _robust_var(values: np.ndarray) -> float:
     return float(np.median(values ** 2) / CHI2_MEDIAN_1DOF)
 
 
+def _mean_square(residual: np.ndarray) -> float:
+    """Mean square [unit²] with gross outliers beyond 5 robust sigma clipped."""
+    robust = _robust_var(residual)
+    if not np.isfinite(robust):
+        return np.nan
+    return float(np.nanmean(np.clip(residual, -5 * np.sqrt(robust), 5 * np.sqrt(robust)) ** 2))
+
+
 def _residual_var(residual: np.ndarray) -> float:
     """Variance [unit²] a white-noise model must give a residual sequence so that it carries no
     more information than it has: the mean square (gross outliers beyond 5 robust sigma clipped),
@@ -173,7 +191,8 @@ class GradientSmoother:
         x0 = np.zeros(kalman.N_STATES)
         x0[kalman.H] = height
         x0[kalman.DRIFT] = baro - height if np.isfinite(baro) else 0.0
-        p0 = np.diag([100.0 ** 2, 0.1 ** 2, 100.0 ** 2, 0.01 ** 2, 0.5 ** 2, self.dem_sigma_m ** 2])
+        p0 = np.diag([100.0 ** 2, 0.1 ** 2, 100.0 ** 2, 0.01 ** 2, self.s.imu_bias_prior_sigma_mps2 ** 2,
+                      self.dem_sigma_m ** 2])
         return x0, p0
 
     def run(self, r: np.ndarray, use=(True, True, True, True), backward=True):
@@ -210,7 +229,16 @@ class GradientSmoother:
         # the road's curvature PSD first (needs no IMU noise level), then pass 1 without the map:
         # the reference the map is checked against, and the IMU's noise from its residual
         reference = None
-        if have[kalman.BARO] or have[kalman.IMU]:
+        imu_led = have[kalman.IMU] and not have[kalman.BARO] and (
+            have[kalman.GPS] or s.imu_bias_prior_sigma_mps2 <= KNOWN_BIAS_MPS2)
+        if imu_led:
+            self._imu_led_noise(r, imu_scale)
+            x, _, _, _ = self.run(r, use=(True, False, True, True))
+            reference = x[:, kalman.H]
+        elif have[kalman.BARO] or have[kalman.IMU]:
+            # GPS altitude alone is no check of the map: its errors, in the residual, made the
+            # map's estimated error large and gated out stretches where the map was the better
+            # source (measured: gps+can regional 0.64 -> 0.78 %-pt)
             if s.curvature_psd is None:
                 self.curvature_psd = (self._curvature_by_imu(r, imu_scale) if have[kalman.IMU] and
                                       (have[kalman.BARO] or have[kalman.GPS]) else self._most_likely_curvature(r))
@@ -224,6 +252,8 @@ class GradientSmoother:
             reference = x[:, kalman.H] if (have[kalman.BARO] or have[kalman.GPS]) else None
         if have[kalman.DEM]:
             self._dem_model(reference)
+            if reference is not None and not have[kalman.BARO]:
+                self.notes.append(dem_unchecked_note(self.dem_sigma_m, self.dem_correlation_m, have[kalman.IMU]))
             white = max(s.dem_white_fraction * self.dem_sigma_m, 0.5)
             h_acc = np.nan_to_num(m.h_acc_m, nan=10.0)
             r[:, kalman.DEM] = np.where(self.gated, np.nan, white ** 2 + (s.terrain_cross_slope * h_acc) ** 2)
@@ -263,6 +293,50 @@ class GradientSmoother:
             best, best_score = candidate, score
         return best
 
+    def _imu_led_noise(self, r, imu_scale):
+        """Without a barometer the accelerometer carries the gradient and GPS altitude ties its
+        bias down over long baselines. Its noise cannot be taken from the residual against a
+        GPS-led reference (that holds the GPS gradient's error, ten times the IMU's noise), so
+        it is estimated with the profile: expectation-maximisation of the IMU variance (the
+        smoothed residual's mean square plus the smoother's own variance of g sin(gamma) + b),
+        started below any plausible IMU noise so that it climbs to the nearest fixed point,
+        per curvature candidate, searched upwards until the likelihood of the map-free innovations
+        falls, the pair with the largest likelihood is kept."""
+        z = self.m.z[:, kalman.IMU]
+        best, best_ll, best_r = None, -np.inf, None
+        candidates = ((self.s.curvature_psd,) if self.s.curvature_psd is not None
+                      else self.s.curvature_candidates)
+        for candidate in candidates:
+            self.curvature_psd = candidate
+            trial = r.copy()
+            var = self.s.imu_led_start_sigma_mps2 ** 2
+            for _ in range(self.s.imu_led_iterations):
+                trial[:, kalman.IMU] = var * imu_scale
+                x, p, _, _ = self.run(trial, use=(True, False, True, True))
+                gamma = x[:, kalman.GAMMA]
+                residual = (z - G_MPS2 * gamma / np.sqrt(1 + gamma ** 2) - x[:, kalman.BIAS]) / np.sqrt(imu_scale)
+                spread = G_MPS2 ** 2 * (p[:, kalman.GAMMA, kalman.GAMMA] + p[:, kalman.BIAS, kalman.BIAS]
+                                        + 2 * p[:, kalman.GAMMA, kalman.BIAS]) / imu_scale
+                new = _mean_square(residual) + float(np.nanmean(np.where(np.isfinite(z), spread, np.nan)))
+                if not np.isfinite(new):
+                    break
+                converged = abs(new / var - 1) < 0.02
+                var = max(new, 1e-6)
+                if converged:
+                    break
+            trial[:, kalman.IMU] = var * imu_scale
+            _, _, nu, innovation_var = self.run(trial, use=(True, False, True, True), backward=False)
+            ll = -0.5 * np.nansum(np.log(innovation_var) + nu ** 2 / innovation_var)
+            if ll <= best_ll:
+                break
+            best, best_ll, best_r = candidate, ll, trial[:, kalman.IMU].copy()
+        self.curvature_psd = best
+        r[:, kalman.IMU] = best_r
+        tied = "tied to GPS altitude" if np.isfinite(self.m.z[:, kalman.GPS]).any() else "known beforehand"
+        noise = float(np.sqrt(np.nanmedian(best_r)))
+        self.notes.append(f"no barometer: the IMU carries the gradient (noise {noise:.3f} m/s² "
+                          f"per bin, estimated with the profile), its bias and mounting pitch {tied}")
+
     def _most_likely_curvature(self, r):
         """The curvature PSD among the candidates with the largest likelihood of the map-free
         innovations (Gaussian: -1/2 sum(log S + nu²/S))."""
@@ -281,7 +355,8 @@ class GradientSmoother:
         m, s = self.m, self.s
         dem = m.z[:, kalman.DEM]
         if reference is None:
-            self.notes.append("map not checked against barometer/IMU (neither present): taken as it is")
+            self.notes.append(f"map not checked against barometer/IMU (neither present): taken as it is, its error "
+                              f"assumed {self.dem_sigma_m:.0f} m over {self.dem_correlation_m:.0f} m")
             return
         residual = dem - reference
         ok = np.isfinite(residual)
@@ -329,6 +404,18 @@ class GradientSmoother:
         total = sum(information.values())
         with np.errstate(invalid="ignore", divide="ignore"):
             return {name: np.where(total > 0, info / total, 0.0) for name, info in information.items()}
+
+
+def dem_unchecked_note(sigma_m: float, correlation_m: float, imu: bool) -> str:
+    """How far the map may be off where no barometer checks it: its residual against GPS altitude
+    (and the IMU) holds the GPS's own error too, so its size sigma is an upper bound of the DEM's,
+    and a height error field of sigma over a correlation length L moves the gradient over L by
+    sqrt(2 (1 - 1/e)) sigma / L."""
+    gradient_pct = 100 * np.sqrt(2 * (1 - np.exp(-1))) * sigma_m / correlation_m
+    against = "GPS altitude and the IMU" if imu else "GPS altitude"
+    return (f"no barometer: the map is checked against {against} only; where it is not gated out it may be off "
+            f"by up to {sigma_m:.1f} m in height and {gradient_pct:.2f} %-points in gradient over "
+            f"{correlation_m:.0f} m")
 
 
 def _autocorrelation(values: np.ndarray, lag: int) -> float:

@@ -12,8 +12,10 @@ from ..dem.plausible import ImplausibleDemError
 from ..errors import UserError
 from ..stage import Stage
 from .chapter import TITLE, gradient_chapter
-from .estimate import GradientResult, GradientSettings, estimate_gradient
+from .estimate import GradientResult, GradientSettings
 from .figure import draw_sources
+from .force_balance import estimate_gradient_for_log
+from .sensor_sets import describe, sensor_set
 
 
 @dataclass(frozen=True)
@@ -48,17 +50,18 @@ def gradient_stage(ctx) -> GradientResult | None:
     frame = ctx.signals
     if options.keep_existing and "gradient_pct" in frame.columns and frame["gradient_pct"].notna().any():
         return None
+    ctx.say(f"gradient: {describe(frame)}")
     if ctx.dem_dir is None:
         ctx.say("gradient: no DEM given: barometric height only (no map-matching)")
     dem = open_dem(ctx.dem_dir) if ctx.dem_dir is not None else None
     try:
         try:
-            result = estimate_gradient(frame, dem, options.settings)
+            result = estimate_gradient_for_log(frame, dem, options.settings, ctx.vehicle)
         except (MissingTileError, ImplausibleDemError) as exc:
             if not options.barometer_off_map:
                 raise type(exc)(f"{exc}; or run without dem_dir for barometric height only") from None
             ctx.say(f"gradient: {exc}; using the barometer alone")
-            result = estimate_gradient(frame, None, options.settings)
+            result = estimate_gradient_for_log(frame, None, options.settings, ctx.vehicle)
     except (MissingTileError, ImplausibleDemError):
         raise
     except UserError as exc:
@@ -69,6 +72,7 @@ def gradient_stage(ctx) -> GradientResult | None:
     for name, values in result.samples.items():
         frame[name] = values
     result.settings = options.settings
+    result.sensor_set = sensor_set(frame)
     return result
 
 
@@ -82,4 +86,4 @@ def write_gradient(result: GradientResult, directory: Path, figures: bool = True
 
 
 STAGE = Stage("gradient", GradientOptions, gradient_stage, write=write_gradient, files=("gradient.csv", "gradient.png"),
-              chapter=gradient_chapter, title=TITLE, reads_dem=True)
+              chapter=gradient_chapter, title=TITLE, reads_dem=True, reads_vehicle=True)

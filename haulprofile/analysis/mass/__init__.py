@@ -19,9 +19,9 @@ import pandas as pd
 
 from ..road_load import G_MPS2
 from . import calibration
-from .joint import JointFit, JointSettings, fit_joint
+from .joint import JointFit, JointSettings, fit_joint, offset_regressor, wind_regressors
 from .regression import FilterSettings, Regression, build_regression
-from .segments import SegmentSettings, estimate_segment, segment_bounds
+from .segments import SegmentSettings, estimate_segment, segment_bounds, split_at_payload_changes
 
 __all__ = ["estimate_mass", "MassResult", "FilterSettings", "SegmentSettings", "JointSettings"]
 
@@ -59,7 +59,14 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
                   joint_settings: JointSettings = JointSettings(), known_masses: dict[int, float] | None = None
                   ) -> MassResult:
     """Per-segment masses [kg] of a signals table (see `MassResult`); ``known_masses`` {segment
-    index from 0: kg} calibrates the torque gain. UserError if columns are missing."""
+    index from 0: kg} calibrates the torque gain. UserError if columns are missing.
+
+    Where ``gradient_pct`` itself rests on a mass (the force balance standing in for a missing
+    IMU, `gradient.force_balance`), the gradient stage also writes ``gradient_mass_pct``, the
+    estimate without it, and the mass is fitted on that: on its own force-balance gradient any
+    mass fits its torque, and would look confident."""
+    if "gradient_mass_pct" in frame.columns and frame["gradient_mass_pct"].notna().any():
+        frame = frame.assign(gradient_pct=frame["gradient_mass_pct"])
     regression = build_regression(frame, vehicle, filter_settings)
     time_s = frame["time_s"].to_numpy(dtype=float)
     speed = frame["speed_mps"].to_numpy(dtype=float)
@@ -67,7 +74,8 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     max_mass = vehicle.curb_mass_kg + 2.0 * (vehicle.max_payload_kg or 3.0 * vehicle.curb_mass_kg)
     columns = {name: np.full(len(frame), np.nan) for name in ("mass_kg", "mass_ls_kg", "mass_rls_kg", "mass_lm_kg")}
     segments = []
-    bounds = segment_bounds(time_s, speed, segment_settings)
+    bounds = split_at_payload_changes(segment_bounds(time_s, speed, segment_settings), time_s, speed,
+                                      *_change_regression(regression, vehicle), segment_settings)
     for start, end in bounds:
         part = slice(start, end)
         estimate = estimate_segment(regression.phi[part], regression.y[part], vehicle.curb_mass_kg, max_mass,
@@ -91,8 +99,13 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
         worst = max(regression.rejected, key=regression.rejected.get)
         notes.append(f"no sample passes the data filter (most fail: {worst}, {regression.rejected[worst]} "
                      f"of {len(frame)}): no mass estimated")
+    wind = _wind_regressors(frame, speed, time_s) if joint_settings.fit_wind else None
+    offset = _offset_regressor(frame, regression, vehicle) if joint_settings.fit_torque_offset else None
+    if wind is not None:
+        notes.append("the drive's wind fitted with the masses from the heading along the GPS track")
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
-                              columns, max_mass, notes, segment_settings)
+                              columns, max_mass, notes, segment_settings, wind,
+                              offset)
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint)
 
@@ -110,8 +123,40 @@ def regressor_bias_kg(fit: JointFit, regressor_std, bounds) -> np.ndarray:
     return out
 
 
+def _change_regression(regression, vehicle):
+    """(phi, y) for telling payload changes at short stops: the accelerometer's regressor where
+    there is one (independent of the gradient estimate, whose error differs between stretches),
+    else the gradient one."""
+    if regression.excess_imu is None:
+        return regression.phi, regression.y
+    rolling = G_MPS2 * vehicle.rolling_resistance_coefficient * regression.cos_angle
+    phi = np.where(regression.usable_imu, regression.excess_imu + rolling, np.nan)
+    return phi, np.where(regression.usable_imu, regression.y, np.nan)
+
+
+def _wind_regressors(frame, speed, time_s):
+    """The joint fit's head-wind columns from the GPS track (None without positions)."""
+    from ..gradient.sources import local_east_north_m
+    if not {"latitude_deg", "longitude_deg"} <= set(frame.columns) or frame["latitude_deg"].isna().all():
+        return None
+    east, north = local_east_north_m(frame["latitude_deg"].to_numpy(dtype=float),
+                                     frame["longitude_deg"].to_numpy(dtype=float))
+    return wind_regressors(speed, east, north, time_s)
+
+
+def _offset_regressor(frame, regression, vehicle):
+    """The joint fit's torque-offset column (None without engine torque or a reference torque)."""
+    reference = getattr(vehicle, "engine_reference_torque_nm", None)
+    if not reference or "engine_torque_nm" not in frame.columns or regression.force is None:
+        return None
+    torque = frame["engine_torque_nm"].to_numpy(dtype=float)
+    window = max(1, int(round(1.0 / np.median(np.diff(frame["time_s"].to_numpy(dtype=float))))))
+    smooth = np.convolve(np.nan_to_num(torque), np.ones(window) / window, "same")
+    return offset_regressor(regression.force, smooth, reference)
+
+
 def _joint(regression, time_s, bounds, vehicle, settings, known, segments, columns, max_mass, notes,
-           segment_settings):
+           segment_settings, wind=None, offset=None):
     """Joint fit with the IMU regressor (else the gradient one), calibration, and per segment the
     chosen ``mass_kg`` and its total ``mass_uncertainty_kg``; the gradient-based joint fit too,
     for comparison."""
@@ -119,12 +164,13 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
     if regression.excess_imu is not None:
         fits["imu"] = fit_joint(regression.force, regression.excess_imu, regression.cos_angle,
                                 regression.aero_per_cda, time_s, bounds, regression.usable_imu, vehicle, settings, "imu",
-                                instrument=regression.excess_gradient)
+                                instrument=regression.excess_gradient, wind_regressors=wind, offset_regressor=offset)
     else:
         notes.append("no accelerometer with a calibrated bias (accel_x_mps2, imu_bias_mps2): mass from the "
                      "gradient-based regressor")
     fits["gradient"] = fit_joint(regression.force, regression.excess_gradient, regression.cos_angle,
-                                 regression.aero_per_cda, time_s, bounds, regression.usable, vehicle, settings, "gradient")
+                                 regression.aero_per_cda, time_s, bounds, regression.usable, vehicle, settings, "gradient",
+                                 wind_regressors=wind, offset_regressor=offset)
     chosen = fits.get("imu", fits["gradient"])
     gradient_bias = G_MPS2 * np.sin(np.arctan(segment_settings.gradient_bias_pct / 100))
     for name, fit in fits.items():
@@ -143,11 +189,15 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
             segment[f"mass_{name}_uncertainty_kg"] = float(sigma[j]) if np.isfinite(m[j]) else None
         mass, sigma = masses[j], total[j]
         status, reason = "ok", ""
+        broken = chosen.rejected_share is not None and chosen.rejected_share[j] > settings.max_rejected_share
         if not np.isfinite(mass):
             status, reason = "no_excitation", f"only {int(chosen.samples[j])} samples for the joint fit"
         elif not (0.5 * vehicle.curb_mass_kg < mass < max_mass):
             status, reason = "implausible", f"joint mass {mass:.0f} kg outside {0.5 * vehicle.curb_mass_kg:.0f}.." \
                                             f"{max_mass:.0f} kg"
+        elif broken:
+            status, reason = "uncertain", f"the force balance does not hold on {100 * chosen.rejected_share[j]:.0f} % " \
+                                          f"of its samples (an auxiliary load or PTO running, unflagged braking)"
         elif chosen.mass_std_kg[j] > settings.max_relative_uncertainty * mass:
             status, reason = "uncertain", f"statistical uncertainty {chosen.mass_std_kg[j]:.0f} kg over " \
                                           f"{100 * settings.max_relative_uncertainty:.0f} %"
@@ -155,7 +205,7 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         if status == "ok":
             segment["mass_kg"], segment["mass_uncertainty_kg"] = float(mass), float(sigma)
             columns["mass_kg"][start:end] = mass
-        elif segment["status"] == "ok":
+        elif segment["status"] == "ok" and not broken:
             segment["mass_kg"], segment["mass_uncertainty_kg"] = segment["mass_ls_kg"], segment["uncertainty_kg"]
         else:
             segment["mass_kg"] = segment["mass_uncertainty_kg"] = None

@@ -26,6 +26,13 @@ class SegmentSettings:
     min_samples: int = 150
     jackknife_blocks: int = 10
     max_relative_uncertainty: float = 0.05
+    payload_stop_s: float = 10.0
+    """Shorter stops than ``min_stop_s`` down to this are candidate payload changes, cut only where
+    the data say the mass changed there (`split_at_payload_changes`)."""
+    payload_false_alarm: float = 0.01
+    """Probability of cutting a segment whose mass did not change (over all its candidate stops)."""
+    min_payload_change: float = 0.03
+    """Smallest relative mass change that is cut [-]."""
     gradient_bias_pct: float = 0.1
     """Systematic gradient error assumed over a segment [%-points] (the fused gradient's error
     measured on the virtual truck averages to about this over a few km); enters the uncertainty."""
@@ -45,6 +52,56 @@ def segment_bounds(time_s: np.ndarray, speed_mps: np.ndarray, settings: SegmentS
     if start < len(time_s):
         bounds.append((start, len(time_s)))
     return bounds
+
+
+def _side_mass(phi, y, settings):
+    """LS mass [kg] (9) and its standard error [kg] of the used samples: the jackknife's and that
+    of a gradient bias of ``gradient_bias_pct`` (it differs between two stretches of road)."""
+    used = np.isfinite(phi) & np.isfinite(y)
+    if used.sum() < max(2 * settings.jackknife_blocks, settings.min_samples):
+        return np.nan, np.inf
+    p, q = phi[used], y[used]
+    mass = float(np.sum(p * q) / np.sum(p * p))
+    return mass, float(np.hypot(jackknife_uncertainty_kg(p, q, settings.jackknife_blocks),
+                                gradient_bias_uncertainty_kg(mass, p, settings.gradient_bias_pct)))
+
+
+def split_at_payload_changes(bounds, time_s, speed_mps, phi, y, settings: SegmentSettings):
+    """``bounds`` cut further at the shorter stops (``payload_stop_s`` .. ``min_stop_s``) where the
+    mass before and after differ: binary segmentation, at each step the candidate stop with the
+    largest |m_before - m_after| / sqrt(s_before² + s_after²) (LS masses of the whole sides, each
+    with its jackknife error and a gradient bias of its own), cut when that exceeds
+    the two-sided normal quantile of ``payload_false_alarm`` shared over the candidates and the
+    change is at least ``min_payload_change``. A delivery of a few seconds and a red light look the
+    same in the speed; only the force balance tells them apart."""
+    from scipy.stats import norm
+    stopped = np.nan_to_num(speed_mps, nan=np.inf) < settings.stop_speed_mps
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], stopped.astype(np.int8), [0]])))
+    short = [(a, b) for a, b in zip(edges[::2], edges[1::2])
+             if settings.payload_stop_s <= time_s[b - 1] - time_s[a] < settings.min_stop_s]
+    out = []
+    pending = list(bounds)
+    while pending:
+        start, end = pending.pop(0)
+        inside = [(a, b) for a, b in short if start < a and b < end]
+        if not inside:
+            out.append((start, end))
+            continue
+        limit = norm.ppf(1 - settings.payload_false_alarm / (2 * len(inside)))
+        best, best_score = None, limit
+        for a, b in inside:
+            m1, s1 = _side_mass(phi[start:a], y[start:a], settings)
+            m2, s2 = _side_mass(phi[b:end], y[b:end], settings)
+            if not (np.isfinite(m1) and np.isfinite(m2)) or abs(m2 / m1 - 1) < settings.min_payload_change:
+                continue
+            score = abs(m1 - m2) / np.hypot(s1, s2)
+            if score > best_score:
+                best, best_score = (a, b), score
+        if best is None:
+            out.append((start, end))
+        else:
+            pending[:0] = [(start, best[0]), (best[1], end)]
+    return out
 
 
 def jackknife_uncertainty_kg(phi: np.ndarray, y: np.ndarray, blocks: int) -> float:

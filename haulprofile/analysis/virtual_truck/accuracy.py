@@ -20,17 +20,25 @@ import numpy as np
 from .truth import GRID_SPACING_M, truth_grid
 
 METHODS = {"fusion": "gradient_pct", "baro": "gradient_baro_pct", "map": "gradient_map_pct",
-           "smoother": "gradient_smooth_pct"}
+           "smoother": "gradient_smooth_pct", "flat": "gradient_flat_pct"}
 """Method name -> gradient column. ``fusion`` is the paper's (8): the default run's
 ``gradient_pct``, or the run with ``gradient_method="paper"`` where that exists; ``smoother`` is
-used when the gradient stage writes it (by default or with ``gradient_method="smoother"``)."""
+used when the gradient stage writes it (by default or with ``gradient_method="smoother"``); ``flat``
+(0 %) only where nothing measures a height (``can-only``)."""
 CATEGORIES = {"outside": ("at grade", "embankment"), "cutting": ("cutting",), "bridge": ("bridge",),
               "tunnel": ("tunnel",)}
 MIN_BINS = 5
 MIN_SEGMENT_S = 120.0
-MASS_KEYS = ("mass_ls_kg", "mass_rls_kg", "mass_kg")
+MASS_KEYS = ("mass_ls_kg", "mass_rls_kg", "mass_kg", "mass_kg_weighed")
 MISMATCH = {"rolling_resistance_coefficient": 0.15, "drag_coefficient": 0.10}
 MISMATCH_ETA = 0.02
+SENSOR_SETS = ("full", "no-baro", "no-imu", "gps+can", "can-only")
+"""The sensor sets each drive is analysed with (`gradient.sensor_sets`): the full log, and the
+same log with the missing sensors' columns taken out."""
+FLAT = "flat"
+"""The gradient of a log with no height source at all: a flat road (``can-only``)."""
+STD_COLUMNS = {"smoother": "gradient_smooth_std_pct"}
+"""Method -> its per-bin gradient standard deviation [%-pt], scored for coverage."""
 
 
 @dataclass(frozen=True)
@@ -79,8 +87,9 @@ def mismatched_vehicle(vehicle, rng: np.random.Generator):
     return dataclasses.replace(vehicle, **changes)
 
 
-def gradient_errors(signals, virtual, column: str) -> dict:
-    """RMSE [%-pt] of a gradient column per bin category (None where too few bins)."""
+def _true_bin_means(signals, virtual, column: str):
+    """Per 10 m bin of true distance: the mean of ``column`` over the moving samples, and the
+    number of samples (0: none)."""
     truth = virtual.truth
     grid = truth_grid(virtual)
     time_s = signals["time_s"].to_numpy(float)
@@ -94,7 +103,12 @@ def gradient_errors(signals, virtual, column: str) -> dict:
     count = np.bincount(index, minlength=len(grid))
     total = np.bincount(index, weights=values, minlength=len(grid))
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = total / count
+        return total / count, count, grid
+
+
+def gradient_errors(signals, virtual, column: str) -> dict:
+    """RMSE [%-pt] of a gradient column per bin category (None where too few bins)."""
+    mean, count, grid = _true_bin_means(signals, virtual, column)
     error = mean - grid["gradient_pct"].to_numpy()
     out = {}
     for name, kinds in CATEGORIES.items():
@@ -103,22 +117,43 @@ def gradient_errors(signals, virtual, column: str) -> dict:
     return out
 
 
-def mass_errors(signals, truth, vehicle, column: str) -> dict:
-    """Relative errors of each confident segment's mass when the gradient is ``column``: LS and
-    RLS where the LS is ``ok``; ``mass_kg`` (the joint estimate, else LS) wherever it is given,
-    and in ``mass_kg_within_2_sigma`` whether the truth lies inside its stated ±2σ."""
-    from ..mass import estimate_mass
-    frame = signals.assign(gradient_pct=signals[column])
-    result = estimate_mass(frame, vehicle)
+def gradient_coverage(signals, virtual, column: str, std_column: str) -> float | None:
+    """Share of the 10 m bins whose true gradient lies inside the stated ±2σ of ``std_column``."""
+    mean, count, grid = _true_bin_means(signals, virtual, column)
+    std, _, _ = _true_bin_means(signals, virtual, std_column)
+    pick = (count > 0) & np.isfinite(std)
+    if pick.sum() < MIN_BINS:
+        return None
+    return float(np.mean(np.abs(mean[pick] - grid["gradient_pct"].to_numpy()[pick]) <= 2 * std[pick]))
+
+
+def _scored_segments(segments, truth):
+    """(segment index, segment, true mass) of the segments of >= MIN_SEGMENT_S within one true mass."""
     time_s, mass = truth["time_s"].to_numpy(), truth["mass_kg"].to_numpy()
-    out = {key: [] for key in MASS_KEYS} | {"mass_kg_within_2_sigma": []}
-    for segment in result.segments:
+    for j, segment in enumerate(segments):
         if segment["end_s"] - segment["start_s"] < MIN_SEGMENT_S:
             continue
         inside = (time_s >= segment["start_s"]) & (time_s <= segment["end_s"])
         if not inside.any() or np.ptp(mass[inside]) > 0:
             continue
-        true = mass[inside][0]
+        yield j, segment, float(mass[inside][0])
+
+
+def mass_errors(signals, truth, vehicle, column: str) -> dict:
+    """Relative errors of each confident segment's mass when the gradient is ``column``: LS and
+    RLS where the LS is ``ok``; ``mass_kg`` (the joint estimate, else LS) wherever it is given,
+    and in ``mass_kg_within_2_sigma`` whether the truth lies inside its stated ±2σ. The same for
+    ``mass_kg_weighed``: with the first scored segment weighed (`--known-mass`, its true mass),
+    the other segments' errors, the torque gain calibrated."""
+    from ..mass import estimate_mass
+    frame = signals.assign(gradient_pct=signals[column])
+    if column != METHODS["smoother"] and "gradient_mass_pct" in frame.columns:
+        frame = frame.drop(columns=["gradient_mass_pct"])
+    result = estimate_mass(frame, vehicle)
+    out = {key: [] for key in MASS_KEYS} | {"mass_kg_within_2_sigma": [], "mass_kg_weighed": [],
+                                           "mass_kg_weighed_within_2_sigma": []}
+    scored = list(_scored_segments(result.segments, truth))
+    for _, segment, true in scored:
         for key in MASS_KEYS:
             confident = segment["status"] == "ok" if key != "mass_kg" else True
             if confident and segment.get(key) is not None:
@@ -126,6 +161,16 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
         sigma = segment.get("mass_uncertainty_kg")
         if segment.get("mass_kg") is not None and sigma is not None and np.isfinite(sigma):
             out["mass_kg_within_2_sigma"].append(bool(abs(segment["mass_kg"] - true) <= 2 * sigma))
+    weighed = [(j, true) for j, segment, true in scored if segment.get("mass_kg") is not None]
+    if len(scored) >= 2 and weighed:
+        first, known = weighed[0]
+        calibrated = estimate_mass(frame, vehicle, known_masses={first: known})
+        for j, segment, true in _scored_segments(calibrated.segments, truth):
+            sigma = segment.get("mass_uncertainty_kg")
+            if j == first or segment.get("mass_kg") is None or sigma is None or not np.isfinite(sigma):
+                continue
+            out["mass_kg_weighed"].append(float(segment["mass_kg"] / true - 1))
+            out["mass_kg_weighed_within_2_sigma"].append(bool(abs(segment["mass_kg"] - true) <= 2 * sigma))
     return out
 
 
@@ -157,14 +202,58 @@ def _gradient_columns(signals, dem_dir: Path):
     return signals
 
 
-def run_case(case: Case) -> dict:
-    """Drive, log, analyse and score one case; a dict of plain values (for a process pool)."""
+def _sensor_set_columns(base, dem_dir: Path, set_name: str, virtual):
+    """The signals of ``base`` as a logger with only ``set_name``'s sensors gives them, with the
+    gradient columns the estimator makes of them as the gradient stage does (the force balance as
+    the accelerometer where there is neither IMU nor barometer; ``gradient_pct`` = the paper's fusion (8) where it can
+    run). A log with no height source (``can-only``) is given the true mass per sample, as a
+    weighing at every load change would give it, and scored against the flat road too."""
+    from ..dem import open_dem
+    from ..errors import UserError
+    from ..gradient.force_balance import estimate_gradient_for_log, estimate_gradient_force_balance
+    from ..gradient.sensor_sets import sensors_present, without_sensors
+    frame = without_sensors(base, set_name)
+    given = None
+    if "gps" not in sensors_present(frame):
+        given = np.interp(frame["time_s"], virtual.truth["time_s"], virtual.truth["mass_kg"])
+        frame = frame.assign(**{METHODS[FLAT]: np.zeros(len(frame))})
+    try:
+        if given is None:
+            samples = estimate_gradient_for_log(frame, open_dem(dem_dir), vehicle=virtual.vehicle).samples
+        else:
+            samples = estimate_gradient_force_balance(frame, open_dem(dem_dir), virtual.vehicle, mass_kg=given).samples
+    except UserError:
+        return frame
+    frame = frame.assign(**samples)
+    return frame.assign(**{METHODS["fusion"]: samples["gradient_paper_pct"]})
+
+
+def score(signals, virtual, vehicles, mass: bool = True) -> dict:
+    """Gradient errors (and the per-bin σ's coverage) and mass errors of every method present
+    (no mass errors where the mass was given)."""
+    methods = {name: column for name, column in METHODS.items() if column in signals.columns}
+    return {
+        "gradient": {name: gradient_errors(signals, virtual, column) for name, column in methods.items()},
+        "gradient_within_2_sigma": {name: gradient_coverage(signals, virtual, METHODS[name], std)
+                                    for name, std in STD_COLUMNS.items() if std in signals.columns},
+        "mass": {kind: {name: mass_errors(signals, virtual.truth, vehicle, column) for name, column in methods.items()}
+                 for kind, vehicle in vehicles.items()} if mass else {},
+    }
+
+
+def run_case(case: Case, sensor_sets: tuple[str, ...] = SENSOR_SETS) -> dict:
+    """Drive, log, analyse and score one case with each sensor set; a dict of plain values (for
+    a process pool). The ``full`` set's figures are at the top level as before, every set's under
+    ``sensor_sets``."""
     from ..pipeline import RunContext, run
     from .dem import write_dem
     from .mcap_log import write_mcap
     from .truck import drive
     scenario = case_scenario(case)
     virtual = drive(scenario, seed=case.seed, realism=case.level)
+    rng = np.random.default_rng(case.seed)
+    vehicles = {"exact": virtual.vehicle, "datasheet": mismatched_vehicle(virtual.vehicle, rng)}
+    scores = {}
     with tempfile.TemporaryDirectory(prefix="haulprofile-accuracy-") as tmp:
         root = Path(tmp)
         fmt = "geotiff" if case.dem == "geotiff" else "hgt"
@@ -173,18 +262,20 @@ def run_case(case: Case) -> dict:
         ctx = RunContext(inputs=[root / "logs"], out_dir=root / "out", vehicle=virtual.vehicle,
                          dem_dir=root / "dem", say=lambda _msg: None, options={"output": {"figures": False}})
         run(ctx, until="gradient")
-        signals = _gradient_columns(ctx.signals, root / "dem")
-    methods = {name: column for name, column in METHODS.items() if column in signals.columns}
-    rng = np.random.default_rng(case.seed)
-    vehicles = {"exact": virtual.vehicle, "datasheet": mismatched_vehicle(virtual.vehicle, rng)}
+        base = ctx.signals.drop(columns=[c for c in ctx.results.gradient.samples if c in ctx.signals.columns])
+        for set_name in sensor_sets:
+            if set_name == "full":
+                signals = _gradient_columns(ctx.signals, root / "dem")
+            else:
+                signals = _sensor_set_columns(base, root / "dem", set_name, virtual)
+            scores[set_name] = score(signals, virtual, vehicles, mass=set_name != "can-only")
     grid = truth_grid(virtual)
+    full = scores.get("full", {"gradient": {}, "gradient_within_2_sigma": {}, "mass": {}})
     return {
         "case": dataclasses.asdict(case), "name": case.name,
         "km": float(virtual.road.length_m / 1000), "minutes": float(virtual.duration_s / 60),
         "structures_m": {kind: float((grid["structure"] == kind).sum() * GRID_SPACING_M)
                          for kind in ("cutting", "embankment", "bridge", "tunnel")},
-        "gradient": {name: gradient_errors(signals, virtual, column) for name, column in methods.items()},
-        "mass": {kind: {name: mass_errors(signals, virtual.truth, vehicle, column) for name, column in methods.items()}
-                 for kind, vehicle in vehicles.items()},
+        **full, "sensor_sets": scores,
         "injected": {k: v for k, v in virtual.injected.items() if k != "realism"},
     }

@@ -1,0 +1,168 @@
+"""The longitudinal force balance as a gradient measurement, for logs without an accelerometer.
+
+Given the mass m, the engine torque, gear and wheel speed give what an accelerometer would
+measure (paper (1)/(10)):
+
+    a_virtual = (F_wheel - F_aero) / m - g c_r cos(alpha)  =  dv/dt + g sin(alpha)
+
+on the samples the mass's data filter keeps (traction, no brake, no shift, clutch closed). It
+enters the smoother through the accelerometer's channel, whose bias state takes up a constant
+error (c_r, a torque offset); its noise and curvature are estimated from the data as for an IMU
+without a barometer. The mass comes from a first pass (GPS altitude and DEM), or is given.
+
+Identifiability: a mass error dm/m scales the whole measurement, so it reads as a gradient error
+of -(dm/m)(a + g sin(alpha) + g c_r) / g, which the bias takes up only where that sum is
+constant. Within one drive the force balance alone cannot tell the mass from the gradient
+(any m with its own gradient fits the torque); only the height sources over long baselines
+(GPS altitude, the DEM, a barometer) pin the mass, and the mass estimated on the first pass's
+gradient is what carries that. Re-estimating the mass on the force-balance gradient returns the
+mass put in, so the two are not iterated; a torque-report gain enters the same way as a mass
+error and needs a weighing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+
+from ..errors import UserError
+from ..road_load import G_MPS2
+from .estimate import GradientResult, GradientSettings, estimate_gradient
+
+
+GIVEN_MASS_GAIN_UNCERTAINTY = 0.036
+"""Relative 1-sigma of the force with a given mass: the torque report and driveline gain
+(sqrt(3² + 2²) %, as `mass.joint.JointSettings`), which a weighing does not remove here."""
+ROLLING_RESISTANCE_UNCERTAINTY = 0.15
+"""Relative uncertainty of a vehicle file's c_r (datasheet width, as the joint mass's prior)."""
+
+
+def _force_filter():
+    from ..mass.regression import FilterSettings
+    return FilterSettings(min_accel_mps2=-np.inf, min_regressor_mps2=-np.inf)
+
+
+def virtual_accelerometer_mps2(frame: pd.DataFrame, vehicle, mass_kg: np.ndarray) -> np.ndarray:
+    """a_virtual [m/s²] per sample (NaN where the data filter rejects the sample or the mass is
+    unknown): what a longitudinal accelerometer would read, from the force balance. The mass's
+    data filter without its excitation rules: the force balance holds in every sample with
+    traction, and a gradient measurement needs no excitation."""
+    from ..mass.regression import build_regression
+    regression = build_regression(frame, vehicle, _force_filter())
+    rolling = G_MPS2 * vehicle.rolling_resistance_coefficient * regression.cos_angle
+    with np.errstate(invalid="ignore", divide="ignore"):
+        value = regression.y / np.asarray(mass_kg, dtype=float) - rolling
+    return np.where(regression.usable & np.isfinite(value), value, np.nan)
+
+
+def segment_masses_kg(frame: pd.DataFrame, vehicle) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample, the mass [kg] of its segment from `estimate_mass` on ``frame``'s gradient_pct
+    and its 1-sigma [kg]: the confident mass, or the joint fit's where it is only uncertain (its
+    uncertainty then widens the gradient's); NaN where a segment has no plausible mass, and no
+    force balance there."""
+    from ..mass import estimate_mass
+    result = estimate_mass(frame, vehicle)
+    time_s = frame["time_s"].to_numpy(dtype=float)
+    mass, sigma = np.full(len(frame), np.nan), np.full(len(frame), np.nan)
+    for segment in result.segments:
+        value, std = segment.get("mass_kg"), segment.get("mass_uncertainty_kg")
+        if value is None and segment.get("mass_joint_status") == "uncertain":
+            regressor = segment.get("mass_regressor", "gradient")
+            value, std = segment.get(f"mass_{regressor}_kg"), segment.get(f"mass_{regressor}_uncertainty_kg")
+        if value is not None and np.isfinite(value):
+            inside = (time_s >= segment["start_s"]) & (time_s <= segment["end_s"])
+            mass[inside] = value
+            sigma[inside] = std if std is not None else np.nan
+    return mass, sigma
+
+
+def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings: GradientSettings = GradientSettings(),
+                                    mass_kg: float | np.ndarray | None = None) -> GradientResult:
+    """`estimate_gradient` with the force balance as the accelerometer of a log that has none.
+    ``mass_kg``: the truck's mass [kg] when it is known (weighed; one value or one per sample),
+    which also makes the bias known (to the rolling resistance's 15 %) so that the force balance
+    is a height source on its own; otherwise each segment's mass from a first pass without it.
+    Raises `UserError` as `estimate_gradient` does, or when the log has an accelerometer."""
+    if "accel_x_mps2" in frame.columns and frame["accel_x_mps2"].notna().any():
+        raise UserError("gradient: the log has an accelerometer (accel_x_mps2); the force balance is for logs without")
+    try:
+        gradient = estimate_gradient(frame, dem, settings).samples["gradient_pct"]
+    except UserError:
+        if mass_kg is None:
+            raise
+        gradient = np.zeros(len(frame))
+    first = frame.assign(gradient_pct=np.nan_to_num(gradient))
+    if mass_kg is None:
+        mass, mass_sigma = segment_masses_kg(first, vehicle)
+        relative = mass_sigma / mass
+        source = "each segment's mass from a first pass without it"
+    else:
+        mass = np.broadcast_to(np.asarray(mass_kg, dtype=float), (len(frame),))
+        relative = np.full(len(frame), GIVEN_MASS_GAIN_UNCERTAINTY)
+        source = f"the given mass {np.nanmedian(mass):.0f} kg"
+        bias_sigma = G_MPS2 * vehicle.rolling_resistance_coefficient * ROLLING_RESISTANCE_UNCERTAINTY
+        settings = replace(settings, smoother=replace(settings.smoother, imu_bias_prior_sigma_mps2=bias_sigma))
+    virtual = virtual_accelerometer_mps2(first, vehicle, mass)
+    if not np.isfinite(virtual).any():
+        raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
+    result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
+    _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
+    if mass_kg is None:
+        result.samples["gradient_mass_pct"] = np.asarray(gradient, dtype=float)
+    result.notes = [n for n in result.notes if "IMU carries the gradient" not in n]
+    result.notes.append(f"no IMU: the force balance (engine torque, gears, wheel speed, {source}) stands in for "
+                        f"the accelerometer on {100 * np.isfinite(virtual).mean():.0f} % of the samples; a mass or "
+                        f"torque-gain error of k % reads as k % of (a + g sin alpha) in the gradient")
+    result.smoother["force_balance"] = True
+    if "gradient_imu_pct" in result.grid:  # (7) of the stand-in, not of an IMU
+        result.grid = result.grid.rename(columns={"gradient_imu_pct": "gradient_force_balance_pct"})
+        result.samples["gradient_force_balance_pct"] = result.samples.pop("gradient_imu_pct")
+    return result
+
+
+def _add_mass_uncertainty(result: GradientResult, frame, virtual, relative, vehicle, spacing_m):
+    """Widen the gradient's sigma by what the mass's (or the torque gain's) relative error k does to
+    the force balance where it carries the gradient: k (a + g sin alpha + g c_r) / g, a systematic
+    error over a segment that the smoother, taking the force balance as an unbiased accelerometer,
+    cannot see."""
+    from . import grid as distance_grid
+    distance = frame["distance_m"].to_numpy(dtype=float) if "distance_m" in frame else None
+    grid = result.grid
+    if distance is None or "weight_smooth_imu" not in grid:
+        return
+    specific = np.abs(virtual + G_MPS2 * vehicle.rolling_resistance_coefficient) * np.nan_to_num(relative)
+    index = np.where(np.isfinite(distance), distance_grid.grid_index(distance, spacing_m), -1)
+    per_bin = distance_grid.bin_mean(index, specific, len(grid))
+    s_grid = grid["distance_m"].to_numpy()
+    ok = np.isfinite(per_bin)
+    if not ok.any():
+        return
+    filled = np.interp(s_grid, s_grid[ok], per_bin[ok])
+    extra_pct = 100 * filled / G_MPS2 * grid["weight_smooth_imu"].to_numpy()
+    std = np.hypot(grid["gradient_smooth_std_pct"].to_numpy(), extra_pct)
+    grid["gradient_smooth_std_pct"] = std
+    result.samples["gradient_smooth_std_pct"] = np.interp(distance, s_grid, std, left=np.nan, right=np.nan)
+
+
+def estimate_gradient_for_log(frame: pd.DataFrame, dem, settings: GradientSettings = GradientSettings(),
+                              vehicle=None) -> GradientResult:
+    """The gradient stage's estimate: with the force balance as the accelerometer where the log
+    has neither an IMU nor a barometer and a vehicle file and engine torque are there, else
+    `estimate_gradient`. With a barometer the force balance is left out: its errors are
+    systematic (mass, torque gain, wind, auxiliaries), the smoother takes them for noise, and on the
+    accuracy matrix it made the barometer-led gradient worse (``docs/estimation.md``)."""
+    has_imu = "accel_x_mps2" in frame.columns and frame["accel_x_mps2"].notna().any()
+    has_baro = "pressure_pa" in frame.columns and frame["pressure_pa"].notna().any()
+    has_torque = "engine_torque_nm" in frame.columns and frame["engine_torque_nm"].notna().any()
+    if has_imu or has_baro or vehicle is None or not has_torque:
+        return estimate_gradient(frame, dem, settings)
+    try:
+        return estimate_gradient_force_balance(frame, dem, vehicle, settings)
+    except UserError as exc:
+        if "needs a DEM" in str(exc):
+            raise
+        result = estimate_gradient(frame, dem, settings)
+        result.notes.append(f"force balance not used: {exc}")
+        return result
