@@ -109,6 +109,11 @@ def write_fleet(fleet, spec, out_dir: Path, say=print) -> dict:
            "road_load": {k: v for k, v in g.get("road_load", {}).items() if k not in ("segments", "per_log")}}
         for g in groups]}
     (out_dir / "fleet-summary.json").write_text(jsonable.dumps(summary, indent=2))
+    from ..pipeline import Options
+    from .report import write_fleet_report
+
+    mass = getattr(Options.of(spec.options), "mass", None)
+    say(f"fleet: report {write_fleet_report(fleet, out_dir, getattr(mass, 'known_mass_kg', None))}")
     for g in groups:
         line = g.get("cycle", {}).get("statement") or g["error"]
         say(f"fleet: {g['group']}: {len(g['logs'])} logs, {len(g['failed'])} failed; cycle: {line}; "
