@@ -111,3 +111,14 @@ def test_a_fleet_of_can_only_logs_with_a_known_mass_gets_its_cycle(canedge_drive
     battery = load_vehicle("rigid-18t").electric_powertrain
     usable = battery.battery_capacity_kwh * (battery.initial_soc - battery.min_soc)
     assert abs(range_km - usable / per_km) <= 1 + 0.002 * range_km, "range = usable battery energy / energy per km"
+    operation = json.loads((tmp_path / "out" / "truck" / "fleet-summary.json").read_text())["operation"]
+    assert f"{operation['cycle_battery_kwh_per_km']:.3f}" == f"{per_km:.3f}"
+    assert f"{operation['range_km']:.0f}" == f"{range_km:.0f}", "the report's numbers are the summary's"
+
+
+@pytest.mark.parametrize("command", ["gradient", "mass"])
+def test_a_vecto_cycle_where_it_makes_no_sense_is_one_clear_line(data_dir, tmp_path, capsys, command):
+    code, _, err = run_cli(capsys, command, data_dir / "vecto-cycles" / "Coach.vdri", "--vehicle", "rigid-18t",
+                           "--out", tmp_path / "out") if command == "mass" else \
+        run_cli(capsys, command, data_dir / "vecto-cycles" / "Coach.vdri", "--out", tmp_path / "out")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "VECTO cycle" in err and "analyze run" in err, err

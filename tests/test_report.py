@@ -350,7 +350,7 @@ def test_a_level_near_zero_is_compared_against_the_span():
             for share, measured, generated in ((95, 100.9, 0.0), (50, 341.3, 296.5), (5, 430.4, 431.3))]
     levels, _ = _comparison_rows(pd.DataFrame(rows, columns=["criterion", "measured", "generated"]))
     shown = [row["generated vs measured"] for row in levels]
-    assert shown[0] == "-30.6 % of span" and shown[1] == "-13.1 %", shown
+    assert shown == ["-30.6 % of span", "-13.6 % of span", "+0.3 % of span"], shown
 
 
 def test_masses_are_rounded_to_their_uncertainty():

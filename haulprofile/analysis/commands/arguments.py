@@ -132,3 +132,15 @@ def add_known_road_and_mass(parser) -> None:
 def check_mass_kg(mass_kg: float | None) -> None:
     if mass_kg is not None and not mass_kg > 0:
         raise UserError(f"--mass-kg must be a positive mass in kg, got {mass_kg}")
+
+
+def refuse_cycles(inputs, command: str) -> None:
+    """A VECTO cycle is a drive for ``run``, ``info``, ``cycle`` and ``simulate`` and a cycle to
+    compare for ``loads --cycle``; the estimating commands have nothing to estimate in it."""
+    from ..signals import CYCLE_SUFFIXES
+
+    for path in inputs:
+        if Path(path).suffix.lower() in CYCLE_SUFFIXES:
+            raise UserError(f"{path}: a VECTO cycle already holds its gradient and no sensor data, so 'analyze "
+                            f"{command}' has nothing to estimate in it; use it with 'analyze run', 'info', 'simulate' "
+                            f"or 'loads --cycle'")

@@ -44,6 +44,14 @@ def cycle_energy(group) -> Energy | None:
     return Energy(per_km, usable / per_km if per_km and per_km > 0 else float("nan"), usable)
 
 
+def operation(group, energy: Energy | None) -> dict:
+    """What ``fleet-summary.json`` holds of the report's numbers for one truck (``operation``)."""
+    km_day, days = _km_per_day(group)
+    return {"days_with_driving": days, "km_per_day": km_day if days else None,
+            "cycle_battery_kwh_per_km": energy.battery_kwh_per_km if energy else None,
+            "range_km": energy.range_km if energy else None, "usable_battery_kwh": energy.usable_kwh if energy else None}
+
+
 def _km_per_day(group) -> tuple[float, int]:
     """Distance per calendar day with driving (UTC, from the logs' wall-clock times) and the days."""
     days = len(group.dates)
@@ -163,10 +171,12 @@ def truck_section(group, energy: Energy | None) -> Section:
     return section
 
 
-def fleet_report(fleet, given_mass_kg: float | None = None) -> str:
+def fleet_report(fleet, given_mass_kg: float | None = None, energies: dict | None = None) -> str:
     """The page: the fleet table (per truck, per vehicle class), then a chapter per truck;
-    ``given_mass_kg``: the mass every log was given instead of an estimate."""
-    energies = {group.name: cycle_energy(group) for group in fleet.groups}
+    ``given_mass_kg``: the mass every log was given instead of an estimate; ``energies``: each
+    truck's `cycle_energy` (computed here when not given)."""
+    if energies is None:
+        energies = {group.name: cycle_energy(group) for group in fleet.groups}
     overview = Section("The fleet")
     overview.tables.append(("Per truck (a log directory)", [_row(g.name, g.vehicle.name, [g], energies, given_mass_kg)
                                                             for g in fleet.groups]))
@@ -186,7 +196,7 @@ def fleet_report(fleet, given_mass_kg: float | None = None) -> str:
                                                                   for g in fleet.groups])
 
 
-def write_fleet_report(fleet, out_dir: Path, given_mass_kg: float | None = None) -> Path:
+def write_fleet_report(fleet, out_dir: Path, given_mass_kg: float | None = None, energies: dict | None = None) -> Path:
     path = Path(out_dir) / "fleet-report.html"
-    path.write_text(fleet_report(fleet, given_mass_kg), encoding="utf-8")
+    path.write_text(fleet_report(fleet, given_mass_kg, energies), encoding="utf-8")
     return path

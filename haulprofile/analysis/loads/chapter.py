@@ -32,8 +32,8 @@ def loads_chapter(loads: dict, out_dir: Path) -> Section:
     comparison = out_dir / "comparison.csv"
     if comparison.is_file():
         levels, coverage = _comparison_rows(pd.read_csv(comparison))
-        section.tables.append(("Measured against generated (a level smaller than the measured span between its 5 % "
-                               "and 95 % levels is compared as a share of that span)", levels))
+        section.tables.append(("Measured against generated (a level exceeded some share of the time as a share of "
+                               "the measured span between its 5 % and 95 % levels)", levels))
         if coverage:
             section.tables.append(("How the cycle covers the measured speed × torque residence", coverage))
     figures = sorted(out_dir.glob("*.png"))
@@ -69,15 +69,16 @@ def _comparison_rows(frame: pd.DataFrame) -> tuple[list[dict], list[dict]]:
     for row in levels:
         quantity, exceeded, _ = row["criterion"].partition(" exceeded")
         span = spans.get(quantity) if exceeded else None
-        if span and abs(row["measured"]) < span:
-            row["generated vs measured"] = f"{(row['generated'] - row['measured']) / span * 100:+.1f} % of span"
+        if span:
+            share = round((row["generated"] - row["measured"]) / span * 100, 1) + 0.0
+            row["generated vs measured"] = f"{share:+.1f} % of span"
     return levels, coverage
 
 
 def _level_spans(levels: list[dict]) -> dict[str, float]:
-    """Per quantity, the measured span between the levels exceeded 5 % and 95 % of the time: a level
-    near zero (a wheel speed exceeded 95 % of the time, a force changing sign) is compared against
-    it instead of against itself, as the cycle's load criteria do (`markov.load_criteria`)."""
+    """Per quantity, the measured span between the levels exceeded 5 % and 95 % of the time: every
+    level of it is compared against that span, not against itself, since a level can be near zero
+    (a wheel speed exceeded 95 % of the time, a force changing sign; cf. `markov.load_criteria`)."""
     found: dict[str, dict[str, float]] = {}
     for row in levels:
         quantity, exceeded, share = row["criterion"].partition(" exceeded ")
