@@ -8,6 +8,7 @@ import re
 import shutil
 import subprocess
 from html.parser import HTMLParser
+from pathlib import Path
 from types import SimpleNamespace
 
 import matplotlib.figure
@@ -410,3 +411,14 @@ def test_a_gated_stretch_without_positions_is_still_marked():
     grid["map_gated"] = (grid["distance_m"] > 400) & (grid["distance_m"] < 600)
     distance = np.array([0.0, 100.0, 390.0, 610.0, 700.0])  # no position between 390 and 610 m
     assert _gated(distance, grid).tolist() == [False, False, True, False]
+
+
+def test_a_segment_without_a_mass_says_why_in_words():
+    from haulprofile.analysis.mass.chapter import mass_chapter
+
+    segment = {"start_s": 0.0, "end_s": 300.0, "n_samples": 0, "status": "no_excitation",
+               "reason": "only 0 samples pass the data filter (need 150)"}
+    section = mass_chapter({"segments": [segment], "samples_used": 0}, Path("."))
+    cells = [str(v) for _, rows in section.tables for row in rows for v in row.values()]
+    assert "only 0 samples pass the data filter (need 150)" in cells
+    assert not any(RAW_NAME.search(cell) for cell in cells), cells

@@ -97,6 +97,7 @@ def mass_figure(group):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     masses = _masses(group) / 1000
     figure, ax = plt.subplots(figsize=(7, 3), layout="constrained")
@@ -104,6 +105,7 @@ def mass_figure(group):
     ax.axvline(group.vehicle.curb_mass_kg / 1000, color="#57606a", ls="--", label="curb mass")
     ax.set_xlabel("mass of a segment between stops [t]")
     ax.set_ylabel("segments")
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize=8)
     return figure
 

@@ -32,7 +32,7 @@ def mass_chapter(m: dict, out_dir: Path) -> Section:
                      "RLS [kg]": rounded(s.get("mass_rls_kg"), s.get("uncertainty_kg"))[0],
                      "LM [kg]": rounded(s.get("mass_lm_kg"), s.get("uncertainty_kg"))[0],
                      "truck's CAN [kg]": s.get("reported_mass_kg"),
-                     "status": s["status"] + (f": {s['reason']}" if s.get("reason") else "")})
+                     "status": s["reason"] if s.get("reason") else s["status"].replace("_", " ")})
     section.paragraphs.append(
         "The mass changes only at standstill, so the drive is cut at stops and one mass is estimated per segment "
         "from equation (10) with least squares (9), recursive least squares with forgetting (11)–(13) and the "
