@@ -326,6 +326,8 @@ def test_rendered_report_agrees_with_summary(report_dir, tmp_path):
     summary = json.loads((report_dir / "summary.json").read_text())
     assert consistency_problems(dom, summary) == []
     assert not re.search(r"\b(nan|inf|infinity|undefined|null)\b", _visible_text(dom), re.I)
+    route = dom[dom.index("The route</h2>"):]
+    assert route.index("data:image/png") < route.index("</section>"), "the route map is on the rendered page"
 
 
 def test_misses_count_what_a_driver_notices_and_say_the_threshold():
