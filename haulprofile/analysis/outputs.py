@@ -134,7 +134,7 @@ def _stage_files(ctx, stages, staging: Path, full: bool, store) -> None:
         from .report import write_report
 
         summary["stages"].append("report")
-        summary["report"] = write_report(signals, summary, staging, ctx.vehicle, stages)
+        summary["report"] = write_report(signals, summary, staging, ctx.vehicle, stages, ctx.dem_dir, options.private)
         ctx.say(f"report: {ctx.out_dir / summary['report']}")
         write_signals(signals, staging / "signals.parquet")
         (staging / SUMMARY).write_text(jsonable.dumps(summary, indent=2))

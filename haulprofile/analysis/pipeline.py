@@ -171,7 +171,7 @@ def verdict(ctx: RunContext, stages=None) -> str | None:
 
 
 def run(ctx: RunContext, until: str | None = None, start: str | None = None, cache: bool = False,
-        progress: bool = False) -> RunContext:
+        progress: bool = False, leave_out: tuple[str, ...] = ()) -> RunContext:
     """Run the stages from ``start`` (the first) up to and including ``until`` (the report: all),
     then write their files in one output step; the full run also writes ``report.html``,
     ``signals.parquet`` and, last, ``summary.json``.
@@ -192,6 +192,8 @@ def run(ctx: RunContext, until: str | None = None, start: str | None = None, cac
         cache would hold the positions.
     progress : bool
         A progress bar of the stages on stderr.
+    leave_out : tuple of str
+        Stages between ``start`` and ``until`` not to run (``analyze loads`` needs no cycle).
 
     Returns
     -------
@@ -204,7 +206,7 @@ def run(ctx: RunContext, until: str | None = None, start: str | None = None, cac
     last = _index(until) if until is not None else len(STAGES)
     first = _index(start) if start is not None else 0
     full = last >= len(STAGES)
-    stages = STAGES[first:last + 1]
+    stages = [stage for stage in STAGES[first:last + 1] if stage.name not in leave_out]
     if ctx.signals is not None:
         stages = [stage for stage in stages if stage.name != INGEST.name]
     store = StageCache(ctx, stages) if cache and ctx.inputs and not ctx.options.output.private else None

@@ -42,6 +42,9 @@ DERIVED = {
 COLUMNS = {**REQUIRED, **OPTIONAL, **DERIVED}
 
 SIGNALS_SUFFIXES = {".csv", ".parquet", ".pq"}
+CYCLE_SUFFIXES = {".vdri"}
+"""Read as a signals table too: a VECTO distance-based cycle becomes its 1 Hz time trace (time_s,
+distance_m, speed_mps, gradient_pct), so a standard cycle goes wherever a drive does."""
 MAX_SPEED_MPS = 70.0
 """Fastest plausible road vehicle speed [m/s] (252 km/h); trucks are limited to some 25-35 m/s."""
 MAX_SAMPLE_INTERVAL_S = 60.0
@@ -158,7 +161,8 @@ def read_signals(path: str | Path) -> pd.DataFrame:
     Parameters
     ----------
     path : str or Path
-        ``.csv``, ``.parquet`` or ``.pq`` with at least ``time_s`` [s] and ``speed_mps`` [m/s].
+        ``.csv``, ``.parquet`` or ``.pq`` with at least ``time_s`` [s] and ``speed_mps`` [m/s], or
+        a VECTO ``.vdri`` cycle (`CYCLE_SUFFIXES`).
 
     Returns
     -------
@@ -169,6 +173,11 @@ def read_signals(path: str | Path) -> pd.DataFrame:
     path = Path(path)
     if not path.is_file():
         raise SignalsError(f"signals table {path} not found")
+    if path.suffix.lower() in CYCLE_SUFFIXES:
+        from .markov.export import vdri_to_time_cycle
+        from .vecto import read_vdri
+
+        return validate(vdri_to_time_cycle(read_vdri(path)), str(path))
     try:
         if path.suffix.lower() == ".csv":
             frame = pd.read_csv(path)
@@ -245,11 +254,13 @@ def write_signals(frame: pd.DataFrame, path: str | Path) -> Path:
 
 
 def is_signals_path(path: str | Path) -> bool:
-    """A table by its suffix; a ``.csv`` that python-can wrote (its CAN log header) is a log, not a table."""
+    """A table by its suffix (a VECTO cycle counts as one); a ``.csv`` that python-can wrote (its CAN
+    log header) is a log, not a table."""
     path = Path(path)
-    if path.suffix.lower() not in SIGNALS_SUFFIXES:
+    suffix = path.suffix.lower()
+    if suffix not in SIGNALS_SUFFIXES | CYCLE_SUFFIXES:
         return False
-    if path.suffix.lower() == ".csv" and path.is_file():
+    if suffix == ".csv" and path.is_file():
         from .ingest.foreign import kind
 
         return kind(path) is None

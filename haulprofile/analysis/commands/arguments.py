@@ -16,6 +16,9 @@ FLAGS = {
     "ingest.rate_hz": "--rate-hz",
     "ingest.dbc": "--dbc",
     "mass.known_mass_kg": "--mass-kg",
+    "known_mass_kg": "--mass-kg",
+    "gradient.flat_road": "--flat-road",
+    "flat_road": "--flat-road",
     "mass.weighed_masses_kg": "--known-mass",
     "known_masses": "--known-mass",
     "mass.true_mass_kg": "--true-mass",
@@ -122,3 +125,30 @@ def parse_fleet_known_masses(items: list[str] | None) -> list[tuple[str, str, in
                             f"from 1 and a positive mass in kg")
         out.append((truck, log, number, known_mass_kg(mass, f"--known-mass {item!r}")))
     return out
+
+
+def add_known_road_and_mass(parser) -> None:
+    """``--mass-kg`` and ``--flat-road``: what a log without the sensors for an estimate (a CAN-only
+    recording) needs to reach loads and a cycle."""
+    parser.add_argument("--mass-kg", type=float,
+                        help="a known total mass [kg] for the whole drive instead of estimating one")
+    parser.add_argument("--flat-road", action="store_true",
+                        help="take the road as flat (gradient 0 %%) instead of estimating it; said so in the "
+                             "summary and the report")
+
+
+def check_mass_kg(mass_kg: float | None) -> None:
+    if mass_kg is not None and not mass_kg > 0:
+        raise UserError(f"--mass-kg must be a positive mass in kg, got {mass_kg}")
+
+
+def refuse_cycles(inputs, command: str) -> None:
+    """A VECTO cycle is a drive for ``run``, ``info``, ``cycle`` and ``simulate`` and a cycle to
+    compare for ``loads --cycle``; the estimating commands have nothing to estimate in it."""
+    from ..signals import CYCLE_SUFFIXES
+
+    for path in inputs:
+        if Path(path).suffix.lower() in CYCLE_SUFFIXES:
+            raise UserError(f"{path}: a VECTO cycle already holds its gradient and no sensor data, so 'analyze "
+                            f"{command}' has nothing to estimate in it; use it with 'analyze run', 'info', 'simulate' "
+                            f"or 'loads --cycle'")

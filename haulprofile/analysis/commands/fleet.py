@@ -14,10 +14,13 @@ from pathlib import Path
 
 from .. import checks, jsonable
 from ..fleet import FleetSpec, run_fleet
+from ..gradient.stage import GradientOptions
 from ..ingest.stage import IngestOptions
+from ..mass.stage import MassOptions
 from ..pipeline import Options
 from ..vehicle import load_vehicle
-from .arguments import add_dem, add_out, add_rate, parse_fleet_known_masses, printer
+from .arguments import (add_dem, add_known_road_and_mass, add_out, add_rate, check_mass_kg, parse_fleet_known_masses,
+                        printer)
 
 EXIT_INCOMPLETE = 3
 
@@ -41,6 +44,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--known-mass", action="append", metavar="TRUCK:LOG:SEGMENT=KG",
                         help="a weighed total mass [kg] of one segment of one log (LOG: its file name or path under "
                              "LOGDIR, TRUCK: the LOGDIR's name): calibrates that truck's torque gain for all its logs")
+    add_known_road_and_mass(parser)
     parser.add_argument("--no-figures", action="store_true",
                         help="skip each log's gradient and mass figures (some 30 %% of the time per log)")
     output = parser.add_mutually_exclusive_group()
@@ -52,10 +56,13 @@ def run(args) -> int:
     checks.output_dir(args.out, args.log_dirs)
     checks.rate_hz(args.rate_hz)
     checks.cycle_duration_s(args.cycle_duration)
+    check_mass_kg(args.mass_kg)
     vehicles = [load_vehicle(v) for v in args.vehicle]
     spec = FleetSpec.of(args.log_dirs, vehicles, dem_dir=args.dem, duration_s=args.cycle_duration,
                         n_candidates=args.candidates, seed=args.seed,
-                        options=Options(ingest=IngestOptions(rate_hz=args.rate_hz)),
+                        options=Options(ingest=IngestOptions(rate_hz=args.rate_hz),
+                                        gradient=GradientOptions(flat_road=args.flat_road),
+                                        mass=MassOptions(known_mass_kg=args.mass_kg)),
                         figures=not args.no_figures, known_masses=parse_fleet_known_masses(args.known_mass))
     quiet = args.quiet or args.json
     fleet = run_fleet(spec, args.out, workers=args.workers, scheduler=args.scheduler,

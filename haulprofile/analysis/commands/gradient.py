@@ -9,7 +9,7 @@ import numpy as np
 
 from .. import checks
 from ..errors import UserError
-from .arguments import add_dem, add_inputs, add_out
+from .arguments import add_dem, add_inputs, add_out, refuse_cycles
 
 
 def add_arguments(parser) -> None:
@@ -23,6 +23,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    refuse_cycles(args.inputs, "gradient")
     from ..gradient import GradientSettings
     from ..gradient.stage import GradientOptions
     from ..outputs import OutputOptions

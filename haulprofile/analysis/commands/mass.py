@@ -12,7 +12,7 @@ import numpy as np
 from .. import checks
 from ..errors import UserError
 from ..vehicle import load_vehicle
-from .arguments import add_dem, add_inputs, add_out, add_vehicle
+from .arguments import add_dem, add_inputs, add_out, add_vehicle, refuse_cycles
 
 EXIT_UNTRUSTWORTHY_RESULT = 3
 
@@ -54,6 +54,7 @@ def format_segments(segments: list[dict]) -> str:
 
 
 def run(args) -> int:
+    refuse_cycles(args.inputs, "mass")
     from ..gradient.stage import GradientOptions
     from ..gradient import GradientSettings
     from ..mass import SegmentSettings

@@ -23,7 +23,8 @@ from ..outputs import OutputOptions
 from ..pipeline import Options, RunContext, run as run_pipeline, verdict
 from ..simulate.stage import SimulateOptions
 from ..vehicle import load_vehicle
-from .arguments import add_cycle, add_dem, add_inputs, add_out, add_rate, add_vehicle, in_flags, parse_known_masses, printer
+from .arguments import (add_cycle, add_dem, add_inputs, add_known_road_and_mass, add_out, add_rate, add_vehicle,
+                        check_mass_kg, in_flags, parse_known_masses, printer)
 
 EXIT_UNTRUSTWORTHY_RESULT = 3
 
@@ -41,6 +42,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--known-mass", action="append", metavar="SEGMENT=KG",
                         help="a weighed total mass of one segment (numbered from 1, as printed; KG alone: the "
                              "first): calibrates the engine torque gain for every segment (repeatable)")
+    add_known_road_and_mass(parser)
     parser.add_argument("--gradient-method", choices=("smoother", "paper"), default="smoother",
                         help="gradient_pct from the Kalman smoother (default) or the paper's fusion (8)")
     parser.add_argument("--load-bins", type=Path,
@@ -55,8 +57,10 @@ def add_arguments(parser) -> None:
 
 def options_from(args) -> Options:
     return Options(ingest=IngestOptions(rate_hz=args.rate_hz, dbc=args.dbc),
-                   gradient=GradientOptions(GradientSettings(gradient_method=args.gradient_method)),
-                   mass=MassOptions(weighed_masses_kg=tuple(parse_known_masses(args.known_mass).items())),
+                   gradient=GradientOptions(GradientSettings(gradient_method=args.gradient_method),
+                                            flat_road=args.flat_road),
+                   mass=MassOptions(weighed_masses_kg=tuple(parse_known_masses(args.known_mass).items()),
+                                    known_mass_kg=args.mass_kg),
                    cycle=CycleOptions(duration_s=args.cycle_duration, n_candidates=args.candidates, seed=args.seed),
                    simulation=SimulateOptions(payload_kg=args.payload_kg),
                    loads=LoadsOptions(bin_overrides=read_overrides(args.load_bins) if args.load_bins else ()),
@@ -67,6 +71,10 @@ def check_arguments(args) -> None:
     """Every value of ``analyze run`` that can be checked before reading anything."""
     checks.rate_hz(args.rate_hz)
     checks.cycle_duration_s(args.cycle_duration)
+    check_mass_kg(args.mass_kg)
+    if args.mass_kg is not None and args.known_mass:
+        raise UserError("give either --mass-kg (the mass, not estimated) or --known-mass (a weighing that "
+                        "calibrates the estimate), not both")
     if args.candidates is not None and args.candidates < 1:
         raise UserError(f"--candidates must be at least 1, got {args.candidates}")
     if args.payload_kg is not None:
@@ -85,6 +93,14 @@ def run(args) -> int:
     else:
         ctx.say(f"wrote {args.out / 'report.html'}, {args.out / 'signals.parquet'} and {args.out / 'summary.json'}")
     if problem:
-        print(f"analyze run: warning: {in_flags(problem)}", file=sys.stderr)
+        print(f"analyze run: warning: {in_flags(problem)}{_hint(ctx, args)}", file=sys.stderr)
         return EXIT_UNTRUSTWORTHY_RESULT
     return 0
+
+
+def _hint(ctx, args) -> str:
+    """What carries a log without the sensors for an estimate (a CAN-only recording) to a result."""
+    flags = [flag for stage, flag, given in (("gradient", "--flat-road", args.flat_road),
+                                             ("mass", "--mass-kg KG", args.mass_kg is not None))
+             if stage in ctx.skipped and not given]
+    return f"; without the sensors for an estimate, give {' and '.join(flags)}" if flags else ""

@@ -228,7 +228,6 @@ class Evaluator:
         m = np.nan_to_num(m)
         energy = np.nansum(m[:, :, DK.M_ENERGY_J], axis=1)
         distance = np.nansum(m[:, :, DK.M_DISTANCE_M], axis=1)
-        duration = np.nansum(m[:, :, DK.M_DURATION_S], axis=1)
         kwh_per_km = np.where(distance > 0, energy / 3.6e6 / np.maximum(distance / 1000.0, 1e-9), np.inf)
         kwh_per_km = np.where(stalled, np.inf, kwh_per_km)
         g = np.zeros((len(c), len(constraint_names(o))))

@@ -70,8 +70,9 @@ def group_summary(group, spec) -> dict:
     return summary
 
 
-def write_group(group, spec, out_dir: Path) -> dict:
-    """Every file of one group; returns its summary (also written as ``fleet-summary.json``)."""
+def write_group(group, spec, out_dir: Path, operation: dict | None = None) -> dict:
+    """Every file of one group; returns its summary (also written as ``fleet-summary.json``), with
+    ``operation`` (`report.operation`: km/day, energy per km and range) where given."""
     group_dir = out_dir / group.name
     make_dirs(group_dir)
     files = {}
@@ -97,20 +98,26 @@ def write_group(group, spec, out_dir: Path) -> dict:
     if group.road_load.get("segments"):
         pd.DataFrame(group.road_load["segments"]).to_csv(group_dir / "truck_masses.csv", index=False)
         files["truck_masses"] = "truck_masses.csv"
-    summary = {**group_summary(group, spec), "files": files}
+    summary = {**group_summary(group, spec), **({"operation": operation} if operation else {}), "files": files}
     (group_dir / "fleet-summary.json").write_text(jsonable.dumps(summary, indent=2))
     return summary
 
 
 def write_fleet(fleet, spec, out_dir: Path, say=print) -> dict:
+    from ..pipeline import Options
+    from .report import cycle_energy, operation, write_fleet_report
+
     make_dirs(out_dir)
-    groups = [write_group(group, spec, out_dir) for group in fleet.groups]
+    energies = {group.name: cycle_energy(group) for group in fleet.groups}
+    groups = [write_group(group, spec, out_dir, operation(group, energies[group.name])) for group in fleet.groups]
     summary = {"executor": fleet.executor, "dem_dir": spec.dem_dir, "groups": [
-        {key: g.get(key) for key in ("group", "vehicle", "error", "totals", "transitions", "failed")}
+        {key: g.get(key) for key in ("group", "vehicle", "error", "totals", "transitions", "failed", "operation")}
         | {"cycle": g.get("cycle", {}).get("statement"), "logs": len(g["logs"]),
            "road_load": {k: v for k, v in g.get("road_load", {}).items() if k not in ("segments", "per_log")}}
         for g in groups]}
     (out_dir / "fleet-summary.json").write_text(jsonable.dumps(summary, indent=2))
+    mass = getattr(Options.of(spec.options), "mass", None)
+    say(f"fleet: report {write_fleet_report(fleet, out_dir, getattr(mass, 'known_mass_kg', None), energies)}")
     for g in groups:
         line = g.get("cycle", {}).get("statement") or g["error"]
         say(f"fleet: {g['group']}: {len(g['logs'])} logs, {len(g['failed'])} failed; cycle: {line}; "

@@ -112,6 +112,8 @@ class GroupResult:
     error: str | None = None
     road_load: dict = field(default_factory=dict)
     """The group's shared c_r and c_d·A, torque gain and masses of all its logs (`fleet.road_load.fit_truck`)."""
+    dates: tuple[str, ...] = ()
+    """UTC dates on which any of its logs moved (the fleet report's km/day)."""
 
 
 @dataclass
@@ -290,7 +292,8 @@ def _reduced(group: Group, results: list[LogResult], known: dict, options) -> Gr
     failed = [(str(r.path), r.error) for r in sorted(results, key=lambda r: str(r.path)) if r.statistics is None]
     statistics = reduce_group(results)
     error = None if statistics is not None else f"every one of its {len(results)} logs failed"
-    result = GroupResult(group.name, group.vehicle, statistics, failed, error=error)
+    result = GroupResult(group.name, group.vehicle, statistics, failed, error=error,
+                         dates=tuple(sorted({d for r in results if r.statistics is not None for d in r.dates})))
     if statistics is not None:
         mass = getattr(options, "mass", None)
         try:

@@ -7,6 +7,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
+
 from haulprofile.private_files import make_dirs
 
 from ..errors import UserError
@@ -46,6 +49,9 @@ class LogResult:
     statistics: FleetStatistics | None
     error: str | None = None
     messages: list[str] = field(default_factory=list)
+    dates: tuple[str, ...] = ()
+    """UTC dates (YYYY-MM-DD) on which the truck moved, from the log's wall-clock time (the fleet
+    report's km/day); empty without one."""
 
 
 @dataclass
@@ -57,6 +63,16 @@ class GroupCycle:
     cycle: object | None
     selection: dict
     error: str | None = None
+
+
+def driving_dates(signals) -> tuple[str, ...]:
+    """The UTC dates of the samples where the truck moved (speed above 0.5 m/s)."""
+    if "wall_time_ns" not in signals.columns:
+        return ()
+    wall = pd.to_numeric(signals["wall_time_ns"], errors="coerce").to_numpy(float)
+    moving = np.nan_to_num(signals["speed_mps"].to_numpy(float)) > 0.5
+    days = np.unique(np.floor(wall[moving & np.isfinite(wall)] / 86_400e9)).astype("int64")
+    return tuple(str(np.datetime64(int(day), "D")) for day in days)
 
 
 def map_log(task: LogTask) -> LogResult:
@@ -75,7 +91,8 @@ def map_log(task: LogTask) -> LogResult:
         if ctx.results.mass is not None:
             statistics.road_load_moments = segment_moments(_log_name(task), ctx.results.mass,
                                                            ctx.signals["time_s"].to_numpy(float), _joint_settings(ctx))
-        result = LogResult(task.path, task.group, statistics, None, messages + statistics.notes)
+        result = LogResult(task.path, task.group, statistics, None, messages + statistics.notes,
+                           driving_dates(ctx.signals))
     except UserError as exc:
         if task.debug:
             raise

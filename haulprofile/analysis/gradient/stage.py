@@ -30,9 +30,25 @@ class GradientOptions:
     gradient``); otherwise that is an error naming the missing tile (``analyze run``)."""
     keep_existing: bool = False
     """Keep a ``gradient_pct`` column the input already has instead of estimating it again."""
+    flat_road: bool = False
+    """Take the road as flat (gradient 0 %) instead of estimating it: for a log without barometer,
+    DEM or GPS height (a CAN-only recording), said as such in the summary and the report."""
 
 
-def gradient_stage(ctx) -> GradientResult | None:
+@dataclass
+class FlatRoad:
+    """The gradient stage's result when ``flat_road`` was asked for: no estimate, 0 % everywhere."""
+
+    def summary(self) -> dict:
+        return {"method": "flat_road", "sources": [], "gradient_pct": {"mean": 0.0, "min": 0.0, "max": 0.0},
+                "height_gain_m": 0.0, "notes": [FLAT_ROAD_NOTE]}
+
+
+FLAT_ROAD_NOTE = ("the road was taken as flat (gradient 0 %, flat_road), not estimated: climbing and descending "
+                  "loads and energy are missing from every result after it")
+
+
+def gradient_stage(ctx) -> GradientResult | FlatRoad | None:
     """Add ``height_m``, ``gradient_pct`` (the smoother's or the paper's fusion (8), by
     ``options.settings.gradient_method``), both methods' and each source's columns to ``ctx.signals``.
 
@@ -48,6 +64,10 @@ def gradient_stage(ctx) -> GradientResult | None:
     """
     options: GradientOptions = ctx.options.gradient
     frame = ctx.signals
+    if options.flat_road:
+        frame["gradient_pct"] = 0.0
+        ctx.say(f"gradient: {FLAT_ROAD_NOTE}")
+        return FlatRoad()
     if options.keep_existing and "gradient_pct" in frame.columns and frame["gradient_pct"].notna().any():
         return None
     ctx.say(f"gradient: {describe(frame)}")
@@ -76,8 +96,11 @@ def gradient_stage(ctx) -> GradientResult | None:
     return result
 
 
-def write_gradient(result: GradientResult, directory: Path, figures: bool = True) -> list[str]:
-    """``gradient.csv`` (the distance grid) and, with ``figures``, ``gradient.png``; returns the names."""
+def write_gradient(result: GradientResult | FlatRoad, directory: Path, figures: bool = True) -> list[str]:
+    """``gradient.csv`` (the distance grid) and, with ``figures``, ``gradient.png``; returns the names
+    (none for a flat road)."""
+    if isinstance(result, FlatRoad):
+        return []
     result.grid.to_csv(directory / "gradient.csv", index=False)
     files = ["gradient.csv"]
     if figures:

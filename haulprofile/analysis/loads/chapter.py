@@ -32,7 +32,8 @@ def loads_chapter(loads: dict, out_dir: Path) -> Section:
     comparison = out_dir / "comparison.csv"
     if comparison.is_file():
         levels, coverage = _comparison_rows(pd.read_csv(comparison))
-        section.tables.append(("Measured against generated", levels))
+        section.tables.append(("Measured against generated (a level exceeded some share of the time as a share of "
+                               "the measured span between its 5 % and 95 % levels)", levels))
         if coverage:
             section.tables.append(("How the cycle covers the measured speed × torque residence", coverage))
     figures = sorted(out_dir.glob("*.png"))
@@ -64,4 +65,24 @@ def _comparison_rows(frame: pd.DataFrame) -> tuple[list[dict], list[dict]]:
                 break
         levels.append({"criterion": name, "measured": measured, "generated": generated,
                        "generated vs measured": deviation_pct(measured, generated)})
+    spans = _level_spans(levels)
+    for row in levels:
+        quantity, exceeded, _ = row["criterion"].partition(" exceeded")
+        span = spans.get(quantity) if exceeded else None
+        if span:
+            share = round((row["generated"] - row["measured"]) / span * 100, 1) + 0.0
+            row["generated vs measured"] = f"{share:+.1f} % of span"
     return levels, coverage
+
+
+def _level_spans(levels: list[dict]) -> dict[str, float]:
+    """Per quantity, the measured span between the levels exceeded 5 % and 95 % of the time: every
+    level of it is compared against that span, not against itself, since a level can be near zero
+    (a wheel speed exceeded 95 % of the time, a force changing sign; cf. `markov.load_criteria`)."""
+    found: dict[str, dict[str, float]] = {}
+    for row in levels:
+        quantity, exceeded, share = row["criterion"].partition(" exceeded ")
+        if exceeded:
+            found.setdefault(quantity, {})[share.split("%")[0]] = row["measured"]
+    return {quantity: abs(shares["5"] - shares["95"]) for quantity, shares in found.items()
+            if {"5", "95"} <= set(shares) and shares["5"] != shares["95"]}

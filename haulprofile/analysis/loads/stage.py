@@ -11,7 +11,8 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserError
-from ..signals import missing_for, read_signals
+from ..kinematics import acceleration_mps2
+from ..signals import CYCLE_SUFFIXES, missing_for, read_signals
 from ..stage import Stage
 from . import NEEDED, collectives_of
 from .bins import apply_overrides, default_edges
@@ -74,6 +75,8 @@ def loads_stage(ctx) -> LoadsResult | None:
     drives = {"measured": ctx.signals}
     if options.generated_file is not None:
         generated = read_signals(options.generated_file)
+        if is_cycle_path(options.generated_file):
+            generated = standard_cycle(generated, ctx)
         lacking = missing_for(generated, NEEDED)
         if lacking:
             raise UserError(f"{options.generated_file}: the generated cycle lacks {', '.join(lacking)}; "
@@ -91,6 +94,22 @@ def loads_stage(ctx) -> LoadsResult | None:
         ctx.say(f"loads: {name}: {s['rainflow_cycles']:.0f} rainflow cycles, damage-equivalent torque range "
                 f"(k=5) {s['damage_equivalent_torque_range_nm']['5']:.0f} Nm")
     return result
+
+
+def is_cycle_path(path: Path) -> bool:
+    return Path(path).suffix.lower() in CYCLE_SUFFIXES
+
+
+def standard_cycle(cycle: pd.DataFrame, ctx) -> pd.DataFrame:
+    """A VECTO cycle's time trace with what the loads need: the acceleration from its speed and,
+    since a VECTO cycle carries no mass, the measured drive's median mass **[choice: the cycle is
+    driven by the truck it is compared with]**, said in the run's messages."""
+    cycle = cycle.copy()
+    cycle["accel_mps2"] = acceleration_mps2(cycle["time_s"].to_numpy(float), cycle["speed_mps"].to_numpy(float))
+    mass = float(np.nanmedian(ctx.signals["mass_kg"].to_numpy(float)))
+    cycle["mass_kg"] = mass
+    ctx.say(f"loads: the VECTO cycle is driven at the measured drive's median mass, {mass:.0f} kg")
+    return cycle
 
 
 def write_loads(result: LoadsResult, directory: Path, figures: bool = True) -> list[str]:

@@ -5,6 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..report.html import Section, figures_present
+from ..report.labels import label, labelled
+from .load_criteria import GATED
 
 TITLE = "Representative driving cycle"
 
@@ -17,7 +19,8 @@ def cycle_chapter(c: dict, out_dir: Path) -> Section:
                     ("score without mass", f"{c.get('score_without_mass', float('nan')):.3f}"),
                     ("valid Monte Carlo candidates", f"{c.get('n_valid', '–')} of {c.get('n_candidates', '–')}")]
     if c.get("loads_within_allowance") is not None:
-        section.kpis.append(("wheel loads within allowance", "yes" if c["loads_within_allowance"] else "no"))
+        section.kpis.append(("required wheel-load criteria within allowance",
+                             "yes" if c["loads_within_allowance"] else "no"))
     section.paragraphs.append(
         "States combine a speed class with a combined gradient-and-mass class (a 2D Markov chain); transitions "
         "counted in the measured drive are sampled by Monte Carlo into candidate cycles, scored with "
@@ -33,21 +36,34 @@ def cycle_chapter(c: dict, out_dir: Path) -> Section:
         section.paragraphs.append("Selection: the paper's, the valid candidate with the lowest S.")
     if not c["valid"]:
         section.notes.append(c.get("statement", "no candidate met every criterion"))
-    rows = [{"criterion": name, "measured": v["measured"], "cycle": v["candidate"], "deviation": v["deviation"],
-             "allowance": v["allowance"], "passed": bool(v["passed"])} for name, v in c["criteria"].items()]
-    section.tables.append(("Criteria: the chosen cycle against the measured data", rows))
+    section.tables.append(("Criteria: the chosen cycle against the measured data (deviation relative to the "
+                           "measured value or its scale, eq. (15))", [
+        {"criterion": labelled(name), "measured": v["measured"] * label(name)[2],
+         "cycle": v["candidate"] * label(name)[2], "deviation": percent(v["deviation"]),
+         "allowance": percent(v["allowance"]), "passed": bool(v["passed"])} for name, v in c["criteria"].items()]))
     if c.get("load_criteria"):
-        section.tables.append(("Load criteria: the chosen cycle's wheel loads against the measured drive's", [
-            {"criterion": name, "measured": v["measured"], "cycle": v["candidate"], "relative": v["relative"],
-             "deviation": v["deviation"], "allowance": v["allowance"], "passed": bool(v["passed"])}
+        section.tables.append(("Load criteria: the chosen cycle's wheel loads against the measured drive's (the "
+                               "residence distance is scored, not required)", [
+            {"criterion": labelled(name), "measured": v["measured"] * label(name)[2],
+             "cycle": v["candidate"] * label(name)[2], "cycle vs measured": percent(v["relative"], signed=True),
+             "deviation": percent(v["deviation"]), "allowance": percent(v["allowance"]),
+             "passed": bool(v["passed"]) if name in GATED else "scored only"}
             for name, v in c["load_criteria"].items()]))
     if c.get("cycle_set"):
         spread = c["cycle_set"]["spread"]
         section.tables.append((f"Cycle set: {c['cycle_set']['n_cycles']} cycles, smallest and largest deviation", [
-            {"criterion": name, "min": v["min"], "max": v["max"]} for name, v in spread["criteria"].items()]))
+            {"criterion": labelled(name), "smallest": percent(v["min"]), "largest": percent(v["max"])}
+            for name, v in spread["criteria"].items()]))
     section.figures = figures_present(out_dir, [
         ("cycle.png", "The generated cycle's speed, gradient and mass over time, and measured against generated "
                       "distributions (cf. Fig. 7)."),
         ("cycle-scores.png", "Score S of every Monte Carlo candidate (how rare a good cycle is by lottery) and of "
                              "the chosen cycle(s).")])
     return section
+
+
+def percent(share: float | None, signed: bool = False) -> str:
+    """A share as a percentage for the tables ("–" where undefined)."""
+    if share is None or share != share:
+        return "–"
+    return f"{share * 100:+.1f} %" if signed else f"{share * 100:.1f} %"

@@ -94,6 +94,10 @@ class CycleResult:
                 f"longer cycle.duration_s)")
 
 
+MOVING_MPS = 0.5
+"""A drive whose wheel speed never exceeds this [m/s] stood still: no cycle, said so."""
+
+
 def _select(ctx, options: CycleOptions, counts) -> list[Selection]:
     """The selections, best first."""
     method = options.selection
@@ -154,6 +158,11 @@ def cycle_stage(ctx) -> CycleResult | None:
     missing = signals_table.missing_for(ctx.signals, NEEDED)
     if missing:
         ctx.skip("cycle", f"the signals have no {', '.join(missing)} (the gradient and mass stages provide them)")
+        return None
+    speed = ctx.signals["speed_mps"].to_numpy(float)
+    if not np.nanmax(speed, initial=0.0) > MOVING_MPS:
+        ctx.skip("cycle", f"the truck stands still throughout (wheel speed never above {MOVING_MPS:g} m/s): there "
+                          f"is no driving to make a cycle of")
         return None
     options: CycleOptions = ctx.options.cycle
     measured = resample_1hz(ctx.signals)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..report.html import Section, figures_present
+from ..report.labels import labelled, significant
 
 TITLE = "Vehicle mass per segment"
 
@@ -12,16 +13,26 @@ TITLE = "Vehicle mass per segment"
 def mass_chapter(m: dict, out_dir: Path) -> Section:
     """The report chapter from the stage's summary and the files in ``out_dir``."""
     section = Section(TITLE)
+    if m.get("given_mass_kg") is not None:
+        section.kpis = [("total mass (given, not estimated)", f"{m['given_mass_kg'] / 1000:.2f} t")]
+        section.paragraphs.append("A known total mass was given for the whole drive (--mass-kg, a weighing or the "
+                                  "vehicle's papers), so nothing was estimated: every result after this chapter uses "
+                                  "it.")
+        return section
     rows = []
     for s in m["segments"]:
+        mass, sigma = rounded(s.get("mass_kg"), s.get("mass_uncertainty_kg"))
+        imu, imu_sigma = rounded(s.get("mass_imu_kg"), s.get("mass_imu_uncertainty_kg"))
+        gradient, gradient_sigma = rounded(s.get("mass_gradient_kg"), s.get("mass_gradient_uncertainty_kg"))
+        ls, ls_sigma = rounded(s.get("mass_ls_kg"), s.get("uncertainty_kg"))
         rows.append({"from [s]": round(s["start_s"]), "to [s]": round(s["end_s"]), "samples": s["n_samples"],
-                     "mass [kg]": s.get("mass_kg"), "± [kg] (1σ)": s.get("mass_uncertainty_kg"),
-                     "IMU-based [kg]": s.get("mass_imu_kg"), "± IMU": s.get("mass_imu_uncertainty_kg"),
-                     "gradient-based [kg]": s.get("mass_gradient_kg"), "± gradient": s.get("mass_gradient_uncertainty_kg"),
-                     "LS [kg]": s.get("mass_ls_kg"), "± [kg]": s.get("uncertainty_kg"),
-                     "RLS [kg]": s.get("mass_rls_kg"), "LM [kg]": s.get("mass_lm_kg"),
+                     "mass [kg]": mass, "± [kg] (1σ)": sigma, "IMU-based [kg]": imu, "± IMU [kg]": imu_sigma,
+                     "gradient-based [kg]": gradient, "± gradient [kg]": gradient_sigma,
+                     "LS [kg]": ls, "± LS [kg]": ls_sigma,
+                     "RLS [kg]": rounded(s.get("mass_rls_kg"), s.get("uncertainty_kg"))[0],
+                     "LM [kg]": rounded(s.get("mass_lm_kg"), s.get("uncertainty_kg"))[0],
                      "truck's CAN [kg]": s.get("reported_mass_kg"),
-                     "status": s["status"] + (f": {s['reason']}" if s.get("reason") else "")})
+                     "status": s["reason"] if s.get("reason") else s["status"].replace("_", " ")})
     section.paragraphs.append(
         "The mass changes only at standstill, so the drive is cut at stops and one mass is estimated per segment "
         "from equation (10) with least squares (9), recursive least squares with forgetting (11)–(13) and the "
@@ -42,7 +53,7 @@ def mass_chapter(m: dict, out_dir: Path) -> Section:
         section.kpis.append(("torque gain", f"{gain.get('gain', 1.0):.4f} ± {100 * gain.get('relative_std', 0):.1f} %"
                              + ("" if gain.get("calibrated_from") else " (not calibrated)")))
     section.tables.append(("Per-segment estimates", rows))
-    coefficients = [{"coefficient": name, "value": f"{entry['value']:.4g}",
+    coefficients = [{"coefficient": labelled(name), "value": f"{entry['value']:.4g}",
                      "± (1σ)": f"{entry['std']:.2g}" if entry.get("std") is not None else "-",
                      "identified": "yes" if entry["identified"] else "no", "note": entry["reason"]}
                     for name, entry in road_load.items() if isinstance(entry, dict) and "identified" in entry]
@@ -55,3 +66,14 @@ def mass_chapter(m: dict, out_dir: Path) -> Section:
     section.figures = figures_present(out_dir, [("mass.png", "Estimates over time by method, the truck's own CAN estimate "
                                                       "and the LS band of ±2 uncertainties (cf. the paper's Fig. 6).")])
     return section
+
+
+def rounded(mass_kg: float | None, sigma_kg: float | None) -> tuple[float | None, float | None]:
+    """A mass and its uncertainty as a reader takes them: the uncertainty to two significant
+    digits, the mass to the same decimal place (15 793.4 ± 624.7 → 15 790 ± 620)."""
+    sigma = significant(sigma_kg)
+    if mass_kg is None or sigma is None or not sigma > 0:
+        return mass_kg, sigma
+    from math import floor, log10
+
+    return round(mass_kg, 1 - floor(log10(sigma))), sigma

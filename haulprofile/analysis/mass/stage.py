@@ -38,7 +38,21 @@ class MassOptions:
     """The weighed total mass [kg], one value or one per segment, drawn in the figure."""
 
 
-def mass_stage(ctx) -> MassResult | None:
+@dataclass
+class GivenMass:
+    """The mass stage's result for a known total mass (``known_mass_kg``): nothing estimated."""
+
+    mass_kg: float
+    joint = None
+    drive = None
+
+    def summary(self) -> dict:
+        return {"given_mass_kg": self.mass_kg, "segments": [], "samples_used": 0,
+                "notes": [f"the total mass was given as {self.mass_kg:.0f} kg for the whole drive (known_mass_kg), "
+                          f"not estimated"]}
+
+
+def mass_stage(ctx) -> MassResult | GivenMass | None:
     """Add ``mass_kg`` (the joint estimate where confident, else LS; and ``mass_ls_kg``,
     ``mass_rls_kg``, ``mass_lm_kg``) to ``ctx.signals``.
 
@@ -58,7 +72,7 @@ def mass_stage(ctx) -> MassResult | None:
         if not options.known_mass_kg > 0:
             raise UserError(f"known_mass_kg must be a positive mass in kg, got {options.known_mass_kg}")
         frame["mass_kg"] = float(options.known_mass_kg)
-        return None
+        return GivenMass(float(options.known_mass_kg))
     if options.keep_existing and "mass_kg" in frame.columns and frame["mass_kg"].notna().any():
         return None
     if ctx.vehicle is None:

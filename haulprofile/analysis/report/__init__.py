@@ -11,6 +11,7 @@ from pathlib import Path
 
 from .drive import drive_section
 from .html import Section, render
+from .route import route_section
 
 
 def stage_folder(out_dir: Path, stage) -> Path:
@@ -18,9 +19,12 @@ def stage_folder(out_dir: Path, stage) -> Path:
     return out_dir / stage.folder if stage.folder and (out_dir / stage.folder).is_dir() else out_dir
 
 
-def build_report(signals, summary: dict, out_dir, stages, title: str = "haulprofile report") -> str:
+def build_report(signals, summary: dict, out_dir, stages, title: str = "haulprofile report", dem_dir=None,
+                 private: bool = False) -> str:
+    """The page: the drive's and the route's chapters, then each stage's; ``dem_dir`` gives the
+    route its hillshade, ``private`` leaves the map out."""
     out_dir = Path(out_dir)
-    sections: list[Section] = [drive_section(signals, summary)]
+    sections: list[Section] = [drive_section(signals, summary), route_section(signals, summary, out_dir, dem_dir, private)]
     missing = []
     skipped = summary.get("skipped", {})
     for stage in stages:
@@ -41,10 +45,11 @@ def build_report(signals, summary: dict, out_dir, stages, title: str = "haulprof
     return render(title, lead, sections)
 
 
-def write_report(signals, summary: dict, directory, vehicle, stages) -> str:
+def write_report(signals, summary: dict, directory, vehicle, stages, dem_dir=None, private: bool = False) -> str:
     """``report.html`` from the summary and the figures already written into ``directory``;
     returns its name."""
     title = "haulprofile report" + (f" — {vehicle.name}" if vehicle is not None else "")
     path = Path(directory) / "report.html"
-    path.write_text(build_report(signals, summary, directory, stages, title=title), encoding="utf-8")
+    path.write_text(build_report(signals, summary, directory, stages, title=title, dem_dir=dem_dir, private=private),
+                    encoding="utf-8")
     return path.name

@@ -25,7 +25,7 @@ function ticks(lo,hi,k){const step=Math.pow(10,Math.floor(Math.log10((hi-lo)/k||
   const s=[1,2,5,10].map(f=>f*step).find(v=>(hi-lo)/v<=k)||step*10;const out=[];
   for(let v=Math.ceil(lo/s)*s;v<=hi+1e-9;v+=s)out.push(+v.toFixed(10));return out;}
 function draw(){let drawn=0;const i0=Math.max(lower(x0)-1,0),i1=Math.min(lower(x1)+1,n);
-  panels.forEach(({p,c},k)=>{const g=c.getContext('2d'),L=70,R=10,T=8,B=k==panels.length-1?28:8;
+  panels.forEach(({p,c},k)=>{const g=c.getContext('2d'),L=70,R=10,T=p.lines.length>1?22:8,B=k==panels.length-1?28:8;
     const W=c.width-L-R,H=c.height-T-B;g.clearRect(0,0,c.width,c.height);g.font='12px sans-serif';
     let lo=Infinity,hi=-Infinity;p.lines.forEach(l=>{for(let i=i0;i<i1;i++){const v=l.values[i];
       if(v!==null){if(v<lo)lo=v;if(v>hi)hi=v;}}});
@@ -42,8 +42,8 @@ function draw(){let drawn=0;const i0=Math.max(lower(x0)-1,0),i1=Math.min(lower(x
     p.lines.forEach(l=>{g.strokeStyle=l.colour;g.beginPath();let up=true;
       for(let i=i0;i<i1;i++){const v=l.values[i];if(v===null){up=true;continue;}
         const x=X(t[i]),y=Y(v);if(up)g.moveTo(x,y);else g.lineTo(x,y);up=false;drawn++;}g.stroke();});
-    g.restore();if(k==0&&p.lines.length>1){p.lines.forEach((l,j)=>{g.fillStyle=l.colour;g.textAlign='left';
-      g.fillText(l.name,L+8+j*220,T+14);});}});
+    g.restore();if(p.lines.length>1){let x=L+8;p.lines.filter(l=>l.name).forEach(l=>{g.fillStyle=l.colour;
+      g.textAlign='left';g.fillText(l.name,x,T-7);x+=g.measureText(l.name).width+24;});}});
   root.dataset.drawn=drawn;}
 function zoom(f,at){const a=at-(at-x0)*f,b=at+(x1-at)*f;x0=Math.max(full[0],a);x1=Math.min(full[1],b);
   if(x1-x0<1/60){x1=x0+1/60;}draw();}
@@ -75,7 +75,8 @@ def _averaged(values: np.ndarray, size: int) -> np.ndarray:
 
 def zoom_chart(time_s: np.ndarray, panels: list[tuple[str, list[tuple[str, np.ndarray, str]]]],
                max_points: int = MAX_POINTS) -> str:
-    """HTML of the chart: ``panels`` is [(axis label, [(line name, values, colour), …]), …]."""
+    """HTML of the chart: ``panels`` is [(axis label, [(line name, values, colour), …]), …]; a
+    panel of several lines names each above its plot, a line named "" shares the name before it."""
     size = max(1, -(-len(time_s) // max_points))
 
     def listed(values, decimals: int) -> list:

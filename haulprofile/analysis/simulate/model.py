@@ -227,6 +227,11 @@ def trace_frame(out: np.ndarray) -> pd.DataFrame:
     return frame
 
 
+LONG_MISS_S = 2.0
+"""A miss at least this long [s] is one a driver notices (a gear change or a gust below it is not):
+the report and the command's line count these."""
+
+
 def find_misses(trace: pd.DataFrame, tolerance_mps: float) -> pd.DataFrame:
     """Intervals where the powertrain (or an empty battery) kept the truck more than
     ``tolerance_mps`` below its target speed: where, how long and by how much."""
@@ -288,6 +293,8 @@ def summarise(trace: pd.DataFrame, cycle: SimCycle, vehicle: Vehicle, settings: 
         "max_overspeed_mps": float(np.max(trace["speed_mps"] - trace["target_speed_mps"])),
         "standstill_s": float(np.sum(~moving) * dt),
         "missed_target_intervals": int(len(misses)),
+        "missed_target_long_intervals": int((misses["duration_s"] >= LONG_MISS_S).sum()) if len(misses) else 0,
+        "missed_target_long_min_s": LONG_MISS_S,
         "missed_target_s": float(misses["duration_s"].sum()) if len(misses) else 0.0,
         "max_speed_deficit_mps": float(misses["max_speed_deficit_mps"].max()) if len(misses) else 0.0,
     }

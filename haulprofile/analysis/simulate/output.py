@@ -57,7 +57,7 @@ def write_figures(result: SimulationResult, out_dir: Path) -> list[Path]:
         end = miss["end_time_s"] if result.numbers["time_based"] else miss["end_distance_m"] / 1000.0
         ax_speed.axvspan(start, end, color="red", alpha=0.3)
     ax_speed.set_ylabel("speed [km/h]")
-    ax_speed.legend(loc="upper right")
+    ax_speed.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, fontsize=8, frameon=False)
     ax_soc.plot(x, trace["soc"] * 100.0, lw=0.8)
     ax_soc.set_ylabel("state of charge [%]")
     ax_soc.set_xlabel(x_label)

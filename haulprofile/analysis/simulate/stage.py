@@ -127,7 +127,8 @@ def simulate_stage(ctx) -> SimulationResult | None:
             if drive["distance_km"] >= MIN_DISTANCE_KM:
                 result.numbers["measured_drive"] = {key: drive[key] for key in MEASURED_KEYS}
     ctx.say(f"simulation: {result.numbers['cycle']}, {result.numbers['battery_kwh_per_km']:.3f} kWh/km at the "
-            f"battery, {result.numbers['missed_target_intervals']} interval(s) below target")
+            f"battery, {result.numbers['missed_target_long_intervals']} interval(s) of "
+            f"{result.numbers['missed_target_long_min_s']:g} s or more below target")
     return result
 
 
