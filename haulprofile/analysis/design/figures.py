@@ -18,7 +18,7 @@ KMH = 3.6
 
 def draw_pareto(result, out: Path) -> list[str]:
     o = result.outcome
-    fig, ax = plt.subplots(figsize=(7, 5))
+    fig, ax = plt.subplots(figsize=(8.5, 5))
     bad = ~o.feasible & (o.objectives[:, 0] < 100)
     ax.scatter(o.objectives[bad, 1] / 1000, o.objectives[bad, 0], s=4, c="0.75", label="infeasible")
     ax.scatter(o.objectives[o.feasible, 1] / 1000, o.objectives[o.feasible, 0], s=6, c="C0", label="feasible")
@@ -34,7 +34,7 @@ def draw_pareto(result, out: Path) -> list[str]:
         ax.set_ylim(f[:, 0].min() * 0.97, f[:, 0].max() * 1.03)
     ax.set_xlabel("component cost proxy [k EUR]")
     ax.set_ylabel("battery energy [kWh/km]")
-    ax.legend(loc="upper right", fontsize=8)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
     ax.set_title(f"{len(o.x)} candidates, {int(o.feasible.sum())} feasible")
     fig.tight_layout()
     fig.savefig(out / "pareto.png", dpi=110)
@@ -46,7 +46,7 @@ def draw_envelopes(result, out: Path) -> list[str]:
     """Wheel force over speed the drives asked for (estimate mass), under the largest wheel force
     of the chosen concept, a few other Pareto concepts and the vehicle file's powertrain."""
     vehicle = result.vehicle
-    fig, ax = plt.subplots(figsize=(8, 5))
+    fig, ax = plt.subplots(figsize=(9.5, 5))
     for k, (name, drive) in enumerate(result.drives.items()):
         loads = wheel_loads(drive["time_s"], drive["speed_mps"], drive["accel_mps2"], drive["gradient_pct"],
                             drive["mass_kg"], vehicle)
@@ -82,7 +82,7 @@ def draw_envelopes(result, out: Path) -> list[str]:
     ax.set_xlabel("speed [km/h]")
     ax.set_ylabel("wheel force [kN]")
     ax.set_ylim(bottom=min(0.0, ax.get_ylim()[0]))
-    ax.legend(loc="upper right", fontsize=8)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
     ax.set_title("operating points of the drives under the concepts' traction envelopes")
     fig.tight_layout()
     fig.savefig(out / "envelopes.png", dpi=110)

@@ -180,7 +180,7 @@ class DaskExecutor:
             raise FleetError(f"no Dask scheduler answered at {address} within {DASK_CONNECT_WAIT_S:.0f} s "
                              f"(is it a scheduler's address?); {hint}")
         error = outcome.get("error")
-        if isinstance(error, (OSError, TimeoutError, ValueError, TypeError)):
+        if isinstance(error, Exception):  # a bad address fails in many ways inside distributed, also under load
             raise FleetError(f"cannot reach the Dask scheduler at {address} ({error}); {hint}") from None
         if error is not None:
             raise error
