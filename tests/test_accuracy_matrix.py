@@ -4,7 +4,7 @@ estimator or a broken virtual world shows (the full matrix: ``python tools/bench
 import numpy as np
 import pytest
 
-from haulprofile.analysis.virtual_truck.accuracy import Case, case_scenario, run_case
+from haulprofile.testing.accuracy import Case, case_scenario, run_case
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +50,7 @@ def test_the_new_estimator_is_used_when_the_gradient_stage_offers_it(monkeypatch
     import pandas as pd
 
     from haulprofile.analysis import dem, gradient
-    from haulprofile.analysis.virtual_truck import accuracy
+    from haulprofile.testing import accuracy
 
     @dataclasses.dataclass(frozen=True)
     class Settings:
@@ -73,7 +73,7 @@ def test_every_sensor_set_is_scored_and_none_is_broken(ideal, typical):
     """The sensor sets real loggers have, with loose floors: without a barometer the IMU leads,
     without both the force balance, with nothing but CAN the force balance on the given mass
     still beats a flat road."""
-    from haulprofile.analysis.virtual_truck.accuracy import SENSOR_SETS
+    from haulprofile.testing.accuracy import SENSOR_SETS
     for case in (ideal, typical):
         assert set(case["sensor_sets"]) == set(SENSOR_SETS)
         assert case["sensor_sets"]["full"]["gradient"] == case["gradient"]

@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 
 from haulprofile.analysis.export.fastsim import fastsim_cycle, write_fastsim_cycle
-from haulprofile.analysis.markov.export import vdri_to_time_cycle, write_cycle
+from haulprofile.analysis.markov.export import write_cycle
+from haulprofile.analysis.vecto import vdri_to_time_cycle
 from haulprofile.analysis.vecto import read_vdri
 from haulprofile.testing.drives import synthetic_drive
 

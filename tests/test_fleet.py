@@ -10,7 +10,7 @@ import rainflow
 
 from haulprofile.analysis.fleet import (FleetSpec, LoadBins, SparseHistogram, log_statistics, read_counts, reduce_group,
                             run_fleet, sum_statistics)
-from haulprofile.analysis.fleet.virtual import virtual_fleet
+from haulprofile.testing.fleet import virtual_fleet
 from haulprofile.analysis.loads import loads_of, resample_mean
 from haulprofile.analysis.loads.collectives import damage_equivalent_range, rainflow_cycles
 from haulprofile.analysis.markov import count_transitions, select_cycle

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from haulprofile.analysis.cli import main
-from haulprofile.analysis.fleet.virtual import virtual_fleet
+from haulprofile.testing.fleet import virtual_fleet
 from haulprofile.analysis.vehicle import load_vehicle
 
 pytest.importorskip("haulprofile.analysis.virtual_truck")

@@ -8,6 +8,7 @@ import pytest
 from haulprofile.analysis import road_load
 from haulprofile.analysis.dem.srtm import SrtmDem, write_hgt
 from haulprofile.analysis.errors import UserError
+from haulprofile.analysis.geodesy import EARTH_RADIUS_M
 from haulprofile.analysis.gradient import estimate_gradient
 from haulprofile.analysis.gradient import grid as distance_grid
 from haulprofile.analysis.gradient import sources
@@ -17,7 +18,7 @@ from haulprofile.analysis.pipeline import Options, RunContext
 from haulprofile.analysis.vehicle import load_vehicle
 
 LAT0, LON0 = 47.5, 11.02
-M_PER_DEG_LON = np.radians(1) * sources.EARTH_RADIUS_M * np.cos(np.radians(LAT0))
+M_PER_DEG_LON = np.radians(1) * EARTH_RADIUS_M * np.cos(np.radians(LAT0))
 TUNNEL_M = (9_000.0, 10_500.0)
 
 

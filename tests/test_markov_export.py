@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 
 from haulprofile.analysis import cli
-from haulprofile.analysis.markov import (count_transitions, cycle_to_vdri, select_cycle, cycle_stage,
-                             vdri_to_time_cycle, write_cycle)
+from haulprofile.analysis.markov import count_transitions, cycle_stage, cycle_to_vdri, select_cycle, write_cycle
+from haulprofile.analysis.vecto import vdri_to_time_cycle
 from haulprofile.testing.drives import synthetic_drive
 from haulprofile.analysis.pipeline import RunContext, run
 from haulprofile.analysis.vecto import read_vdri, vdri_problems

@@ -15,31 +15,8 @@ import pandas as pd
 
 from . import units
 from .errors import UserError
+from .signal_columns import COLUMNS, REQUIRED
 
-REQUIRED = {"time_s": "time since the start of the log [s]", "speed_mps": "vehicle speed [m/s]"}
-OPTIONAL = {
-    "engine_speed_rpm": "engine speed [rpm]",
-    "engine_torque_nm": "actual engine torque [Nm]",
-    "latitude_deg": "GPS latitude [deg]",
-    "longitude_deg": "GPS longitude [deg]",
-    "gps_altitude_m": "GPS altitude [m]",
-    "gps_h_acc_m": "GPS horizontal accuracy [m]",
-    "gps_v_acc_m": "GPS vertical accuracy [m]",
-    "pressure_pa": "barometric pressure [Pa]",
-    "air_temperature_c": "air temperature [degC]",
-    "accel_x_mps2": "longitudinal IMU acceleration [m/s^2]",
-    "reported_mass_kg": "the vehicle's own mass estimate (J1939 VW/CVW) [kg]",
-}
-DERIVED = {
-    "wall_time_ns": "wall-clock time (GPS UTC where known) [ns since epoch]",
-    "valid": "sample backed by data (False inside gaps)",
-    "distance_m": "driven distance from wheel speed [m]",
-    "accel_mps2": "longitudinal acceleration from wheel speed [m/s^2]",
-    "height_m": "fused road height [m]",
-    "gradient_pct": "fused road gradient [%]",
-    "mass_kg": "estimated total vehicle mass [kg]",
-}
-COLUMNS = {**REQUIRED, **OPTIONAL, **DERIVED}
 
 SIGNALS_SUFFIXES = {".csv", ".parquet", ".pq"}
 CYCLE_SUFFIXES = {".vdri"}
@@ -174,8 +151,7 @@ def read_signals(path: str | Path) -> pd.DataFrame:
     if not path.is_file():
         raise SignalsError(f"signals table {path} not found")
     if path.suffix.lower() in CYCLE_SUFFIXES:
-        from .markov.export import vdri_to_time_cycle
-        from .vecto import read_vdri
+        from .vecto import read_vdri, vdri_to_time_cycle
 
         return validate(vdri_to_time_cycle(read_vdri(path)), str(path))
     try:

@@ -21,7 +21,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from bench import CACHE_DIR, result
-from haulprofile.analysis.virtual_truck.accuracy import CATEGORIES, MASS_KEYS, METHODS, SENSOR_SETS, Case, run_case
+from haulprofile.testing.accuracy import CATEGORIES, MASS_KEYS, METHODS, SENSOR_SETS, Case, run_case
 
 LEVELS = ("ideal", "typical", "harsh")
 WORKERS = 2

@@ -30,7 +30,7 @@ GROUPS = {"urban-rigid-18t": ("urban-delivery", "rigid-18t"), "long-haul-tractor
 
 def fleet_inputs(quick: bool) -> tuple[list[Path], list[str], Path]:
     """(group directories, vehicle names, DEM directory), generated on first use."""
-    from haulprofile.analysis.fleet.virtual import virtual_fleet
+    from haulprofile.testing.fleet import virtual_fleet
 
     group_dirs, dem_dir = virtual_fleet(CACHE / ("quick" if quick else "full"), GROUPS, 3 if quick else 25,
                                         n_sections=5 if quick else None, workers=os.cpu_count() or 1,

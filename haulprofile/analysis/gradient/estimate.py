@@ -10,6 +10,7 @@ import pandas as pd
 
 from .. import checks, kinematics
 from ..errors import UserError
+from ..geodesy import local_east_north_m
 from . import grid as distance_grid
 from . import kalman, sources
 from .smoother import KNOWN_BIAS_MPS2, GradientSmoother, Measurements, SmootherSettings, bin_times, standstill_bins
@@ -278,7 +279,7 @@ def _map_bins(frame, dem, distance, valid, index, n_bins, settings, notes):
         notes.append("no GPS position columns (latitude_deg, longitude_deg): map-matching off")
         return None, accuracy
     time_s = frame["time_s"].to_numpy(dtype=float)
-    east, north = sources.local_east_north_m(lat, lon)
+    east, north = local_east_north_m(lat, lon)
     jumped = sources.gps_outliers(east, north, distance, time_s, settings.gps_jump_tolerance_m,
                                   settings.gps_reacquire_s)
     n_jumps = int(np.sum(jumped & np.isfinite(lat)))

@@ -12,7 +12,6 @@ WEIGHT_BARO = 0.7
 """w_baro of (8), constant as in the paper."""
 H_ACC_LIMIT_M = 10.0
 V_ACC_LIMIT_M = 15.0
-EARTH_RADIUS_M = 6_371_000.0
 
 
 def barometric_height_m(pressure_pa, reference_pressure_pa: float = SEA_LEVEL_PRESSURE_PA):
@@ -121,16 +120,3 @@ gps_outliers.__doc__ = """Fixes that jumped: farther from the last good fix than
 (plus ``tolerance_m`` [m] and 5 %). After ``reacquire_s`` [s] without a good fix the next fix
 is accepted as the new reference. NaN fixes count as bad. (numba kernel;
 ``_gps_outliers_reference`` is the same loop in plain Python.)"""
-
-
-def local_east_north_m(latitude_deg, longitude_deg):
-    """Equirectangular east/north [m] around the first finite fix (enough for step lengths)."""
-    lat = np.asarray(latitude_deg, dtype=float)
-    lon = np.asarray(longitude_deg, dtype=float)
-    finite = np.flatnonzero(np.isfinite(lat) & np.isfinite(lon))
-    if len(finite) == 0:
-        return np.full(lat.shape, np.nan), np.full(lat.shape, np.nan)
-    lat0, lon0 = lat[finite[0]], lon[finite[0]]
-    north = np.radians(lat - lat0) * EARTH_RADIUS_M
-    east = np.radians(lon - lon0) * EARTH_RADIUS_M * np.cos(np.radians(lat0))
-    return east, north

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from .. import checks
-from ..signals import COLUMNS
+from ..signal_columns import COLUMNS
 from ..units import UNITS_KEY
 from . import align
 from .logs import LogError

@@ -4,11 +4,11 @@ from .chain import Chain, build_chain
 from .classes import ClassWidths
 from .counting import TransitionCounts, count_transitions, resample_1hz
 from .criteria import Criteria, evaluate
-from .export import cycle_to_vdri, vdri_to_time_cycle, write_cycle
+from .export import cycle_to_vdri, write_cycle
 from .generate import Candidates, generate
 from .select import Selection, select_cycle
 from .stage import CycleOptions, CycleResult, cycle_stage
 
 __all__ = ["Candidates", "Chain", "ClassWidths", "Criteria", "CycleOptions", "CycleResult", "Selection",
            "TransitionCounts", "build_chain", "count_transitions", "cycle_stage", "cycle_to_vdri", "evaluate",
-           "generate", "resample_1hz", "select_cycle", "vdri_to_time_cycle", "write_cycle"]
+           "generate", "resample_1hz", "select_cycle", "write_cycle"]

@@ -4,7 +4,7 @@ A generated cycle holds one class-centre speed per second. `cycle_to_vdri` write
 distance-based cycle whose target speed is piecewise constant over distance: row k starts at the
 distance reached after k seconds at the speeds before it and holds speed v_k for one second
 (consecutive equal rows merged); a standstill run becomes one row with v = 0 and its duration as
-``stop_time_s``. Rows are at least 1 m apart, as VECTO requires (see `_metre_steps`). `vdri_to_time_cycle` reads that back exactly (time, distance, speed, gradient), and
+``stop_time_s``. Rows are at least 1 m apart, as VECTO requires (see `_metre_steps`). `vecto.vdri_to_time_cycle` reads that back exactly (time, distance, speed, gradient), and
 reads any other VECTO cycle as the time trace of its target speeds.
 """
 
@@ -120,52 +120,6 @@ def _metre_steps(rows: list[tuple]) -> list[tuple]:
         out[-1][3] += end[3]
         return [tuple(r) for r in out]
     return [tuple(r) for r in out] + [tuple(end)]
-
-
-def vdri_to_time_cycle(vdri: pd.DataFrame) -> pd.DataFrame:
-    """A VECTO cycle (SI columns, `analysis.vecto.read_vdri`) as a 1 Hz time trace: ``time_s`` [s],
-    ``distance_m`` [m], ``speed_mps`` [m/s], ``gradient_pct`` [%]; speed and gradient of a sample
-    are those in force at the middle of its second.
-
-    Row i's target speed holds from its distance to the next row's; a stop row (v = 0) stands for
-    ``stop_time_s`` and then drives on at the next moving row's speed; the last row is the end. Speeds
-    change in steps, as targets do (a driver model, as in the simulation, smooths them).
-    """
-    s = vdri["distance_m"].to_numpy(float)
-    v = vdri["target_speed_mps"].to_numpy(float)
-    grad = vdri["gradient_pct"].to_numpy(float)
-    stop = vdri["stop_time_s"].to_numpy(float)
-    if len(s) < 2:
-        raise CycleExportError("a VECTO cycle needs at least two rows")
-    pieces = []  # (start time [s], duration [s], start distance [m], speed [m/s], gradient [%])
-    clock = 0.0
-    for i in range(len(s) - 1):
-        if v[i] <= 0:
-            if stop[i] > 0:
-                pieces.append((clock, stop[i], s[i], 0.0, grad[i]))
-                clock += stop[i]
-            ahead = np.flatnonzero(v[i + 1:] > 0)
-            speed = v[i + 1 + ahead[0]] if ahead.size else 0.0
-        else:
-            speed = v[i]
-        length = s[i + 1] - s[i]
-        if length > 0:
-            if speed <= 0:
-                raise CycleExportError(f"VECTO cycle row {i + 2}: distance advances with target speed 0")
-            pieces.append((clock, length / speed, s[i], speed, grad[i]))
-            clock += length / speed
-    if v[-1] <= 0 and stop[-1] > 0:
-        pieces.append((clock, stop[-1], s[-1], 0.0, grad[-1]))
-        clock += stop[-1]
-    pieces.append((clock, 0.0, s[-1], v[-1], grad[-1]))
-    table = np.array(pieces)
-    time = np.arange(0.0, np.round(clock) + 1.0)
-    which = np.clip(np.searchsorted(table[:, 0], time + 0.5, side="right") - 1, 0, len(table) - 1)
-    speed = table[which, 3]
-    at = np.clip(np.searchsorted(table[:, 0], time, side="right") - 1, 0, len(table) - 1)
-    distance = table[at, 2] + table[at, 3] * np.clip(time - table[at, 0], 0.0, table[at, 1])
-    return pd.DataFrame({"time_s": time, "distance_m": distance, "speed_mps": speed,
-                         "gradient_pct": table[which, 4]})
 
 
 def write_cycle(cycle: pd.DataFrame, out_dir: str | Path, stem: str = "cycle") -> dict[str, Path]:

@@ -136,7 +136,7 @@ def _change_regression(regression, vehicle):
 
 def _wind_regressors(frame, speed, time_s):
     """The joint fit's head-wind columns from the GPS track (None without positions)."""
-    from ..gradient.sources import local_east_north_m
+    from ..geodesy import local_east_north_m
     if not {"latitude_deg", "longitude_deg"} <= set(frame.columns) or frame["latitude_deg"].isna().all():
         return None
     east, north = local_east_north_m(frame["latitude_deg"].to_numpy(dtype=float),

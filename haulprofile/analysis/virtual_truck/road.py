@@ -17,10 +17,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .. import vecto
+from ..geodesy import EARTH_RADIUS_M
 from .scenario import Scenario, ScenarioFileError
 from .terrain import GridField
 
-EARTH_RADIUS_M = 6_371_000.0
 GRID_STEP_M = 1.0
 KMH_PER_MPS = 3.6
 _KD_STEP = 10

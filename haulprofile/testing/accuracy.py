@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .truth import GRID_SPACING_M, truth_grid
+from haulprofile.analysis.virtual_truck.truth import GRID_SPACING_M, truth_grid
 
 METHODS = {"fusion": "gradient_pct", "baro": "gradient_baro_pct", "map": "gradient_map_pct",
            "smoother": "gradient_smooth_pct", "flat": "gradient_flat_pct"}
@@ -61,7 +61,7 @@ class Case:
 
 def case_scenario(case: Case):
     """The shipped scenario, cut and with the added stop."""
-    from .scenario import load_scenario
+    from haulprofile.analysis.virtual_truck.scenario import load_scenario
     scenario = load_scenario(case.scenario)
     sections, total, added = [], 0.0, case.stop_s <= 0
     for section in scenario.route.section:
@@ -145,7 +145,7 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
     and in ``mass_kg_within_2_sigma`` whether the truth lies inside its stated ±2σ. The same for
     ``mass_kg_weighed``: with the first scored segment weighed (`--known-mass`, its true mass),
     the other segments' errors, the torque gain calibrated."""
-    from ..mass import estimate_mass
+    from haulprofile.analysis.mass import estimate_mass
     frame = signals.assign(gradient_pct=signals[column])
     if column != METHODS["smoother"] and "gradient_mass_pct" in frame.columns:
         frame = frame.drop(columns=["gradient_mass_pct"])
@@ -177,9 +177,9 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
 def _method_samples(signals, dem_dir: Path, method: str) -> dict | None:
     """The gradient columns with ``GradientSettings(gradient_method=method)``, if the settings
     offer that choice (the estimator of the issue "Estimation that holds on real terrain")."""
-    from ..dem import open_dem
-    from ..errors import UserError
-    from ..gradient import GradientSettings, estimate_gradient
+    from haulprofile.analysis.dem import open_dem
+    from haulprofile.analysis.errors import UserError
+    from haulprofile.analysis.gradient import GradientSettings, estimate_gradient
     if "gradient_method" not in {f.name for f in dataclasses.fields(GradientSettings)}:
         return None
     try:
@@ -208,10 +208,10 @@ def _sensor_set_columns(base, dem_dir: Path, set_name: str, virtual):
     the accelerometer where there is neither IMU nor barometer; ``gradient_pct`` = the paper's fusion (8) where it can
     run). A log with no height source (``can-only``) is given the true mass per sample, as a
     weighing at every load change would give it, and scored against the flat road too."""
-    from ..dem import open_dem
-    from ..errors import UserError
-    from ..gradient.force_balance import estimate_gradient_for_log, estimate_gradient_force_balance
-    from ..gradient.sensor_sets import sensors_present, without_sensors
+    from haulprofile.analysis.dem import open_dem
+    from haulprofile.analysis.errors import UserError
+    from haulprofile.analysis.gradient.force_balance import estimate_gradient_for_log, estimate_gradient_force_balance
+    from haulprofile.analysis.gradient.sensor_sets import sensors_present, without_sensors
     frame = without_sensors(base, set_name)
     given = None
     if "gps" not in sensors_present(frame):
@@ -245,10 +245,10 @@ def run_case(case: Case, sensor_sets: tuple[str, ...] = SENSOR_SETS) -> dict:
     """Drive, log, analyse and score one case with each sensor set; a dict of plain values (for
     a process pool). The ``full`` set's figures are at the top level as before, every set's under
     ``sensor_sets``."""
-    from ..pipeline import RunContext, run
-    from .dem import write_dem
-    from .mcap_log import write_mcap
-    from .truck import drive
+    from haulprofile.analysis.pipeline import RunContext, run
+    from haulprofile.analysis.virtual_truck.dem import write_dem
+    from haulprofile.analysis.virtual_truck.mcap_log import write_mcap
+    from haulprofile.analysis.virtual_truck.truck import drive
     scenario = case_scenario(case)
     virtual = drive(scenario, seed=case.seed, realism=case.level)
     rng = np.random.default_rng(case.seed)

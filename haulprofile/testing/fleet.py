@@ -27,9 +27,9 @@ def write_drive(job: tuple) -> Path:
     → the log's path. With a gain, the level's per-drive random torque gain is replaced by the
     truck's fixed one (a property of its engine calibration, the same in every log), and the
     true mass per segment goes to ``<truth directory>/<log stem>-mass.csv``."""
-    from ..vehicle import load_vehicle
-    from ..virtual_truck import drive, load_scenario, realism_level, write_dem, write_mcap
-    from ..virtual_truck.truth import truth_segments
+    from haulprofile.analysis.vehicle import load_vehicle
+    from haulprofile.analysis.virtual_truck import drive, load_scenario, realism_level, write_dem, write_mcap
+    from haulprofile.analysis.virtual_truck.truth import truth_segments
 
     scenario_name, vehicle_name, index, seed, n_sections, log_path, dem_dir, *more = job
     level, gain, truth_dir = (*more, None, None, None)[:3]
