@@ -5,16 +5,23 @@ from pathlib import Path
 
 import pytest
 
-PACKAGE = Path(__file__).resolve().parents[1] / "haulprofile"
+ROOT = Path(__file__).resolve().parents[1]
+FOLDERS = {"haulprofile.logger": ROOT / "logger", "haulprofile.contract": ROOT / "logger" / "contract",
+           "haulprofile.analysis": ROOT / "analysis", "haulprofile.testing": ROOT / "analysis" / "testing"}
+"""The design's folders and the installed names they map to (setup.py)."""
 
 
 def modules() -> dict[str, Path]:
     found = {}
-    for path in PACKAGE.rglob("*.py"):
-        parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
-        if parts[-1] == "__init__":
-            parts = parts[:-1]
-        found[".".join(parts)] = path
+    for name, folder in FOLDERS.items():
+        inner = [f for f in FOLDERS.values() if f != folder and f.is_relative_to(folder)]
+        for path in folder.rglob("*.py"):
+            if any(path.is_relative_to(f) for f in inner):
+                continue
+            parts = [name, *path.relative_to(folder).with_suffix("").parts]
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            found[".".join(parts)] = path
     return found
 
 

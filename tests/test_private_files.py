@@ -11,7 +11,7 @@ import pytest
 from haulprofile.analysis.outputs import write_outputs
 from haulprofile.analysis.pipeline import RunContext
 from haulprofile.logger.storage import LogDirectory, StorageOptions
-from haulprofile.private_files import make_dirs, restrict_tree
+from haulprofile.contract.private_files import make_dirs, restrict_tree
 
 
 def mode(path) -> int:

@@ -20,21 +20,21 @@ class FastOptions:
     """Speed above which a sample counts as fast [m/s]."""
 
 
-@dataclass
-class FastResult:
-    n_fast: int
-    threshold_mps: float
+class FastResult(tuple):
+    """(number of fast samples, threshold [m/s]): any type with summary() will do."""
+
+    n_fast = property(lambda self: self[0])
 
     def summary(self) -> dict:
-        return {"n_fast": self.n_fast, "threshold_mps": self.threshold_mps}
+        return dict(zip(("n_fast", "threshold_mps"), self))
 
     def problem(self):
-        return "never fast" if self.n_fast == 0 else None
+        return None if self.n_fast else "never fast"
 
 
 def fast_stage(ctx) -> FastResult:
     threshold = ctx.options.fast.threshold_mps
-    return FastResult(int((ctx.signals["speed_mps"] > threshold).sum()), threshold)
+    return FastResult((int((ctx.signals["speed_mps"] > threshold).sum()), threshold))
 
 
 def write_fast(result: FastResult, folder, figures: bool) -> list[str]:

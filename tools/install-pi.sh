@@ -149,7 +149,7 @@ run networkctl reload
 echo "== configuration $CONFIG_DIR/logger.toml"
 run install -d -m 0750 -g "$SERVICE_USER" "$CONFIG_DIR"
 if [[ $DRY_RUN -eq 1 || ! -f "$CONFIG_DIR/logger.toml" ]]; then
-    run install -m 0640 -g "$SERVICE_USER" "$SOURCE/haulprofile/logger/logger.example.toml" "$CONFIG_DIR/logger.toml"
+    run install -m 0640 -g "$SERVICE_USER" "$SOURCE/logger/logger.example.toml" "$CONFIG_DIR/logger.toml"
     run sed -i -e "s|^bitrate = [0-9]*|bitrate = $BITRATE|" \
         -e "s|^channel = \"can0\"|channel = \"$CAN_NAME\"|" \
         -e 's|^port = "/dev/ttyACM0"|port = "/dev/haulprofile-gps"|' "$CONFIG_DIR/logger.toml"

@@ -1,7 +1,7 @@
 """The daemon's one TOML file, read into dataclasses; a bad key is a one-line error naming it.
 
 Every section and key, with its default, is documented in ``docs/logger.md`` and shown in
-``haulprofile/logger/logger.example.toml``.
+``logger/logger.example.toml``.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from haulprofile.contract import obd
-from haulprofile.input_files import read_small
+from haulprofile.contract.input_files import read_small
 from haulprofile.contract.privacy import zones_from_tables
-from haulprofile.toml_tables import check_typed, table_kwargs
+from haulprofile.contract.toml_tables import check_typed, table_kwargs
 
 
 class ConfigError(Exception):

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from haulprofile.private_files import restrict_written
+from haulprofile.contract.private_files import restrict_written
 
 from ..checks import repeated_content
 from ..errors import UserError

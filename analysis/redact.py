@@ -34,9 +34,9 @@ from haulprofile import contract
 from haulprofile.contract.privacy import (POSITION_PGNS, VEHICLE_POSITION_PGN, Zone, frame_pgns, in_any,
                                           vehicle_positions, zones_from_tables)
 from haulprofile.contract.reader import Channel, RawMessage, ReadReport, read_messages, read_windows
-from haulprofile.private_files import FILE_MODE, make_dirs
+from haulprofile.contract.private_files import FILE_MODE, make_dirs
 
-from haulprofile.input_files import read_small
+from haulprofile.contract.input_files import read_small
 
 from .errors import UserError
 from .manifest import Manifest, refuse_link

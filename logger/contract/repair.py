@@ -75,7 +75,7 @@ def write_recovered(source: str | Path, sink: BinaryIO, report: ReadReport | Non
 def repair(path: str | Path) -> int:
     """Replace a cut log with its repaired copy (`write_recovered`): written beside it (mode 0640),
     fsynced, then renamed over it. Returns the messages kept."""
-    from haulprofile.private_files import open_new
+    from haulprofile.contract.private_files import open_new
 
     path = Path(path)
     repaired = path.with_name(path.name + ".repaired")

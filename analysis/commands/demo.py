@@ -17,7 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from haulprofile.private_files import make_dirs
+from haulprofile.contract.private_files import make_dirs
 
 from ..manifest import Manifest, staged_files
 from ..pipeline import RunContext, run as run_pipeline

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from haulprofile.input_files import refuse_special
-from haulprofile.private_files import make_dirs, restrict_tree
+from haulprofile.contract.input_files import refuse_special
+from haulprofile.contract.private_files import make_dirs, restrict_tree
 
 from .errors import UserError
 from .jsonable import jsonable

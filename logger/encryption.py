@@ -27,7 +27,7 @@ from pathlib import Path
 
 from haulprofile.contract.naming import log_files
 from haulprofile.contract.repair import is_complete, repair
-from haulprofile.private_files import open_new
+from haulprofile.contract.private_files import open_new
 
 SUFFIX = ".age"
 

@@ -8,7 +8,7 @@ the earlier run as it was; interrupted while moving, it holds no ``summary.json`
 removes the files of stages that did not run this time, so nothing of an earlier run stays beside
 the new summary.
 
-Every file and folder it writes is 0640 / 0750 whatever the umask (`haulprofile.private_files`):
+Every file and folder it writes is 0640 / 0750 whatever the umask (`haulprofile.contract.private_files`):
 the signals table, the report and the summary hold a driver's positions and times. With
 `OutputOptions.private` the positions and wall-clock times stay out of the files altogether.
 """
@@ -22,8 +22,8 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from haulprofile.input_files import refuse_special
-from haulprofile.private_files import make_dirs, restrict_tree
+from haulprofile.contract.input_files import refuse_special
+from haulprofile.contract.private_files import make_dirs, restrict_tree
 
 from . import checks, jsonable
 from .manifest import Manifest, refuse_link, staged_files

@@ -16,7 +16,7 @@ from typing import Callable
 
 import numpy as np
 
-from haulprofile.private_files import FILE_MODE, make_dirs
+from haulprofile.contract.private_files import FILE_MODE, make_dirs
 
 from haulprofile.contract import CAN_FRAMES
 

@@ -30,7 +30,7 @@ def run(args) -> int:
         return 0
     if args.out.exists():
         raise UserError(f"{args.out} exists; choose a new file name for the vehicle file")
-    from haulprofile.private_files import open_new
+    from haulprofile.contract.private_files import open_new
 
     with open_new(args.out) as stream:
         stream.write(text.encode("utf-8"))

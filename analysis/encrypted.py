@@ -20,7 +20,7 @@ import tempfile
 import threading
 from pathlib import Path
 
-from haulprofile.input_files import read_small
+from haulprofile.contract.input_files import read_small
 
 from .errors import UserError
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from haulprofile.contract.naming import log_files, log_name_parts
-from haulprofile.private_files import make_dirs, open_new, write_bytes
+from haulprofile.contract.private_files import make_dirs, open_new, write_bytes
 
 from .writer import LogWriter
 

@@ -15,7 +15,7 @@ import os
 import stat
 from pathlib import Path
 
-from haulprofile.private_files import FILE_MODE
+from haulprofile.contract.private_files import FILE_MODE
 
 from .errors import UserError
 
@@ -132,7 +132,7 @@ class Manifest:
         """Move the finished files ``names`` (relative paths, in this order) from ``staging`` to the
         same places under ``root``: all are checked first (`check_target`), each is recorded as
         ours before it is renamed, so an interrupted move leaves nothing that counts as foreign."""
-        from haulprofile.private_files import make_dirs
+        from haulprofile.contract.private_files import make_dirs
 
         staging = Path(staging)
         for rel in names:

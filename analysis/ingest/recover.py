@@ -15,7 +15,7 @@ from pathlib import Path
 
 from haulprofile.contract.reader import ReadReport
 from haulprofile.contract.repair import write_recovered
-from haulprofile.private_files import FILE_MODE
+from haulprofile.contract.private_files import FILE_MODE
 
 from .logs import LogError
 

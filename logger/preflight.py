@@ -11,7 +11,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from haulprofile.private_files import make_dirs
+from haulprofile.contract.private_files import make_dirs
 
 from .config import Config, ConfigError
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from haulprofile.private_files import make_dirs
+from haulprofile.contract.private_files import make_dirs
 
 from ..markov import ClassWidths, TransitionCounts, write_cycle
 from .. import jsonable

@@ -13,7 +13,7 @@ from importlib import resources
 from pathlib import Path
 
 from .errors import UserError
-from ..toml_tables import check_number, check_text, is_number, table_kwargs
+from haulprofile.contract.toml_tables import check_number, check_text, is_number, table_kwargs
 
 
 class VehicleFileError(UserError):
