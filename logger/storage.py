@@ -256,17 +256,23 @@ class LogDirectory:
         name = self.path.name if self.path else "?"
         if self.writer is not None:
             try:
-                self.writer.close()
+                kept_fd = os.dup(self._stream.fileno())
             except (OSError, ValueError):
-                pass
-            try:
-                self._stream.close()
-            except (OSError, ValueError):
-                pass
+                kept_fd = None
+            closed_whole = True
+            for close in (self.writer.close, self._stream.close):
+                try:
+                    close()
+                except (OSError, ValueError):
+                    closed_whole = False
+            if kept_fd is not None:
+                if not closed_whole:
+                    self._cut_at_last_complete_chunk(kept_fd, self.writer.complete_bytes)
+                os.close(kept_fd)
             self.writer = None
             self._stream = None
             self._mark_current(None)
-            self._closed(self.path)
+            self._closed(self.path if self.path is not None and self.path.exists() else None)
         self.paused = True
         try:
             free = self.free_bytes()
@@ -275,6 +281,26 @@ class LogDirectory:
         self._resume_free_bytes = max(self.options.min_free_bytes, free + 4 * self.options.chunk_size_bytes)
         self.messages.append(f"writing {name} failed ({error}): file closed at its last complete chunk, "
                              f"writing paused until {self._resume_free_bytes} bytes are free")
+
+    def _cut_at_last_complete_chunk(self, fd: int, complete_bytes: int) -> None:
+        """Truncate the file behind ``fd`` to ``complete_bytes``, so the failed write's partial
+        chunk or summary is not left at its end (a linear read then ends cleanly at the cut). A
+        file with no complete record is removed: it holds no data and must not pose as a log."""
+        try:
+            os.ftruncate(fd, complete_bytes)
+            os.fsync(fd)
+            if complete_bytes == 0 and self.path is not None and self._same_file(self.path, fd):
+                os.remove(self.path)
+        except OSError:
+            pass
+
+    @staticmethod
+    def _same_file(path: Path, fd: int) -> bool:
+        try:
+            here, open_file = os.stat(path), os.fstat(fd)
+        except OSError:
+            return False
+        return (here.st_dev, here.st_ino) == (open_file.st_dev, open_file.st_ino)
 
     def enforce_free_space(self) -> bool:
         """Apply the watermark; True if writing may go on. Adds a line to ``messages`` on action."""

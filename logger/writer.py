@@ -37,6 +37,9 @@ class LogWriter(TopicWriter):
         self._fsync = fsync
         self._chunk_first_mono_ns: int | None = None
         self.chunk_flushes = 0
+        self.complete_bytes = 0
+        """Bytes of the stream that end at a record boundary and were handed to the file system
+        (after the header, or the last `flush`): where a file cut by a failed write is truncated."""
 
     def write(self, topic: contract.Topic, payload: bytes, t_mono_ns: int, t_realtime_ns: int) -> None:
         """Add one message; ``publish_time`` is monotonic, ``log_time`` wall-clock (contract)."""
@@ -60,7 +63,14 @@ class LogWriter(TopicWriter):
         self._writer.flush()
         self._chunk_first_mono_ns = None
         self.chunk_flushes += 1
+        self.complete_bytes = self._stream_offset()
         self._sync()
+
+    def _stream_offset(self) -> int:
+        try:
+            return self._stream.tell()
+        except (AttributeError, OSError, ValueError):
+            return 0
 
     def _sync(self) -> None:
         if not self._fsync:

@@ -19,6 +19,7 @@ import asyncio
 import errno
 import json
 import os
+import struct
 import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -85,7 +86,7 @@ def read_log(paths: list[Path]) -> Log:
                     elif isinstance(record, Message):
                         log.messages.setdefault(topics[record.channel_id], []).append((record.publish_time, record.data))
                 complete = True
-            except (McapError, EOFError, ValueError) as exc:  # a file cut by the disk: complete chunks only
+            except (McapError, EOFError, ValueError, struct.error) as exc:  # a cut file: complete chunks only
                 print(f"{path.name}: linear read stopped at a cut ({exc!r})")
         log.files.append((path, complete))
     return log

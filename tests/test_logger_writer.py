@@ -3,6 +3,7 @@ summary on close, file names, rotation and the free-space watermark."""
 
 from __future__ import annotations
 
+import errno
 import io
 import struct
 
@@ -164,3 +165,65 @@ def test_watermark_pause_stops_and_resumes_writing(tmp_path, monkeypatch):
     assert directory.enforce_free_space()
     assert not directory.paused and directory.writer is not None and directory.path != first
     assert [m.split(":")[-1].strip() for m in directory.messages] == ["writing paused", "writing resumed"]
+
+
+class _FillingDisk(io.FileIO):
+    """A real file whose writes fail with ENOSPC once ``budget`` bytes are written, partly
+    written first, as a full disk does."""
+
+    budget = 0
+
+    def write(self, data) -> int:
+        room = _FillingDisk.budget - self.tell()
+        if room <= 0:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        if len(data) > room:
+            return super().write(bytes(data)[:room])
+        return super().write(data)
+
+
+def _open_on_filling_disk(path, exclusive=True):
+    return io.BufferedWriter(_FillingDisk(path, "xb"))
+
+
+def _cut_on_a_full_disk(tmp_path, monkeypatch, budget: int) -> tuple[list, list]:
+    """Write flushed chunks until the disk fills at ``budget`` bytes; the daemon's reaction
+    (`write_failed`). Returns the files and the messages flushed before the failure."""
+    monkeypatch.setattr("haulprofile.logger.storage.open_new", _open_on_filling_disk)
+    _FillingDisk.budget = budget
+    directory = LogDirectory(_options(tmp_path, on_low_space="pause"))
+    directory.open()
+    flushed = []
+    try:
+        for k in range(1000):
+            directory.writer.write(contract.CAN_FRAMES, _frames(k * SECOND), k * SECOND, 0)
+            directory.writer.flush()
+            flushed.append(k)
+    except OSError as exc:
+        directory.write_failed(exc)
+    return sorted(tmp_path.glob("*.mcap")), flushed
+
+
+def test_a_full_disk_leaves_the_file_cut_at_its_last_complete_chunk(tmp_path, monkeypatch):
+    """ENOSPC anywhere in a chunk (its opcode, its length, its header fields, its data): the partly
+    written chunk (and the summary the close tried to write) is cut off, so a linear read ends
+    cleanly at a record boundary with every message that was flushed before the failure."""
+    for budget in range(1_000, 6_000, 29):
+        folder = tmp_path / str(budget)
+        folder.mkdir()
+        files, flushed = _cut_on_a_full_disk(folder, monkeypatch, budget)
+        assert len(files) == 1 and 0 < len(flushed) < 1000
+        data = files[0].read_bytes()
+        messages = 0
+        try:
+            for record in StreamReader(io.BytesIO(data), skip_magic=False).records:
+                messages += isinstance(record, Message)
+        except EndOfFile:
+            pass
+        assert messages == len(flushed), budget
+
+
+def test_a_disk_full_before_any_complete_chunk_leaves_no_file(tmp_path, monkeypatch):
+    """A file that holds not even its header when the disk fills is removed, not left as a log."""
+    files, flushed = _cut_on_a_full_disk(tmp_path, monkeypatch, budget=5)
+    assert files == [] and flushed == []
