@@ -159,12 +159,22 @@ def _solve(force, excess, cos_angle, aero, extra, seg, n_seg, theta, free, setti
     instrument = excess if instrument is None else instrument
     free_idx = np.flatnonzero(free)
     normal = np.eye(len(free_idx))
+    step, kept, halvings = None, None, 0
     for _ in range(settings.iterations):
         residual = _residual(force, excess, cos_angle, aero, extra, seg, theta, n_seg)
         if not fixed_weights:
             sample = residual[::max(1, len(residual) // 50_000)]  # a robust scale needs no more
             scale = 1.4826 * np.median(np.abs(sample - np.median(sample)))
-            weights = _biweight(residual, settings.robust_tuning * max(scale, 1e-9))
+            new_weights = _biweight(residual, settings.robust_tuning * max(scale, 1e-9))
+            new_kept = np.count_nonzero(new_weights)
+            if step is not None and new_kept < 0.5 * kept and halvings < 10:
+                # the step overshot to a fit that explains few of the samples the last one did
+                # (a near-singular instrumental system): go half of it back and look again
+                step = 0.5 * step
+                theta[free_idx] -= step
+                halvings += 1
+                continue
+            weights, kept = new_weights, new_kept
         full, rhs = _normal_equations(excess, instrument, cos_angle, aero, extra, seg, theta, n_seg, weights, residual)
         if prior is not None:
             centre, precision = prior
@@ -181,6 +191,16 @@ def _solve(force, excess, cos_angle, aero, extra, seg, n_seg, theta, free, setti
     c_r = theta[n_seg]
     residual = _residual(force, excess, cos_angle, aero, extra, seg, theta, n_seg)
     return theta, weights, normal, residual, excess + G_MPS2 * c_r * cos_angle, instrument + G_MPS2 * c_r * cos_angle
+
+
+def _informed_inverse(normal: np.ndarray) -> np.ndarray:
+    """Inverse of the normal matrix over the parameters the weighted data still see; NaN rows and
+    columns for one they no longer see (every sample of a segment weighted out as an outlier), so
+    that parameter has no uncertainty to state instead of making the whole system singular."""
+    informed = np.diag(normal) > 0
+    inverse = np.full(normal.shape, np.nan)
+    inverse[np.ix_(informed, informed)] = np.linalg.inv(normal[np.ix_(informed, informed)])
+    return inverse
 
 
 def _block_covariance(normal, free_idx, n_seg, seg, block, weights, residual, instrument_row, theta, cos_angle,
@@ -204,7 +224,7 @@ def _block_covariance(normal, free_idx, n_seg, seg, block, weights, residual, in
     meat = scores.T @ scores * n_blocks / max(n_blocks - p, 1)
     if extra_meat is not None:
         meat = meat + extra_meat[np.ix_(free_idx, free_idx)]
-    inverse = np.linalg.inv(normal)
+    inverse = _informed_inverse(normal)
     cov = np.full((n_p, n_p), np.nan)
     cov[np.ix_(free_idx, free_idx)] = inverse @ meat @ inverse.T
     return cov
@@ -283,8 +303,11 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
                                                                   instrument=z)
         sandwich = _block_covariance(normal, np.flatnonzero(free), m, seg, block, weights, residual, row, theta, c, q,
                                      ex)
-        noise_var = float(np.median(np.diag(sandwich)[:m] / np.abs(np.diag(np.linalg.inv(normal))[:m])))
+        ratio = np.diag(sandwich)[:m] / np.abs(np.diag(_informed_inverse(normal))[:m])
+        noise_var = float(np.median(ratio[np.isfinite(ratio)])) if np.isfinite(ratio).any() else np.nan
     except np.linalg.LinAlgError:
+        noise_var = np.nan
+    if not noise_var > 0:  # the data alone did not converge (every sample weighted out): the first guess's scatter
         noise_var = float(np.var(f - theta0[:m][seg] * (x + G_MPS2 * theta0[m] * c) - theta0[m + 1] * q))
     # the vehicle file's values as a prior of datasheet width: a coefficient the drive cannot tell
     # stays near the datasheet value and its datasheet uncertainty goes into every mass
@@ -306,6 +329,7 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     result.condition = condition
     result.masses_kg[kept] = theta[:m]
     result.mass_std_kg[kept] = np.sqrt(np.diag(cov)[:m])
+    result.masses_kg[~np.isfinite(result.mass_std_kg)] = np.nan
     for index, name in ((m, COEFFICIENTS[0]), (m + 1, COEFFICIENTS[1])):
         result.coefficients[name] = float(theta[index])
         result.identified[name] = bool(free[index])
