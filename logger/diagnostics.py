@@ -9,6 +9,22 @@ from .clock import Clock
 
 log = logging.getLogger("haulprofile.logger")
 
+SAID_AT = (1, 100, 10000)
+"""Which occurrence of a repeated event the logger says (journal and `/diagnostics`): the first,
+then the 100th and the 10 000th; the others are counted in the source's stats. A link that comes
+and goes, or a sensor that keeps failing, is then said a few times a drive, not every second."""
+
+
+def worth_saying(count: int) -> bool:
+    """True for the ``count``-th occurrence of a repeated event if it is one that is said (`SAID_AT`)."""
+    return count in SAID_AT
+
+
+def ordinal(count: int) -> str:
+    """``1st``, ``2nd``, ``100th``: the occurrence in a message."""
+    suffix = "th" if 10 <= count % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(count % 10, "th")
+    return f"{count}{suffix}"
+
 
 class Diagnostics:
     """Per-source rates, drops, errors and state; queue depth; disk; messages since the last one."""

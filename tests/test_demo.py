@@ -78,3 +78,30 @@ def test_demo_prints_one_line_for_a_bad_scenario(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert code == 2
     assert len(err.splitlines()) == 1 and "unknown key 'lanes'" in err
+
+
+def test_demo_logs_at_least_twice_as_fast_as_20x_with_fifos_that_keep_up():
+    """The default speed-up halves the logging phase of 20x; at it every FIFO sensor holds at
+    least 50 ms of real time and the ECU has 50 ms of real time to answer OBD-II (arithmetic on
+    the configuration, not a timing)."""
+    import argparse
+
+    from haulprofile.analysis.commands import demo as demo_command
+    from haulprofile.logger.emulators.compression import compressed_config
+
+    parser = argparse.ArgumentParser()
+    demo_command.add_arguments(parser)
+    scale = parser.parse_args([]).time_scale
+    assert scale >= 40.0
+    config = compressed_config(scale)
+    fifo_depth = 32  # LPS25HB and LSM9DS1 datasheets
+    for odr_hz in (config.i2c.lps25hb.odr_hz, config.i2c.lsm9ds1.odr_hz):
+        assert fifo_depth / odr_hz / scale >= 0.05
+    assert config.can.obd.timeout_s / scale >= 0.05
+
+
+def test_demo_progress_line():
+    from haulprofile.analysis.commands.demo import progress_line
+    from haulprofile.logger.emulators.rig import Progress
+
+    assert progress_line(Progress(192.0, 2298.0, 48000)) == "  logging: 3.2 of 38.3 min driven, 48 000 CAN frames"

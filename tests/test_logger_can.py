@@ -23,6 +23,7 @@ from haulprofile.logger.config import CanSection
 from haulprofile.logger.emulators.ecu import EcuEmulator
 from haulprofile.logger.emulators.signals import TimeSeries
 from haulprofile.logger.sources.can import CanSource, allowed_tx_ids
+from haulprofile.logger.sources.can_protocols import ObdPoller
 
 SIGNALS = {
     "time_s": np.array([0.0, 100.0]),
@@ -155,6 +156,47 @@ def test_no_ecu_answers_backs_off_to_a_slow_probe():
     assert stats["obd_timeouts"] == stats["obd_requests"]
     assert any("probing every 0.5 s" in m for m in source.messages)
 
+
+
+class _PollerSource:
+    """What `ObdPoller` sees of the CAN source: a guard that sends every request, a ``say`` kept."""
+
+    def __init__(self):
+        self.messages: list[str] = []
+        self.guard = type("Guard", (), {"send": staticmethod(lambda *request: True)})()
+
+    def say(self, message: str) -> None:
+        self.messages.append(message)
+
+
+def _flap(poller: ObdPoller, spells: int) -> None:
+    """``spells`` times: a whole round unanswered (the poller gives up), then its probe answered."""
+    now_ns = 0
+    for _ in range(spells):
+        while not poller.probing:
+            now_ns = max(poller.tick(now_ns), now_ns + 1)
+        sent = poller.requests
+        while poller.requests == sent:
+            now_ns = max(poller.tick(now_ns), now_ns + 1)
+        poller.on_response(0x7E8, bytes([0x41, poller.groups[0][0]]))
+        poller.tick(now_ns + 1)
+        assert not poller.probing
+
+
+def test_obd_answers_that_come_and_go_are_said_once_and_counted():
+    section = CanSection(interface="virtual", listen_only=False).obd
+    section.failed_rounds_before_probe = 1
+    source = _PollerSource()
+    poller = ObdPoller(source, section)
+    _flap(poller, 30)
+    gave_up = [m for m in source.messages if "no ECU answered" in m]
+    back = [m for m in source.messages if "answers OBD-II again" in m]
+    assert len(gave_up) == 1 and len(back) == 1
+    assert poller.give_ups == 30 and poller.stats()["obd_give_ups"] == 30
+    _flap(poller, 70)  # the 100th spell is said again, with its count
+    gave_up = [m for m in source.messages if "no ECU answered" in m]
+    assert len(gave_up) == 2 and "100th time" in gave_up[1]
+    assert len([m for m in source.messages if "answers OBD-II again" in m]) == 2
 
 def test_listen_only_transmits_nothing():
     section = CanSection(interface="virtual", listen_only=True)

@@ -158,3 +158,17 @@ def test_systemd_ready_and_watchdog_only_while_alive(tmp_path):
 def test_no_notify_socket_means_no_notifications(full_rate):
     _, daemon, _ = full_rate
     assert daemon.notifier.sent == []
+
+
+def test_a_logged_drive_reports_its_progress(tmp_path):
+    """`record_drive`'s progress callback (the demo's progress line): the drive advances, the
+    CAN frames add up, nothing is reported past the end."""
+    seen = []
+    record_drive(synthetic_drive(30.0), tmp_path, duration_s=20.0, time_scale=10.0, progress=seen.append,
+                 progress_every_s=0.2)
+    assert len(seen) >= 2
+    driven = [p.driven_s for p in seen]
+    frames = [p.can_frames for p in seen]
+    assert driven == sorted(driven) and driven[0] < driven[-1] <= 20.0
+    assert frames == sorted(frames) and frames[-1] > 0
+    assert all(p.duration_s == 20.0 for p in seen)

@@ -77,3 +77,52 @@ def test_shipped_code_never_imports_the_test_data_generators():
     arrows = [(name, target) for name, targets in GRAPH.items() if not name.startswith("haulprofile.testing")
               for target in targets if target.startswith("haulprofile.testing")]
     assert arrows == []
+
+
+NUMBA_COMPILERS = {"njit", "jit", "vectorize", "guvectorize", "cfunc", "generated_jit"}
+
+
+def _uncached_kernels(path: Path) -> list[str]:
+    """``file:line`` of every numba compiler use in ``path`` without ``cache=True``: a bare
+    ``@njit`` / ``@numba.njit``, or a call (decorator, ``numba.njit(...)(f)``, ``jit = numba.njit(...)``)
+    that does not pass ``cache=True``."""
+    found = []
+    tree = ast.parse(path.read_text())
+    calls = {id(node.func) for node in ast.walk(tree) if isinstance(node, ast.Call)}
+    imported = {alias.asname or alias.name for node in ast.walk(tree)
+                if isinstance(node, ast.ImportFrom) and node.module == "numba" for alias in node.names}
+
+    def compiler_name(node) -> str | None:
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "numba":
+            return node.attr if node.attr in NUMBA_COMPILERS else None
+        if isinstance(node, ast.Name) and node.id in NUMBA_COMPILERS and node.id in imported:
+            return node.id
+        return None
+
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and compiler_name(node.func):
+            cached = any(k.arg == "cache" and isinstance(k.value, ast.Constant) and k.value.value is True
+                         for k in node.keywords)
+            if not cached:
+                found.append(f"{path.name}:{node.lineno}")
+        elif compiler_name(node) and id(node) not in calls:
+            decorated = any(node in getattr(d, "decorator_list", ()) for d in ast.walk(tree))
+            if decorated:
+                found.append(f"{path.name}:{node.lineno}")
+    return found
+
+
+def test_every_numba_kernel_is_cached():
+    """A second ``analyze demo`` compiles nothing: every kernel of the package is compiled with
+    ``cache=True`` (numba keeps the machine code beside the source; without it each process
+    compiles again, about a minute for the whole pipeline)."""
+    uncached = [where for path in modules().values() for where in _uncached_kernels(path)]
+    assert not uncached, f"numba kernels without cache=True: {uncached}"
+
+
+def test_the_kernel_scan_finds_an_uncached_kernel(tmp_path):
+    source = tmp_path / "kernels.py"
+    source.write_text("import numba\nfrom numba import njit\n\n@numba.njit\ndef a(x):\n    return x\n\n"
+                      "b = numba.njit(nogil=True)(a)\n\n@numba.njit(cache=True)\ndef c(x):\n    return x\n\n"
+                      "@njit\ndef d(x):\n    return x\n\njit = numba.njit(cache=True)\ne = jit(d)\n")
+    assert sorted(_uncached_kernels(source)) == ["kernels.py:14", "kernels.py:4", "kernels.py:8"]

@@ -59,6 +59,8 @@ class EcuEmulator:
         self._t0_ns = 0
         self._pending_isotp: dict[int, list[bytes]] = {}
         self._pending_rts: dict[int, list[bytes]] = {}
+        self._names: dict[int, list[str]] = {}
+        """SPN names per PGN, looked up once: the broadcast encodes a frame every few ms."""
 
     # --- scheduling ----------------------------------------------------------------------------
     def _schedule(self, t_ns: int, kind: str, arg) -> None:
@@ -115,7 +117,9 @@ class EcuEmulator:
 
     # --- J1939 ---------------------------------------------------------------------------------
     def pgn_data(self, pgn: int) -> bytes:
-        names = [s.name for s in j1939.spns_of(pgn)]
+        names = self._names.get(pgn)
+        if names is None:
+            names = self._names[pgn] = [s.name for s in j1939.spns_of(pgn)]
         return j1939.encode_pgn(pgn, self.signals.values(names, self.t_s()))
 
     def _start_bam(self, pgn: int, t_ns: int) -> None:

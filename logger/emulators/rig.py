@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import copy
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
@@ -17,10 +18,11 @@ import numpy as np
 from ..clock import Clock
 from ..config import Config
 from ..devices import Devices
+from .compression import DEMO_TIME_SCALE, compressed_config
 from .ecu import EcuEmulator
 from .gps import GpsEmulator
 from .sensors import sensor_board
-from .signals import TimeSeries, synthetic_drive
+from .signals import TimeSeries, stream_rate_hz, synthetic_drive
 
 
 class EmulatedDevices(Devices):
@@ -106,18 +108,48 @@ def load_signals(spec: str) -> TimeSeries:
         return TimeSeries({k: data[k] for k in data.files})
 
 
-async def run_daemon_for(daemon, devices: EmulatedDevices, duration_s: float) -> int:
-    """Run ``daemon`` with the emulators for ``duration_s`` emulated seconds, then stop it."""
+PROGRESS_EVERY_S = 10.0
+"""How often `run_daemon_for` reports progress, in real seconds [s]."""
+
+
+@dataclass(frozen=True)
+class Progress:
+    """How far a logged drive got: ``driven_s`` of ``duration_s`` emulated seconds [s], and the
+    CAN frames the daemon's CAN sources took so far."""
+
+    driven_s: float
+    duration_s: float
+    can_frames: int
+
+
+def progress_of(daemon, devices: EmulatedDevices, duration_s: float) -> Progress:
+    """The drive's progress now: emulated time since the emulators started, CAN frames logged."""
+    driven_s = (daemon.clock.monotonic_ns() - devices.t0_ns) * 1e-9
+    frames = sum(source.stats.records for source in daemon.sources if source.name.startswith("can"))
+    return Progress(min(max(driven_s, 0.0), duration_s), duration_s, frames)
+
+
+async def run_daemon_for(daemon, devices: EmulatedDevices, duration_s: float, progress=None,
+                         progress_every_s: float = PROGRESS_EVERY_S) -> int:
+    """Run ``daemon`` with the emulators for ``duration_s`` emulated seconds, then stop it.
+
+    ``progress``: called with a `Progress` every ``progress_every_s`` real seconds while it runs
+    (the caller prints it; the rig does not)."""
     task = asyncio.create_task(daemon.run())
     await daemon.ready.wait()
     devices.run_emulators()
     if duration_s == float("inf"):
         await asyncio.shield(task)
     else:
-        try:
-            await asyncio.wait_for(asyncio.shield(task), daemon.clock.real_seconds(duration_s))
-        except asyncio.TimeoutError:
-            pass
+        loop = asyncio.get_running_loop()
+        end = loop.time() + daemon.clock.real_seconds(duration_s)
+        while (left := end - loop.time()) > 0:
+            wait_s = left if progress is None else min(left, progress_every_s)
+            done, _ = await asyncio.wait({task}, timeout=wait_s)
+            if done:
+                break
+            if progress is not None and end - loop.time() > 0:
+                progress(progress_of(daemon, devices, duration_s))
     await asyncio.get_running_loop().run_in_executor(None, devices.stop_emulators)
     await asyncio.sleep(0.3)
     daemon.stop()
@@ -143,7 +175,8 @@ def emulation_config(out_dir: str | Path, time_scale: float = 1.0, base: Config 
 
 
 def record_drive(signals: Mapping[str, np.ndarray], out_dir: str | Path, duration_s: float | None = None,
-                 time_scale: float = 1.0, config: Config | None = None, return_rig: bool = False):
+                 time_scale: float = 1.0, config: Config | None = None, return_rig: bool = False,
+                 progress=None, progress_every_s: float = PROGRESS_EVERY_S):
     """Log a drive through the real daemon and the emulators; returns the path of the MCAP log.
 
     ``signals``: column name -> array, with ``time_s`` [s] and any of ``speed_mps``,
@@ -152,6 +185,7 @@ def record_drive(signals: Mapping[str, np.ndarray], out_dir: str | Path, duratio
     ``accel_x_mps2``…, ``gyro_x_radps``…, ``latitude_deg``, ``longitude_deg``, ``altitude_m``,
     ``h_acc_m``, ``v_acc_m``. ``duration_s`` defaults to the length of the series; ``time_scale``
     emulated seconds pass per real second. With ``return_rig`` also returns (daemon, devices).
+    ``progress``: called with a `Progress` every ``progress_every_s`` real seconds.
     """
     from ..daemon import Daemon
     series = TimeSeries(signals)
@@ -162,34 +196,22 @@ def record_drive(signals: Mapping[str, np.ndarray], out_dir: str | Path, duratio
     devices = EmulatedDevices(series, clock).start(config)
     daemon = Daemon(config, devices, clock)
     duration = series.duration_s if duration_s is None else duration_s
-    code = asyncio.run(run_daemon_for(daemon, devices, duration))
+    code = asyncio.run(run_daemon_for(daemon, devices, duration, progress, progress_every_s))
     if code != 0:
         raise RuntimeError(f"logger daemon ended with exit code {code}")
     path = daemon.storage.files_written[0]
     return (path, daemon, devices) if return_rig else path
 
 
-def compressed_config(time_scale: float) -> Config:
-    """Sensor rates that polling keeps up with at ``time_scale`` on a busy machine.
-
-    Sensors read through a FIFO (LPS25HB, LSM9DS1) tolerate late polls; the HTS221 and the
-    magnetometer have none, so time-compressed runs use their slower legal rates.
-    """
-    config = Config()
-    if time_scale > 4.0:
-        config.i2c.lsm9ds1.odr_hz = 14.9
-        config.i2c.lsm9ds1.mag_odr_hz = 1.25
-        config.i2c.hts221.odr_hz = 1.0
-        config.can.j1939.request_interval_s = 30.0
-    return config
-
-
 def record_streams(streams: Mapping[str, object], out_dir: str | Path, duration_s: float | None = None,
-                   time_scale: float = 20.0) -> Path:
+                   time_scale: float = DEMO_TIME_SCALE, progress=None) -> Path:
     """Log sensor streams (e.g. ``analysis.virtual_truck.drive(...).sensors``: DataFrames with
     ``time_s`` and scalars) through the real daemon and the emulators; returns the MCAP path.
 
-    ``time_scale`` emulated seconds pass per real second (20: a 40-minute drive in 2 minutes).
+    ``time_scale`` emulated seconds pass per real second (40: a 38-minute drive in a minute), with
+    the rates of `compressed_config` (the GPS at the rate of the ``gps`` stream's fixes);
+    ``progress`` as in `record_drive`.
     """
     from .signals import from_streams
-    return record_drive(from_streams(streams), out_dir, duration_s, time_scale, compressed_config(time_scale))
+    config = compressed_config(time_scale, stream_rate_hz(streams, "gps"))
+    return record_drive(from_streams(streams), out_dir, duration_s, time_scale, config, progress=progress)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from typing import Mapping
 
 import numpy as np
@@ -20,6 +21,7 @@ class TimeSeries:
         if "time_s" not in columns:
             raise ValueError("emulator signals need a time_s column")
         self.time_s = np.asarray(columns["time_s"], dtype=float)
+        self._times = self.time_s.tolist()  # bisect on a list: a lookup per frame, no NumPy call
         self.columns = {k: np.asarray(v) for k, v in columns.items() if k != "time_s"}
         if "speed_mps" in self.columns and "wheel_speed_kmh" not in self.columns:
             self.columns["wheel_speed_kmh"] = self.columns["speed_mps"] * 3.6
@@ -34,8 +36,8 @@ class TimeSeries:
         return any(a in self.columns for a in ALIASES.get(name, (name,)))
 
     def index(self, t_s: float) -> int:
-        i = int(np.searchsorted(self.time_s, self.time_s[0] + t_s, side="right")) - 1
-        return min(max(i, 0), len(self.time_s) - 1)
+        i = bisect_right(self._times, self._times[0] + t_s) - 1
+        return min(max(i, 0), len(self._times) - 1)
 
     def value(self, name: str, t_s: float, default=None):
         for alias in ALIASES.get(name, (name,)):
@@ -78,6 +80,16 @@ def from_streams(streams: Mapping[str, object], step_s: float = 0.01) -> dict[st
         if name not in tables and np.isscalar(value):
             columns.setdefault(name, np.full(columns["time_s"].size, float(value)))
     return columns
+
+
+def stream_rate_hz(streams: Mapping[str, object], name: str) -> float | None:
+    """The median sample rate of table ``name`` in ``streams`` (``time_s`` [s]), or None [Hz]."""
+    table = streams.get(name)
+    if table is None or not _has_time(table):
+        return None
+    steps = np.diff(np.asarray(table["time_s"], dtype=float))
+    steps = steps[steps > 0]
+    return float(1.0 / np.median(steps)) if steps.size else None
 
 
 def _has_time(table) -> bool:

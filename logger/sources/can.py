@@ -24,6 +24,7 @@ from haulprofile import contract
 from haulprofile.contract import j1939, obd
 from ..clock import WALL_CLOCK_JUMP_NS
 from ..config import CanSection
+from ..diagnostics import worth_saying
 from .base import Source
 from .can_protocols import J1939Requester, ObdPoller
 
@@ -111,7 +112,7 @@ class TxGuard:
         except (can.CanError, OSError) as exc:
             self.errors += 1
             self.failing += 1
-            if self.failing in (1, 100, 10000):
+            if worth_saying(self.failing):
                 self._say(f"can: send failed: {exc!r} ({self.failing} in a row); receiving goes on")
             return False
         if self.failing:

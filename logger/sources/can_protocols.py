@@ -10,6 +10,7 @@ import collections
 
 from haulprofile.contract import j1939, obd
 from ..config import J1939Section, ObdSection
+from ..diagnostics import ordinal, worth_saying
 
 
 class ObdPoller:
@@ -20,7 +21,10 @@ class ObdPoller:
     event loop nothing. One request at a time: the next goes out at its slot once the last one
     was answered or ``timeout_s`` passed. After ``failed_rounds_before_probe`` rounds without any
     answer the poller stops loading the bus and sends one probe every ``probe_interval_s`` until
-    an ECU answers again.
+    an ECU answers again. Going to probing and back is said by the diagnostics policy
+    (`..diagnostics.SAID_AT`): the first time, then the 100th…; ``give_ups`` counts them all, so
+    answers that come and go (a loaded gateway, a time-compressed emulator) are one line, not one
+    per spell.
     """
 
     def __init__(self, source, section: ObdSection):
@@ -34,6 +38,9 @@ class ObdPoller:
         self.responses = 0
         self.timeouts = 0
         self.probing = False
+        self.give_ups = 0
+        """Times the poller went from polling to probing (a whole round without an answer)."""
+        self._said_give_up = False
         self._answered: collections.deque = collections.deque()
         self._outstanding: int | None = None
         self._sent_ns = 0
@@ -46,7 +53,8 @@ class ObdPoller:
 
     def stats(self) -> dict:
         return {"obd_requests": self.requests, "obd_responses": self.responses, "obd_timeouts": self.timeouts,
-                "obd_state": "probing (no ECU answers OBD-II)" if self.probing else "polling"}
+                "obd_state": "probing (no ECU answers OBD-II)" if self.probing else "polling",
+                "obd_give_ups": self.give_ups}
 
     def on_response(self, arbitration_id: int, payload: bytes) -> None:
         """A reassembled response from any ECU."""
@@ -88,7 +96,8 @@ class ObdPoller:
         if self.probing:
             if fate == "answered":
                 self.probing = False
-                self.source.say("an ECU answers OBD-II again: polling resumed")
+                if self._said_give_up:  # the answer to a line that was said
+                    self.source.say("an ECU answers OBD-II again: polling resumed")
                 self._slot_ns = now_ns
             elif now_ns < self._slot_ns:
                 return self._slot_ns
@@ -98,8 +107,12 @@ class ObdPoller:
                 return now_ns + self._timeout_ns
         elif self._consecutive_timeouts >= self._give_up_after:
             self.probing = True
-            self.source.say(f"no ECU answered {self._consecutive_timeouts} OBD-II requests: "
-                            f"probing every {self.section.probe_interval_s:g} s instead of polling")
+            self.give_ups += 1
+            self._said_give_up = worth_saying(self.give_ups)
+            if self._said_give_up:
+                again = "" if self.give_ups == 1 else f" (the {ordinal(self.give_ups)} time: answers come and go)"
+                self.source.say(f"no ECU answered {self._consecutive_timeouts} OBD-II requests{again}: "
+                                f"probing every {self.section.probe_interval_s:g} s instead of polling")
             self._slot_ns = now_ns
             return self.tick(now_ns)
         if now_ns < self._slot_ns:

@@ -14,6 +14,7 @@ from typing import Protocol
 
 from haulprofile import contract
 from ...clock import Clock
+from ...diagnostics import worth_saying
 from ..base import Source
 
 AUTO_INCREMENT = 0x80
@@ -233,7 +234,7 @@ class I2cBusSource(Source):
             if error is not None:
                 self.stats.errors += 1
                 sensor["errors"] += 1
-                if sensor["errors"] in (1, 100, 10000):
+                if worth_saying(sensor["errors"]):
                     self.say(f"{name}: I2C error {error} ({sensor['errors']} so far)")
             if event == "lost":
                 sensor["state"] = "lost"
