@@ -204,10 +204,26 @@ def _block_covariance(normal, free_idx, n_seg, seg, block, weights, residual, in
     meat = scores.T @ scores * n_blocks / max(n_blocks - p, 1)
     if extra_meat is not None:
         meat = meat + extra_meat[np.ix_(free_idx, free_idx)]
-    inverse = np.linalg.inv(normal)
+    inverse = _inverse_or_nan(normal)
     cov = np.full((n_p, n_p), np.nan)
     cov[np.ix_(free_idx, free_idx)] = inverse @ meat @ inverse.T
     return cov
+
+
+def _inverse_or_nan(normal: np.ndarray) -> np.ndarray:
+    """The inverse of a normal matrix; where it is singular (a segment or coefficient without a
+    single informative sample: its row is zero), the pseudo-inverse with that parameter's rows and
+    columns NaN, so that it is reported as unknown rather than known exactly (the quick accuracy
+    matrix raised here on a gps+can drive)."""
+    try:
+        return np.linalg.inv(normal)
+    except np.linalg.LinAlgError:
+        inverse = np.linalg.pinv(normal)
+        scale = np.max(np.abs(np.diag(normal))) if normal.size else 0.0
+        empty = np.abs(np.diag(normal)) <= 1e-12 * max(scale, 1e-300)
+        inverse[empty, :] = np.nan
+        inverse[:, empty] = np.nan
+        return inverse
 
 
 def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, settings: JointSettings = JointSettings(),
@@ -294,7 +310,9 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     cov = _block_covariance(normal, np.flatnonzero(free), m, seg, block, weights, residual, row, theta, c, q, ex,
                             extra_meat=noise_var * np.diag(precision))
     scale = np.sqrt(np.abs(np.diag(normal)))
-    condition = float(np.linalg.cond(normal / np.outer(scale, scale)))
+    informative = scale > 0  # a segment without a single usable sample has an empty row
+    condition = float(np.linalg.cond(normal[np.ix_(informative, informative)]
+                                     / np.outer(scale[informative], scale[informative])))
     reasons = {}
     for index, name in ((m, COEFFICIENTS[0]), (m + 1, COEFFICIENTS[1])):
         std = float(np.sqrt(cov[index, index]))
