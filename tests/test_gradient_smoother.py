@@ -144,3 +144,51 @@ def test_barometer_step_at_a_standstill_does_not_become_a_grade():
         errors[marked] = float(np.sqrt(np.mean((result.gradient[200:400] - gamma[200:400]) ** 2)))
     assert errors[True] < 0.001
     assert errors[False] > 3 * errors[True]
+
+
+def _blower_offset_m(n, dt_s, rng, size_m=5.0):
+    """The barometric offset of a cab whose ventilation changes level every 3-15 minutes while
+    driving (0..size_m of height, first-order lag 3 s), as `virtual_truck.sensor_errors` makes it."""
+    time_s = np.cumsum(dt_s)
+    level = np.zeros(n)
+    at = 0.0
+    while at < time_s[-1]:
+        step = rng.uniform(180.0, 900.0)
+        level[(time_s >= at) & (time_s < at + step)] = rng.uniform(0.0, size_m)
+        at += step
+    out = np.empty(n)
+    state = level[0]
+    for k in range(n):
+        state += (level[k] - state) * min(dt_s[k] / 3.0, 1.0)
+        out[k] = state
+    return out
+
+
+@pytest.mark.parametrize("seed_block", range(2))
+def test_sigma_covers_a_barometer_that_drifts_while_driving(seed_block):
+    """The cab's overpressure steps while driving (ventilation levels up to 80 Pa, 6.7 m) and the
+    IMU warms up (0.1 m/s² over half an hour): the stated ±2σ of the gradient must hold the true
+    gradient in about 95 % of the bins over many drives (at least 90 %, not above 99.5 %). Without
+    the offset's random walk and the bias walk chosen from the data the steps went into the height
+    with a sigma that knew nothing of them: 80 % here, 72 % on the harsh urban drive."""
+    inside, total = 0, 0
+    for seed in range(10 * seed_block, 10 * seed_block + 10):
+        rng = np.random.default_rng(seed)
+        n, spacing = 1500, 10.0
+        s = np.arange(n) * spacing
+        gamma = sum(rng.uniform(0.005, 0.02) * np.sin(s / rng.uniform(300, 2000) + rng.uniform(0, 6)) for _ in range(3))
+        h = 200 + np.concatenate([[0.0], np.cumsum(gamma[1:] * spacing)])
+        dt = spacing / rng.uniform(8.0, 20.0, n)
+        z = np.full((n, kalman.N_MEASUREMENTS), np.nan)
+        time_s = np.cumsum(dt)
+        z[:, kalman.BARO] = h + 30 + _blower_offset_m(n, dt, rng, 6.7) + rng.normal(0, 0.05, n)
+        warm_up = 0.1 * (1 - np.exp(-time_s / 1800.0))
+        z[:, kalman.IMU] = 9.80665 * gamma / np.sqrt(1 + gamma ** 2) + 0.2 + warm_up + rng.normal(0, 0.03, n)
+        z[:, kalman.GPS] = h + rng.normal(0, 3.0, n)
+        m = Measurements(z=z, count=np.ones((n, kalman.N_MEASUREMENTS)), h_acc_m=np.full(n, 2.0),
+                         v_acc_m=np.full(n, 3.0), dt_s=dt, spacing_m=spacing)
+        result = GradientSmoother(m).estimate()
+        inside += int(np.sum(np.abs(result.gradient - gamma) <= 2 * result.gradient_std))
+        total += n
+    share = inside / total
+    assert 0.90 <= share <= 0.995, share

@@ -381,8 +381,14 @@ def test_the_mass_panel_names_its_lines_and_draws_the_band():
 def test_the_route_map_is_drawn_over_the_dem_and_marks_the_gated_stretch(report_dir):
     route = _Page((report_dir / "report.html").read_text()).chapter("The route")
     gradient = json.loads((report_dir / "summary.json").read_text())["gradient"]
-    assert route["kpis"]["map gated out"] == f"{gradient['smoother']['map_gated_km']:.2f} km" or \
-        abs(float(route["kpis"]["map gated out"].split()[0]) - gradient["smoother"]["map_gated_km"]) < 0.05
+    # whether the smoother gates anything on this ideal drive is the data's call (since the noise
+    # levels are chosen jointly by likelihood, issue 26, it gates nothing here; its tunnel error
+    # stays 0.02 %-pt on the quick matrix); the chapter must say what the summary says either way
+    if gradient["smoother"]["map_gated_km"] > 0:
+        assert route["kpis"]["map gated out"] == f"{gradient['smoother']['map_gated_km']:.2f} km" or \
+            abs(float(route["kpis"]["map gated out"].split()[0]) - gradient["smoother"]["map_gated_km"]) < 0.05
+    else:
+        assert "map gated out" not in route["kpis"]
     text = (report_dir / "report.html").read_text()
     chapter = text[text.index("The route</h2>"):text.index("</section>", text.index("The route</h2>"))]
     assert "hillshade of the run" in chapter and chapter.count("data:image/png") == 1

@@ -68,7 +68,13 @@ def segment_masses_kg(frame: pd.DataFrame, vehicle) -> tuple[np.ndarray, np.ndar
     mass, sigma = np.full(len(frame), np.nan), np.full(len(frame), np.nan)
     for segment in result.segments:
         value, std = segment.get("mass_kg"), segment.get("mass_uncertainty_kg")
-        if value is None and segment.get("mass_joint_status") == "uncertain":
+        if value is None and segment.get("status") == "ok" and segment.get("mass_ls_kg") is not None and \
+                "force balance does not hold" not in segment.get("mass_joint_reason", ""):
+            # the LS of (9) where the joint fit is only uncertain: `mass_kg` no longer reports
+            # it (not confident), but here it is a better first guess than the joint value (on
+            # the matrix's urban gps+can drives: 0.46 against 1.08 %-pt)
+            value, std = segment["mass_ls_kg"], segment.get("uncertainty_kg")
+        elif value is None and segment.get("mass_joint_status") == "uncertain":
             regressor = segment.get("mass_regressor", "gradient")
             value, std = segment.get(f"mass_{regressor}_kg"), segment.get(f"mass_{regressor}_uncertainty_kg")
         if value is not None and np.isfinite(value):
@@ -88,12 +94,16 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     if "accel_x_mps2" in frame.columns and frame["accel_x_mps2"].notna().any():
         raise UserError("gradient: the log has an accelerometer (accel_x_mps2); the force balance is for logs without")
     try:
-        gradient = estimate_gradient(frame, dem, settings).samples["gradient_pct"]
+        samples = estimate_gradient(frame, dem, settings).samples
+        gradient = samples["gradient_pct"]
+        # the first pass's stated sigma goes into its masses' uncertainty (`mass._with_gradient_std`)
+        gradient_std = (samples["gradient_smooth_std_pct"] if settings.gradient_method == "smoother"
+                        else np.full(len(frame), np.nan))
     except UserError:
         if mass_kg is None:
             raise
-        gradient = np.zeros(len(frame))
-    first = frame.assign(gradient_pct=np.nan_to_num(gradient))
+        gradient, gradient_std = np.zeros(len(frame)), np.full(len(frame), np.nan)
+    first = frame.assign(gradient_pct=np.nan_to_num(gradient), gradient_std_pct=np.asarray(gradient_std, dtype=float))
     if mass_kg is None:
         mass, mass_sigma = segment_masses_kg(first, vehicle)
         relative = mass_sigma / mass
@@ -111,6 +121,7 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
     if mass_kg is None:
         result.samples["gradient_mass_pct"] = np.asarray(gradient, dtype=float)
+        result.samples["gradient_mass_std_pct"] = np.asarray(gradient_std, dtype=float)
     result.notes = [n for n in result.notes if "IMU carries the gradient" not in n]
     result.notes.append(f"no IMU: the force balance (engine torque, gears, wheel speed, {source}) stands in for "
                         f"the accelerometer on {100 * np.isfinite(virtual).mean():.0f} % of the samples; a mass or "

@@ -22,6 +22,9 @@ CHI2_MEDIAN_1DOF = 0.454936
 KNOWN_BIAS_MPS2 = 0.05
 """An accelerometer bias known to this [m/s²] (0.3 %-pt of gradient) needs no height source."""
 SOURCE_NAMES = ("baro", "map", "imu", "gps")
+IMU_LED_AXES = ()
+"""What the likelihood still chooses after the IMU-led EM (`GradientSmoother._imu_led_noise`) has
+chosen the curvature and the IMU noise."""
 
 
 @dataclass(frozen=True)
@@ -39,7 +42,22 @@ class SmootherSettings:
     drift_rate_psd: float = 1e-8
     """Barometric drift-rate random walk [m²/s³]: a 1 hPa/h front building up over an hour."""
     bias_psd: float = 1e-8
-    """IMU bias random walk [(m/s²)²/s]: temperature drift of a few mm/s² per hour."""
+    """IMU bias random walk [(m/s²)²/s], the floor: temperature drift of a few mm/s² per hour.
+    A faster walk is chosen per drive by likelihood among ``bias_psd_candidates``."""
+    bias_psd_candidates: tuple[float, ...] = (1e-8, 1e-7, 1e-6, 1e-5)
+    """The warm-up of a cab-mounted IMU (0.5-1.5 mg/K over 15 K in half an hour) walks by
+    ~1e-6 (m/s²)²/s; 1e-5 is a bias that changes by a few cm/s² within minutes."""
+    offset_psd: float | None = None
+    """Random walk of the barometric offset d while driving [m²/s] (the cab's overpressure follows
+    the ventilation's level and the airflow; a weather front is the drift rate). None: chosen per
+    drive by the likelihood of all sources' innovations among ``offset_psd_candidates``."""
+    offset_psd_candidates: tuple[float, ...] = (0.0, 1e-5, 1e-4, 1e-3, 1e-2)
+    imu_noise_factors: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0, 4.0)
+    """Factors on the IMU noise estimated from its residual, searched with the walks."""
+    likelihood_rounds: int = 3
+    """Rounds of the coordinate ascent over the noise levels (`GradientSmoother._noise_by_likelihood`)."""
+    """0: the barometer's offset only drifts smoothly (front) and steps at standstills; 1e-3 m²/s
+    is 2.5 m of cab-pressure change (30 Pa) in an hour's ~6 blower steps."""
     gps_sigma_factor: float = 3.0
     """GPS altitude sigma = factor * v_acc: its errors are correlated over tens of seconds, so it is
     taken weakly."""
@@ -176,9 +194,12 @@ class GradientSmoother:
         self.dem_correlation_m = 300.0
         self.gated = np.zeros(n, bool)
         self.curvature_psd = settings.curvature_psd or 3e-7
+        self.offset_psd = settings.offset_psd or 0.0
+        self.bias_psd = settings.bias_psd
+        self.imu_noise_factor = 1.0
 
     def _params(self):
-        return np.array([self.m.spacing_m, self.curvature_psd, self.s.drift_rate_psd, self.s.bias_psd,
+        return np.array([self.m.spacing_m, self.curvature_psd, self.s.drift_rate_psd, self.bias_psd,
                          self.dem_sigma_m, self.dem_correlation_m, G_MPS2])
 
     def _prior(self, z):
@@ -204,10 +225,12 @@ class GradientSmoother:
         return kalman.smooth(z, r, self.m.dt_s, self._steps(), self._params(), x0, p0, backward)
 
     def _steps(self):
-        """Extra process variance per grid point: the barometric offset's step at a standstill,
-        on the way into the grid point after the standstill's."""
+        """Extra process variance per grid point: the barometric offset's random walk while
+        driving (offset_psd dt), and its step at a standstill on the way into the grid point
+        after the standstill's."""
         n = len(self.m.dt_s)
         step = np.zeros((n, kalman.N_STATES))
+        step[:, kalman.DRIFT] = self.offset_psd * self.m.dt_s
         if self.m.stopped is not None:
             after = np.zeros(n, bool)
             after[1:] = self.m.stopped[:-1]
@@ -233,6 +256,7 @@ class GradientSmoother:
             have[kalman.GPS] or s.imu_bias_prior_sigma_mps2 <= KNOWN_BIAS_MPS2)
         if imu_led:
             self._imu_led_noise(r, imu_scale)
+            self._noise_by_likelihood(r, have, IMU_LED_AXES)
             x, _, _, _ = self.run(r, use=(True, False, True, True))
             reference = x[:, kalman.H]
         elif have[kalman.BARO] or have[kalman.IMU]:
@@ -249,6 +273,8 @@ class GradientSmoother:
                 var = _residual_var(residual / np.sqrt(imu_scale))
                 if np.isfinite(var):
                     r[:, kalman.IMU] = max(var, 1e-6) * imu_scale
+            if self._noise_by_likelihood(r, have):
+                x, _, _, _ = self.run(r, use=(True, False, True, True))
             reference = x[:, kalman.H] if (have[kalman.BARO] or have[kalman.GPS]) else None
         if have[kalman.DEM]:
             self._dem_model(reference)
@@ -264,7 +290,9 @@ class GradientSmoother:
             drift_m=x[:, kalman.DRIFT], imu_bias_mps2=x[:, kalman.BIAS],
             imu_bias_std_mps2=np.sqrt(p[:, kalman.BIAS, kalman.BIAS]), dem_error_m=x[:, kalman.DEM_ERROR],
             map_gated=self.gated.copy(), weights=weights,
-            noise={"curvature_psd": self.curvature_psd, "baro_sigma_m": float(np.sqrt(np.nanmedian(r[:, kalman.BARO]))) if have[kalman.BARO] else None,
+            noise={"curvature_psd": self.curvature_psd, "offset_psd": self.offset_psd if have[kalman.BARO] else None,
+                   "bias_psd": self.bias_psd if have[kalman.IMU] else None,
+                   "baro_sigma_m": float(np.sqrt(np.nanmedian(r[:, kalman.BARO]))) if have[kalman.BARO] else None,
                    "imu_sigma_mps2": float(np.sqrt(np.nanmedian(r[:, kalman.IMU]))) if have[kalman.IMU] else None,
                    "dem_sigma_m": self.dem_sigma_m if have[kalman.DEM] else None,
                    "dem_correlation_m": self.dem_correlation_m if have[kalman.DEM] else None},
@@ -336,6 +364,61 @@ class GradientSmoother:
         noise = float(np.sqrt(np.nanmedian(best_r)))
         self.notes.append(f"no barometer: the IMU carries the gradient (noise {noise:.3f} m/s² "
                           f"per bin, estimated with the profile), its bias and mounting pitch {tied}")
+
+    def _log_likelihood(self, r) -> float:
+        """Gaussian log-likelihood of all sources' forward innovations, -1/2 sum(log S + nu²/S)."""
+        _, _, nu, var = self.run(r, backward=False)
+        return float(-0.5 * np.nansum(np.log(var) + nu ** 2 / var))
+
+    def _noise_by_likelihood(self, r, have, names=("curvature_psd", "offset_psd", "bias_psd", "imu_noise_factor")) -> bool:
+        """Maximum likelihood of the map-free innovations (barometer, IMU, GPS) over the noise
+        levels the data cannot give one at a time, by coordinate ascent over candidate grids: the
+        road's curvature PSD, the barometric offset's random walk while driving, the IMU bias's
+        walk and a factor on the IMU noise. Each was chosen on its own before (curvature by the
+        IMU's prediction error, IMU noise from its residual, the walks fixed at 0 and 1e-8); the
+        three interact: an unmodelled cab-pressure change while driving went into the height, made
+        the IMU look noisy against it and the road stiffer than it is, and the stated sigma was
+        several times too small (harsh: 72 % of the bins inside ±2σ). Returns whether anything
+        changed."""
+        axes = []
+        if self.s.curvature_psd is None:
+            axes.append(("curvature_psd", self.s.curvature_candidates))
+        if have[kalman.BARO] and self.s.offset_psd is None:
+            axes.append(("offset_psd", self.s.offset_psd_candidates))
+        if have[kalman.IMU] and self.s.bias_psd_candidates:
+            axes.append(("bias_psd", tuple(c for c in self.s.bias_psd_candidates if c >= self.s.bias_psd)))
+            axes.append(("imu_noise_factor", self.s.imu_noise_factors))
+        axes = [(name, candidates) for name, candidates in axes if name in names]
+        if not axes:
+            return False
+        imu = r[:, kalman.IMU].copy()
+        self.imu_noise_factor = 1.0
+        use = (True, False, True, True)
+
+        def likelihood():
+            r[:, kalman.IMU] = imu * self.imu_noise_factor
+            _, _, nu, var = self.run(r, use=use, backward=False)
+            return float(-0.5 * np.nansum(np.log(var) + nu ** 2 / var))
+
+        start = {name: getattr(self, name) for name, _ in axes}
+        best_ll = likelihood()
+        for _ in range(self.s.likelihood_rounds):
+            moved = False
+            for name, candidates in axes:
+                for candidate in candidates:
+                    if candidate == getattr(self, name):
+                        continue
+                    kept = getattr(self, name)
+                    setattr(self, name, candidate)
+                    ll = likelihood()
+                    if ll > best_ll + 1e-6:
+                        best_ll, moved = ll, True
+                    else:
+                        setattr(self, name, kept)
+            if not moved:
+                break
+        r[:, kalman.IMU] = imu * self.imu_noise_factor
+        return any(getattr(self, name) != value for name, value in start.items())
 
     def _most_likely_curvature(self, r):
         """The curvature PSD among the candidates with the largest likelihood of the map-free

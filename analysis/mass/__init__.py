@@ -65,8 +65,10 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     IMU, `gradient.force_balance`), the gradient stage also writes ``gradient_mass_pct``, the
     estimate without it, and the mass is fitted on that: on its own force-balance gradient any
     mass fits its torque, and would look confident."""
+    frame = _with_gradient_std(frame)
     if "gradient_mass_pct" in frame.columns and frame["gradient_mass_pct"].notna().any():
-        frame = frame.assign(gradient_pct=frame["gradient_mass_pct"])
+        std = frame["gradient_mass_std_pct"] if "gradient_mass_std_pct" in frame.columns else np.nan
+        frame = frame.assign(gradient_pct=frame["gradient_mass_pct"], gradient_std_pct=std)
     regression = build_regression(frame, vehicle, filter_settings)
     time_s = frame["time_s"].to_numpy(dtype=float)
     speed = frame["speed_mps"].to_numpy(dtype=float)
@@ -108,6 +110,20 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
                               offset)
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint)
+
+
+def _with_gradient_std(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with ``gradient_std_pct``, the stated 1-sigma of its ``gradient_pct`` [%-pt]: the
+    smoother's ``gradient_smooth_std_pct`` where ``gradient_pct`` is the smoother's gradient, else
+    NaN (the paper's fusion, the barometer, the map and a gradient given from outside state none)."""
+    if "gradient_std_pct" in frame.columns:
+        return frame
+    std = np.nan
+    if {"gradient_pct", "gradient_smooth_pct", "gradient_smooth_std_pct"} <= set(frame.columns):
+        same = np.array_equal(frame["gradient_pct"].to_numpy(dtype=float),
+                              frame["gradient_smooth_pct"].to_numpy(dtype=float), equal_nan=True)
+        std = frame["gradient_smooth_std_pct"] if same else np.nan
+    return frame.assign(gradient_std_pct=std)
 
 
 def regressor_bias_kg(fit: JointFit, regressor_std, bounds) -> np.ndarray:
@@ -174,8 +190,14 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
     chosen = fits.get("imu", fits["gradient"])
     gradient_bias = G_MPS2 * np.sin(np.arctan(segment_settings.gradient_bias_pct / 100))
     for name, fit in fits.items():
-        regressor_std = (np.nan_to_num(regression.excess_imu_std, nan=0.0) if name == "imu" and
-                         regression.excess_imu_std is not None else np.full(len(time_s), gradient_bias))
+        if name == "imu" and regression.excess_imu_std is not None:
+            regressor_std = np.nan_to_num(regression.excess_imu_std, nan=0.0)
+        elif regression.excess_gradient_std is not None:
+            # the gradient's own stated sigma, taken as fully correlated over the segment (its
+            # errors are correlated over hundreds of metres; conservative over shorter scales)
+            regressor_std = np.nan_to_num(regression.excess_gradient_std, nan=gradient_bias)
+        else:
+            regressor_std = np.full(len(time_s), gradient_bias)
         fit.sensitivity_kg = np.hypot(fit.sensitivity_kg, regressor_bias_kg(fit, regressor_std, bounds))
     gain_uncertainty = float(np.hypot(settings.torque_gain_uncertainty, settings.driveline_efficiency_uncertainty))
     results = {}
@@ -205,8 +227,15 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         if status == "ok":
             segment["mass_kg"], segment["mass_uncertainty_kg"] = float(mass), float(sigma)
             columns["mass_kg"][start:end] = mass
-        elif segment["status"] == "ok" and not broken:
-            segment["mass_kg"], segment["mass_uncertainty_kg"] = segment["mass_ls_kg"], segment["uncertainty_kg"]
+        elif segment["status"] == "ok" and status == "no_excitation":
+            # the LS of (9) only where the joint fit had too few samples to say anything; where
+            # it found the segment uncertain, the LS (no wind, no torque offset, the datasheet
+            # road load) is not more certain, it only ignores what the joint fit saw (harsh
+            # urban: +25.6 % inside a stated 4.6 %). Its uncertainty gets the gain's term too.
+            ls = segment["mass_ls_kg"] / gain["gain"]
+            segment["mass_kg"] = ls
+            segment["mass_uncertainty_kg"] = float(np.hypot(segment["uncertainty_kg"] / gain["gain"],
+                                                            ls * gain["relative_std"]))
         else:
             segment["mass_kg"] = segment["mass_uncertainty_kg"] = None
     if chosen.outliers:

@@ -317,7 +317,9 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     cov = _block_covariance(normal, np.flatnonzero(free), m, seg, block, weights, residual, row, theta, c, q, ex,
                             extra_meat=noise_var * np.diag(precision))
     scale = np.sqrt(np.abs(np.diag(normal)))
-    condition = float(np.linalg.cond(normal / np.outer(scale, scale)))
+    informative = scale > 0  # a segment without a single usable sample has an empty row
+    condition = float(np.linalg.cond(normal[np.ix_(informative, informative)]
+                                     / np.outer(scale[informative], scale[informative])))
     reasons = {}
     for index, name in ((m, COEFFICIENTS[0]), (m + 1, COEFFICIENTS[1])):
         std = float(np.sqrt(cov[index, index]))

@@ -64,6 +64,9 @@ class Regression:
     """The data filter where the accelerometer regressor is finite too."""
     excess_imu_std: np.ndarray | None = None
     """1-sigma of the IMU bias calibration [m/s²] (a systematic regressor error)."""
+    excess_gradient_std: np.ndarray | None = None
+    """1-sigma of g sin(alpha) from the gradient's own stated sigma [m/s²] (`gradient_std_pct`),
+    None where the gradient states none."""
 
 
 def _centred_mean(values: np.ndarray, window: int) -> np.ndarray:
@@ -163,4 +166,13 @@ def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = Fi
                       force=_centred_mean(wheel_force, window), aero_per_cda=0.5 * road_load.AIR_DENSITY_KGPM3 * speed ** 2,
                       cos_angle=cos_angle, excess_gradient=accel + road_load.G_MPS2 * np.sin(road_load.road_angle_rad(gradient)),
                       excess_imu=excess_imu, usable_imu=usable_imu,
-                      excess_imu_std=bias_std if excess_imu is not None else None)
+                      excess_imu_std=bias_std if excess_imu is not None else None,
+                      excess_gradient_std=gradient_regressor_std_mps2(_column(frame, "gradient_std_pct")))
+
+
+def gradient_regressor_std_mps2(gradient_std_pct) -> np.ndarray | None:
+    """1-sigma [m/s²] of the regressor term g sin(alpha) from the gradient's 1-sigma [%-points]:
+    g · sigma/100 (d sin(atan x)/dx <= 1); None without a stated sigma."""
+    if gradient_std_pct is None or not np.isfinite(gradient_std_pct).any():
+        return None
+    return road_load.G_MPS2 * np.asarray(gradient_std_pct, dtype=float) / 100.0

@@ -148,7 +148,7 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
     from haulprofile.analysis.mass import estimate_mass
     frame = signals.assign(gradient_pct=signals[column])
     if column != METHODS["smoother"] and "gradient_mass_pct" in frame.columns:
-        frame = frame.drop(columns=["gradient_mass_pct"])
+        frame = frame.drop(columns=[c for c in ("gradient_mass_pct", "gradient_mass_std_pct") if c in frame.columns])
     result = estimate_mass(frame, vehicle)
     out = {key: [] for key in MASS_KEYS} | {"mass_kg_within_2_sigma": [], "mass_kg_weighed": [],
                                            "mass_kg_weighed_within_2_sigma": []}
