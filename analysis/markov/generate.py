@@ -108,10 +108,52 @@ def plain_index(row_ptr, free_end, cum_count, s, rng):
 
 
 @numba.njit(cache=True)
+def _draw(row_ptr, dest, count, cum_count, free_end, steps_to_stop, reach_max, weight, s, r_after, update,
+          remaining, rng):
+    """Transition out of ``s`` with ``r_after`` seconds left after it, drawn from the remaining
+    counts with ``update`` and steered to a stop where the ending says so (`walk`'s slow path)."""
+    a = row_ptr[s]
+    free = is_free(s, r_after, reach_max, weight)
+    b = free_end[s] if free else steered_end(row_ptr, free_end, s, r_after, weight)
+    if not update:
+        j = steered_index(count, a, b, dest, r_after, steps_to_stop, weight, rng)
+        return j if j >= 0 else plain_index(row_ptr, free_end, cum_count, s, rng)
+    total = 0
+    for j in range(a, b):
+        total += remaining[j]
+    if total == 0:
+        for j in range(a, b):
+            remaining[j] = count[j]
+            total += count[j]
+    if free:
+        u = uniform(rng) * total
+        acc = 0
+        j = a
+        while j < b - 1:
+            acc += remaining[j]
+            if acc > u:
+                break
+            j += 1
+    else:
+        j = steered_index(remaining, a, b, dest, r_after, steps_to_stop, weight, rng)
+        if j < 0:
+            for i in range(a, b):
+                remaining[i] = count[i]
+            j = steered_index(remaining, a, b, dest, r_after, steps_to_stop, weight, rng)
+        if j < 0:
+            j = plain_index(row_ptr, free_end, cum_count, s, rng)
+    if remaining[j] > 0:
+        remaining[j] -= 1
+    return j
+
+
+@numba.njit(cache=True)
 def walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, index, update, remaining, touched,
           path, free_end, steps_to_stop, reach_max, weight):
     """One candidate: states ``path[0..n-1]`` from a start state, one transition per second,
-    ending at a stop (`ending.Ending`: ``free_end``, ``steps_to_stop``, ``reach_max``, ``weight``)."""
+    ending at a stop (`ending.Ending`: ``free_end``, ``steps_to_stop``, ``reach_max``, ``weight``).
+    The plain draw is written out here: a call per second that passes arrays costs their
+    reference counts (four times the walk's time)."""
     rng = np.empty(1, np.uint64)
     rng[0] = mix(np.uint64(seed) ^ mix(np.uint64(index) + GOLDEN))
     u = uniform(rng) * start_cum[-1]
@@ -121,47 +163,42 @@ def walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, index, u
     s = start_state[j]
     path[0] = s
     n = path.shape[0]
+    window = weight.shape[0]
     n_touched = 0
     for k in range(1, n):
-        a = row_ptr[s]
         r_after = n - 1 - k
-        free = is_free(s, r_after, reach_max, weight)
-        b = free_end[s] if free else steered_end(row_ptr, free_end, s, r_after, weight)
-        if update:
-            total = 0
-            for j in range(a, b):
-                total += remaining[j]
-            if total == 0:
-                for j in range(a, b):
-                    remaining[j] = count[j]
-                    total += count[j]
-            if free:
+        if not update and r_after >= window and reach_max[s] <= r_after:
+            a = row_ptr[s]
+            b = free_end[s]
+            u = uniform(rng) * cum_count[b - 1]
+            j = a
+            while j < b - 1 and cum_count[j] <= u:
+                j += 1
+        elif not update and r_after < window:
+            a = row_ptr[s]
+            b = row_ptr[s + 1]
+            total = 0.0
+            for i in range(a, b):
+                total += count[i] * weight[r_after, dest[i]]
+            j = -1
+            if total > 0.0:
                 u = uniform(rng) * total
-                acc = 0
-                j = a
-                while j < b - 1:
-                    acc += remaining[j]
-                    if acc > u:
-                        break
-                    j += 1
-            else:
-                j = steered_index(remaining, a, b, dest, r_after, steps_to_stop, weight, rng)
-                if j < 0:
-                    for i in range(a, b):
-                        remaining[i] = count[i]
-                    j = steered_index(remaining, a, b, dest, r_after, steps_to_stop, weight, rng)
-                if j < 0:
-                    j = plain_index(row_ptr, free_end, cum_count, s, rng)
-            if remaining[j] > 0:
-                remaining[j] -= 1
-            touched[n_touched] = j
-            n_touched += 1
-        elif free:
-            j = plain_index(row_ptr, free_end, cum_count, s, rng)
-        else:
-            j = steered_index(count, a, b, dest, r_after, steps_to_stop, weight, rng)
+                acc = 0.0
+                for i in range(a, b):
+                    w = count[i] * weight[r_after, dest[i]]
+                    acc += w
+                    if w > 0.0:
+                        j = i
+                        if acc > u:
+                            break
             if j < 0:
                 j = plain_index(row_ptr, free_end, cum_count, s, rng)
+        else:
+            j = _draw(row_ptr, dest, count, cum_count, free_end, steps_to_stop, reach_max, weight, s, r_after,
+                      update, remaining, rng)
+            if update:
+                touched[n_touched] = j
+                n_touched += 1
         s = dest[j]
         path[k] = s
     for t in range(n_touched):

@@ -31,7 +31,8 @@ draw from there until the old walk's first window is met."""
 @numba.njit(cache=True)
 def _next_state(row_ptr, dest, count, cum_count, s, r_after, ending, rng):
     """The state after ``s`` with ``r_after`` seconds of the walk left after it, ending at a stop
-    as ``ending`` (`ending.Ending.as_tuple`) says; ``r_after`` < 0 past the walk's end."""
+    as ``ending`` (`ending.Ending.as_tuple`) says; ``r_after`` < 0 past the walk's end. The callers
+    write the plain draw out (a call per state that passes arrays costs their reference counts)."""
     free_end, steps_to_stop, reach_max, weight = ending
     if is_free(s, r_after, reach_max, weight):
         return dest[plain_index(row_ptr, free_end, cum_count, s, rng)]
@@ -57,9 +58,20 @@ def _continue(current, n, k, c, row_ptr, dest, count, cum_count, ending, rng, pr
         c += 1
         proposal[k] = current[c]
     s = proposal[min(k, n - 1)]
+    free_end, reach_max, window = ending[0], ending[2], ending[3].shape[0]
     while k < n - 1:
         k += 1
-        s = _next_state(row_ptr, dest, count, cum_count, s, n - 1 - k, ending, rng)
+        r_after = n - 1 - k
+        if r_after >= window and reach_max[s] <= r_after:
+            a = row_ptr[s]
+            b = free_end[s]
+            u = uniform(rng) * cum_count[b - 1]
+            j = a
+            while j < b - 1 and cum_count[j] <= u:
+                j += 1
+            s = dest[j]
+        else:
+            s = _next_state(row_ptr, dest, count, cum_count, s, r_after, ending, rng)
         proposal[k] = s
 
 
@@ -75,9 +87,20 @@ def _rejoin(current, n, first, last, k, s, row_ptr, dest, count, cum_count, endi
             mark[current[c]] = c
     hit = mark[s]
     j = 0
+    free_end, reach_max, window = ending[0], ending[2], ending[3].shape[0]
     while hit < 0 and j < limit:
         j += 1
-        s = _next_state(row_ptr, dest, count, cum_count, s, n - 1 - k - j, ending, rng)
+        r_after = n - 1 - k - j
+        if (r_after < 0 or (r_after >= window and reach_max[s] <= r_after)) and free_end[s] > row_ptr[s]:
+            a = row_ptr[s]
+            b = free_end[s]
+            u = uniform(rng) * cum_count[b - 1]
+            i = a
+            while i < b - 1 and cum_count[i] <= u:
+                i += 1
+            s = dest[i]
+        else:
+            s = _next_state(row_ptr, dest, count, cum_count, s, r_after, ending, rng)
         if k + j < proposal.shape[0]:
             proposal[k + j] = s
         hit = mark[s]
