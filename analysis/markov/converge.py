@@ -129,10 +129,10 @@ def _starts(chain, counts, duration_s, seed, update_counts, objective, target, n
     if target is None:
         return order[:n_chains]
     shortlist = order[:SHORTLIST * n_chains]
-    whole = np.array([refine(chain, counts, run_batch(chain, duration_s, 1, seed, int(i), update_counts,
-                                                        keep_paths=True, ending=ending)[1][0], target, 0, seed, 0,
-                             ending=ending)[2]
-                      for i in shortlist])
+    whole = np.array(_side_by_side(lambda i: refine(chain, counts, run_batch(chain, duration_s, 1, seed, int(i),
+                                                                          update_counts, keep_paths=True,
+                                                                          ending=ending)[1][0],
+                                                    target, 0, seed, 0, ending=ending)[2], list(shortlist)))
     return shortlist[np.argsort(whole, kind="stable")[:n_chains]]
 
 
