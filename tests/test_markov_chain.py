@@ -46,9 +46,9 @@ def test_pruning_removes_dead_ends_and_a_stop_never_left():
     assert np.all(np.diff(chain.row_ptr) > 0)
     assert chain.transitions_left_out == 7
     assert chain.keys[chain.start_state].tolist() == [s]
-    free = generate(chain, 300, 5, seed=0, end_at_stop=False).paths
+    free = generate(chain, 600, 5, seed=0, end_at_stop=False).paths
     assert set(chain.keys[free].ravel().tolist()) == {s, a, b}
-    paths = generate(chain, 300, 5, seed=0).paths
+    paths = generate(chain, 600, 5, seed=0).paths
     parked = chain.keys[paths] == p
     assert parked[:, -1].all() and np.all(np.diff(parked.astype(int), axis=1) >= 0), "parked only at the end"
     assert set(chain.keys[paths[~parked]].tolist()) == {s, a, b}

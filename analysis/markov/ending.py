@@ -39,8 +39,9 @@ class Ending:
     ``reach_max[s]``: the largest of those over the states ``s`` leads to on its way (a draw from
     ``s`` with at least that many seconds left, before the window, is unconstrained);
     ``weight[r, j]``: ``h_r(j)``, the probability that the chain from ``j`` stands still ``r``
-    seconds later, for ``r`` below the window (`WINDOW_S`, or the farthest state's steps to a stop
-    where that is more; rows scaled by their largest value, only ratios within a row matter)."""
+    seconds later, for ``r`` below the window (`WINDOW_S`; not longer, since conditioning a whole
+    short walk on ending at a stop keeps it standing at its first stop; rows scaled by their
+    largest value, only ratios within a row matter)."""
 
     free_end: np.ndarray
     steps_to_stop: np.ndarray
@@ -99,8 +100,7 @@ def ending_for(chain: Chain, n_steps: int, window_s: int = WINDOW_S) -> Ending:
     total = np.add.reduceat(chain.count, chain.row_ptr[:-1]).astype(float)
     transition = csr_matrix((chain.count / total[rows], chain.dest, chain.row_ptr),
                             shape=(chain.n_states, chain.n_states))
-    farthest = int(steps[steps < UNREACHABLE].max())
-    window = int(max(min(max(window_s, farthest + 1), n_steps - 1), 0))
+    window = int(max(min(window_s, n_steps - 1), 0))
     weight = np.empty((window, chain.n_states))
     if window:
         weight[0] = target

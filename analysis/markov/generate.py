@@ -27,7 +27,7 @@ from .. import kinematics
 from ..errors import UserError
 from .chain import Chain, build_chain
 from .counting import TransitionCounts
-from .ending import Ending, ending_for, free_ending
+from .ending import WINDOW_S, Ending, ending_for, free_ending
 
 GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 MIX1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -274,9 +274,17 @@ def _check_seed(seed: int) -> int:
     return int(seed)
 
 
+SHORTEST_ENDING_S = 4 * WINDOW_S
+"""Shortest cycle [s] that ends at a stop: conditioning a short walk's last 120 s on a stop keeps
+walks of short logs standing at their first stop throughout (300 s cycles of a CAN-only log)."""
+
+
 def walk_ending(chain: Chain, duration_s: float, end_at_stop: bool = True) -> Ending:
-    """How walks of ``duration_s`` [s] through ``chain`` end: at a stop (`ending`), or anywhere."""
-    return ending_for(chain, _steps(duration_s)) if end_at_stop else free_ending(chain)
+    """How walks of ``duration_s`` [s] through ``chain`` end: at a stop (`ending`; cycles of at
+    least `SHORTEST_ENDING_S`), or anywhere."""
+    if end_at_stop and duration_s >= SHORTEST_ENDING_S:
+        return ending_for(chain, _steps(duration_s))
+    return free_ending(chain)
 
 
 def run_batch(chain: Chain, duration_s: float, n_candidates: int, seed: int, first_index: int = 0,
