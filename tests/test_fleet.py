@@ -13,7 +13,10 @@ from haulprofile.analysis.fleet import (FleetSpec, LoadBins, SparseHistogram, lo
 from haulprofile.testing.fleet import virtual_fleet
 from haulprofile.analysis.loads import loads_of, resample_mean
 from haulprofile.analysis.loads.collectives import damage_equivalent_range, rainflow_cycles
-from haulprofile.analysis.markov import count_transitions, select_cycle
+from haulprofile.analysis.fleet.cycle_target import load_target_of
+from haulprofile.analysis.markov import build_chain, count_transitions
+from haulprofile.analysis.markov.converge import select_refined
+from haulprofile.analysis.markov.load_criteria import LOAD_NAMES, load_target
 from haulprofile.testing.drives import synthetic_drive
 from haulprofile.analysis.vehicle import load_vehicle
 
@@ -59,6 +62,22 @@ def test_log_statistics_hold_the_loads_reference_values():
     assert np.array_equal(stats.counts.count, counts.count) and np.array_equal(stats.counts.to_key, counts.to_key)
     distance_km = (signals["distance_m"].iloc[-1] - signals["distance_m"].iloc[0]) / 1000
     assert stats.totals["distance_km"] == pytest.approx(distance_km, rel=2e-3)
+
+
+def test_load_target_of_a_one_log_fleet_is_the_runs_load_target():
+    """The refined selection's load target from the additive statistics alone equals the one the
+    run's cycle stage takes from the drive's signals: exactly where a sum carries it, within a bin of
+    the fine power histogram for the power levels."""
+    signals = drive_signals(2, 2400.0)
+    stats = log_statistics("a", signals, {}, VEHICLE)
+    chain = build_chain(stats.counts)
+    fleet, run = load_target_of(stats, VEHICLE, chain), load_target(signals, VEHICLE, chain)
+    exact = [i for i, name in enumerate(LOAD_NAMES) if "power_exceeded" not in name]
+    np.testing.assert_allclose(fleet.measured[exact], run.measured[exact], rtol=1e-6)
+    power = [i for i, name in enumerate(LOAD_NAMES) if "power_exceeded" in name]
+    assert np.all(np.abs(fleet.measured[power] - run.measured[power]) <= LoadBins().power_level_w)
+    np.testing.assert_allclose(fleet.resistance_n, run.resistance_n)
+    assert fleet.residence_share.sum() == pytest.approx(1.0)
 
 
 def test_sum_of_logs_is_the_sum_of_their_statistics_in_path_order():
@@ -121,8 +140,11 @@ def test_serial_run_writes_each_group(serial_run):
             assert (out / group.name / name).is_file(), name
         counts = read_counts(out / group.name / "counts.npz")
         assert np.array_equal(counts.count, group.statistics.counts.count)
-        again = select_cycle(counts, 600.0, 300, 5)
+        chain = build_chain(counts)
+        target = load_target_of(group.statistics, VEHICLE, chain)
+        again = select_refined(counts, 600.0, 5, chain, target, VEHICLE, n_pool=300)[0]
         pd.testing.assert_frame_equal(again.cycle, group.cycle)
+        assert group.selection["method"] == "refined" and "load_criteria" in group.selection
     assert (out / "fleet-summary.json").is_file()
     assert fleet.groups[0].statistics.mass_segments, "the MCAP logs went through the mass stage"
 

@@ -41,12 +41,17 @@ def test_pruning_removes_dead_ends_and_a_stop_never_left():
     counts = TransitionCounts(WIDTHS, np.array([s, a, b, b, a, p]), np.array([a, b, s, dead, p, p]),
                               np.array([1, 1, 1, 1, 1, 5]), start_key=np.array([s]), start_count=np.array([1]))
     chain = build_chain(counts)
-    assert sorted(chain.keys.tolist()) == sorted([s, a, b])
+    assert set(chain.keys[chain.dest[chain.drawn]].tolist()) == {s, a, b}
+    assert sorted(chain.keys.tolist()) == sorted([s, a, b, p]), "the parking only as the walks' ending"
     assert np.all(np.diff(chain.row_ptr) > 0)
     assert chain.transitions_left_out == 7
     assert chain.keys[chain.start_state].tolist() == [s]
-    paths = generate(chain, 300, 5, seed=0).paths
-    assert set(chain.keys[paths].ravel().tolist()) == {s, a, b}
+    free = generate(chain, 600, 5, seed=0, end_at_stop=False).paths
+    assert set(chain.keys[free].ravel().tolist()) == {s, a, b}
+    paths = generate(chain, 600, 5, seed=0).paths
+    parked = chain.keys[paths] == p
+    assert parked[:, -1].all() and np.all(np.diff(parked.astype(int), axis=1) >= 0), "parked only at the end"
+    assert set(chain.keys[paths[~parked]].tolist()) == {s, a, b}
 
 
 def test_one_way_drive_keeps_its_start_and_drops_its_censored_final_stop():
@@ -59,8 +64,10 @@ def test_one_way_drive_keeps_its_start_and_drops_its_censored_final_stop():
     chain = build_chain(counts)
     assert counts.n_closed == 0
     final_stop = cls.encode([0], [-4], [150])[0]
-    assert final_stop in counts.to_key and final_stop not in chain.keys
+    assert final_stop in counts.to_key and final_stop not in chain.keys[chain.dest[chain.drawn]]
     start = cls.encode([0], [2], [150])[0]
     assert chain.keys[chain.start_state].tolist() == [start]
-    candidate = generate(chain, 1800, 1, seed=0).frame(0)
-    assert candidate["speed_mps"].iloc[-600:].min() > 0
+    for end_at_stop in (False, True):
+        candidate = generate(chain, 1800, 1, seed=0, end_at_stop=end_at_stop)
+        assert candidate.frame(0)["speed_mps"].iloc[-600:-120].min() > 0
+    assert chain.keys[candidate.paths[0, -1]] == final_stop, "the drive's own end: its final stop"

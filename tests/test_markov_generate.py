@@ -6,7 +6,8 @@ import pytest
 from haulprofile.analysis.markov import TransitionCounts, build_chain, count_transitions, generate
 from haulprofile.analysis.markov import classes as cls
 from haulprofile.analysis.markov.counting import physically_possible
-from haulprofile.analysis.markov.generate import path_statistics, walk, path_statistics_reference, run_batch
+from haulprofile.analysis.markov.ending import ending_for
+from haulprofile.analysis.markov.generate import path_statistics, walk, path_statistics_reference, run_batch, walk_ending
 from haulprofile.testing.drives import synthetic_drive
 
 
@@ -26,7 +27,8 @@ def _walk_both(chain, seed, index, n, update):
         path = np.empty(n, np.int64)
         with np.errstate(over="ignore"):
             kernel(chain.row_ptr, chain.dest, chain.count, chain.cum_count, chain.start_state, chain.start_cum,
-                   seed, index, update, chain.count.copy(), np.empty(n, np.int64), path)
+                   seed, index, update, chain.count.copy(), np.empty(n, np.int64), path,
+                   *ending_for(chain, n).as_tuple())
         paths.append(path)
     return paths
 
@@ -147,7 +149,8 @@ def test_batch_kernel_equals_its_python_reference(chain, update):
         paths = np.empty((4, 301), np.int64)
         with np.errstate(over="ignore"):
             kernel(chain.row_ptr, chain.dest, chain.count, chain.cum_count, chain.start_state, chain.start_cum,
-                   chain.speed_mps, chain.gradient_pct, chain.mass_kg, 11, 2, 301, update, stats, paths)
+                   chain.speed_mps, chain.gradient_pct, chain.mass_kg, 11, 2, 301, update, stats, paths,
+                   *walk_ending(chain, 300).as_tuple())
         results.append((stats, paths))
     np.testing.assert_array_equal(results[0][1], results[1][1])
     np.testing.assert_allclose(results[0][0], results[1][0], rtol=1e-12)

@@ -46,13 +46,22 @@ def _key(cycle: pd.DataFrame) -> str:
     return hashlib.sha256(values.tobytes()).hexdigest()[:16]
 
 
-def test_paper_selection_gives_the_same_cycle_as_before_the_refined_default(counts):
-    """Golden values printed by the paper's selection before the refined one was added."""
-    selection = select_cycle(counts, 900, 3000, seed=7)
-    assert selection.index == 238 and selection.n_valid == 4 and selection.n_valid_without_mass == 23
-    assert selection.criteria.score == pytest.approx(0.25471944702773514, rel=1e-12)
-    assert float(np.median(selection.all_scores)) == pytest.approx(1.0435447772890725, rel=1e-12)
-    assert _key(selection.cycle) == "586b3422dde47ab0" and len(selection.cycle) == 901
+# (end at a stop, candidate index, valid, valid without mass, S, median S, cycle hash). Free endings:
+# printed by the paper's selection before the refined one was added (walks ending at a stop draw the
+# same until the ending first steers them). Ending at a stop: printed when walks began to (issue 27).
+GOLDEN = [(False, 238, 4, 23, 0.25471944702773514, 1.0435447772890725, "586b3422dde47ab0"),
+          (True, 2548, 5, 24, 0.23978199826069402, 1.0455218399300348, "661ac06f8fb3bc0d")]
+
+
+@pytest.mark.parametrize("end_at_stop, index, n_valid, n_valid_without_mass, score, median, key", GOLDEN)
+def test_paper_selection_gives_the_golden_cycle(counts, end_at_stop, index, n_valid, n_valid_without_mass, score,
+                                                median, key):
+    selection = select_cycle(counts, 900, 3000, seed=7, end_at_stop=end_at_stop)
+    assert (selection.index, selection.n_valid, selection.n_valid_without_mass) == (index, n_valid,
+                                                                                   n_valid_without_mass)
+    assert selection.criteria.score == pytest.approx(score, rel=1e-12)
+    assert float(np.median(selection.all_scores)) == pytest.approx(median, rel=1e-12)
+    assert _key(selection.cycle) == key and len(selection.cycle) == 901
     assert selection.method == "paper"
 
 
@@ -166,8 +175,8 @@ def test_cli_paper_selection_writes_the_golden_cycle(drive, tmp_path):
     code = main(["cycle", str(tmp_path / "drive.parquet"), "--selection", "paper", "--candidates", "3000",
                  "--duration", "900", "--seed", "7", "--out", str(tmp_path / "paper"), "--quiet"])
     summary = json.loads((tmp_path / "paper" / "cycle.json").read_text())
-    assert code == 0 and summary["method"] == "paper" and summary["candidate_index"] == 238
-    assert _key(pd.read_csv(tmp_path / "paper" / "cycle.csv")) == "586b3422dde47ab0"
+    assert code == 0 and summary["method"] == "paper" and summary["candidate_index"] == GOLDEN[1][1]
+    assert _key(pd.read_csv(tmp_path / "paper" / "cycle.csv")) == GOLDEN[1][6]
 
 
 def test_stage_writes_a_cycle_set_with_loads_and_the_score_figure(drive, vehicle, tmp_path):
@@ -215,9 +224,55 @@ def test_refined_selection_on_threads_equals_one_thread(counts, target, vehicle,
     chain = build_chain(counts)
     run = lambda: select_refined(counts, 600, 3, chain, target, vehicle, n_cycles=2, n_pool=4500, n_moves=400)
     threaded = run()
-    monkeypatch.setattr(converge, "_side_by_side", lambda function, items: [function(i) for i in items])
+
+    def one_thread(function, items, each=None):
+        results = []
+        for i, item in enumerate(items):
+            results.append(function(item))
+            if each:
+                each(i, results[-1])
+        return results
+
+    monkeypatch.setattr(converge, "_side_by_side", one_thread)
     serial = run()
     assert [_key(s.cycle) for s in threaded] == [_key(s.cycle) for s in serial]
     assert [s.objective for s in threaded] == [s.objective for s in serial]
     assert all(np.array_equal(a.trace, b.trace) and np.array_equal(a.all_scores, b.all_scores)
                for a, b in zip(threaded, serial))
+
+
+def test_the_search_reports_its_progress_with_increasing_counts(counts, target, vehicle):
+    from haulprofile.analysis.markov.stage import progress_line
+
+    calls = []
+    selection = select_refined(counts, 600, 3, build_chain(counts), target, vehicle, n_pool=4500, n_moves=200,
+                               progress=lambda *call: calls.append(call))[0]
+    pool = [c for c in calls if c[0] == "pool"]
+    refined = [c for c in calls if c[0] == "refined"]
+    assert [c[1] for c in pool] == [2000, 4000, 4500] and all(c[2] == 4500 for c in pool)
+    assert pool[-1][3] == pytest.approx(selection.all_scores.min())
+    assert [c[1] for c in refined] == list(range(1, 15)) and all(c[2] == 14 for c in refined)
+    assert all(a[3] >= b[3] for a, b in zip(refined, refined[1:])), "the best objective only falls"
+    paper = []
+    select_cycle(counts, 300, 4100, seed=1, progress=lambda *call: paper.append(call))
+    assert [c[1] for c in paper] == [2000, 4000, 4100] and {c[0] for c in paper} == {"candidates"}
+    said = []
+    line = progress_line(said.append, every_s=0.0)
+    line("pool", 40_000, 100_000, 0.1234)
+    assert said == ["cycle: 40 000 / 100 000 pool walks, best score 0.123"]
+
+
+def test_the_cycle_stage_says_how_far_the_search_is(drive, vehicle, tmp_path, monkeypatch):
+    from haulprofile.analysis.markov import stage
+    from haulprofile.analysis.pipeline import RunContext, run_stage
+
+    monkeypatch.setattr(stage, "PROGRESS_EVERY_S", 0.0)
+    said = []
+    ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=vehicle, say=said.append,
+                     options={"cycle": {"n_candidates": 2500, "n_moves": 100, "duration_s": 300}})
+    ctx.signals = drive
+    run_stage(ctx, stage.STAGE)
+    lines = [line for line in said if " / " in line]
+    assert lines[:2] == [line for line in lines if "pool walks" in line][:2]
+    assert lines[0].startswith("cycle: 2 000 / 2 500 pool walks, best score ")
+    assert any(line.startswith("cycle: 14 / 14 walks refined, best objective ") for line in lines)

@@ -43,6 +43,24 @@ def test_best_cycle_is_valid_on_all_criteria_with_score_at_most_half(selections,
     assert len(selection.cycle) == 1801
 
 
+def test_the_demo_drives_cycle_and_every_candidate_end_at_a_stop(truths):
+    """regional-tunnel, seed 0, is `analyze demo`'s drive; before cycles ended at a stop, its best
+    cycle drove on at 29–34 km/h downhill to the end (the stretch before the drive's censored final
+    stop, which once entered never led to a stop again)."""
+    from haulprofile.analysis.markov.converge import select_refined
+    from haulprofile.analysis.markov.ending import stop_states
+
+    counts = count_transitions(truths["regional-tunnel"])
+    chain = build_chain(counts)
+    stops = stop_states(chain)
+    candidates = generate(chain, 1800, 3000, seed=0)
+    assert stops[candidates.paths[:, -1]].all() and np.all(chain.speed_mps[candidates.paths[:, -1]] == 0)
+    selection = select_refined(counts, 1800, 0, chain, n_pool=3000, n_moves=1200)[0]
+    speed = selection.cycle["speed_mps"].to_numpy()
+    assert speed[-1] == 0 and speed[-400:].max() > 0, "a final deceleration to standstill"
+    assert selection.cycle["gradient_pct"].min() == counts.statistics[1, 2], "the descent before the final stop"
+
+
 def test_the_scenarios_payload_changes_are_in_the_cycles(truths, selections):
     assert truths["urban-delivery"]["mass_kg"].nunique() > 3
     assert selections["urban-delivery"].cycle["mass_kg"].nunique() > 1

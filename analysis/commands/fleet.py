@@ -37,8 +37,8 @@ def add_arguments(parser) -> None:
                         help="run on an existing Dask distributed cluster, e.g. tcp://host:8786")
     parser.add_argument("--cycle-duration", "--duration", dest="cycle_duration", type=float, default=1800.0,
                         help="generated cycle length per group [s] (1800)")
-    parser.add_argument("--candidates", type=int, default=100_000,
-                        help="Monte Carlo candidates per group (100000, as analyze run)")
+    parser.add_argument("--candidates", type=int, default=None,
+                        help="Monte Carlo pool of each group's refined cycle selection (20000, as analyze run)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the cycle generation (0)")
     add_rate(parser)
     parser.add_argument("--known-mass", action="append", metavar="TRUCK:LOG:SEGMENT=KG",

@@ -162,7 +162,8 @@ def truck_section(group, energy: Energy | None) -> Section:
     elif group.selection:
         failed = group.selection.get("failed") or []
         section.paragraphs.append(
-            f"Cycle: the paper's Monte Carlo selection on the summed transitions of every log, score "
+            f"Cycle: the refined selection of analyze run (Monte Carlo walks refined towards the criteria and "
+            f"the truck's summed wheel loads, ending at a stop) on the summed transitions of every log, score "
             f"{group.selection['score']:.3f}, " + ("valid on every criterion." if group.selection["valid"] else
                                                  f"not valid on: {', '.join(labelled(n) for n in failed)}."))
     if _masses(group).size:

@@ -49,7 +49,8 @@ class FleetSpec:
     groups: list[Group]
     dem_dir: Path | None = None
     duration_s: float = 1800.0
-    n_candidates: int = 100_000
+    n_candidates: int | None = None
+    """Monte Carlo pool of each group's refined cycle selection (None: `analyze run`'s default)."""
     seed: int = 0
     widths: ClassWidths = field(default_factory=ClassWidths)
     bins: LoadBins = field(default_factory=LoadBins)
@@ -249,7 +250,7 @@ def run_fleet(spec: FleetSpec, out_dir: str | Path, workers: int | None = None, 
                            spec.options) for group in spec.groups]
         todo = [g for g in groups if g.statistics is not None]
         cycles = list(executor.map(group_cycle_job, [(g.name, g.statistics, spec.duration_s, spec.n_candidates,
-                                                      spec.seed) for g in todo]))
+                                                      spec.seed, g.vehicle) for g in todo]))
     finally:
         executor.close()
     for group, cycle in zip(todo, cycles):

@@ -27,7 +27,7 @@ from .histograms import SparseHistogram
 from .road_load import SegmentMoments
 
 STANDING_MPS = 0.1
-TOTALS = ("duration_s", "valid_s", "driving_s", "distance_km", "mass_known_s", "loads_s",
+TOTALS = ("duration_s", "valid_s", "driving_s", "distance_km", "mass_known_s", "loads_s", "loads_distance_km",
           "positive_wheel_energy_kwh", "negative_wheel_energy_kwh", "fuel_l", "fuel_logged_s", "rainflow_cycles")
 
 
@@ -45,6 +45,9 @@ class LoadBins:
     residence_torque_nm: float = WIDTHS["residence_torque_nm"]
     rainflow_nm: float = WIDTHS["rainflow_range_nm"]
     period_s: float = 1.0
+    power_level_w: float = 100.0
+    """Bins of the fine wheel power histogram the cycle selection's power levels come from
+    (`cycle_target`) **[choice: 100 W, a thousandth of a truck's power range]**."""
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -140,10 +143,13 @@ def load_histograms(signals: pd.DataFrame, vehicle: Vehicle, bins: LoadBins) -> 
         {"range_nm": cycles["range"], "mean_nm": cycles["mean"]},
         {"range_nm": bins.rainflow_nm, "mean_nm": bins.rainflow_nm}, cycles["count"])
     histograms["level_crossings_torque"] = crossing_histogram(torque, bins.wheel_torque_nm)
+    histograms["wheel_power_levels_s"] = SparseHistogram.of({"wheel_power_w": loads["wheel_power_w"]},
+                                                            {"wheel_power_w": bins.power_level_w}, durations)
     ranges, counts = cycles["range"].to_numpy(float), cycles["count"].to_numpy(float)
     damage = np.array([float(np.sum(counts * ranges ** k)) for k in WOEHLER_EXPONENTS])
     power = loads["wheel_power_w"].to_numpy()
     totals = {"loads_s": float(durations.sum()), "rainflow_cycles": float(counts.sum()),
+              "loads_distance_km": float(np.sum(loads["speed_mps"].to_numpy(float) * durations)) / 1000.0,
               "positive_wheel_energy_kwh": float(np.sum(np.clip(power, 0, None) * durations)) / 3.6e6,
               "negative_wheel_energy_kwh": float(np.sum(np.clip(power, None, 0) * durations)) / 3.6e6}
     return histograms, damage, totals

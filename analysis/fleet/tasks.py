@@ -13,10 +13,12 @@ import pandas as pd
 from haulprofile.contract.private_files import make_dirs
 
 from ..errors import UserError
-from ..markov import ClassWidths, select_cycle
+from ..markov import ClassWidths, build_chain
+from ..markov.stage import CycleOptions, select
 from ..mass.joint import JointSettings
 from ..pipeline import Options, RunContext, run as run_pipeline
 from ..vehicle import Vehicle
+from .cycle_target import load_target_of
 from .road_load import segment_moments
 from .statistics import FleetStatistics, LoadBins, log_statistics, sum_statistics
 
@@ -126,19 +128,24 @@ def reduce_group(results: list[LogResult]) -> FleetStatistics | None:
     return sum_statistics([r.statistics for r in done]) if done else None
 
 
-def group_cycle(group: str, statistics: FleetStatistics, duration_s: float, n_candidates: int,
-                seed: int) -> GroupCycle:
-    """`select_cycle` on the group's summed transition counts."""
+def group_cycle(group: str, statistics: FleetStatistics, duration_s: float, n_candidates: int | None,
+                seed: int, vehicle: Vehicle | None = None) -> GroupCycle:
+    """The cycle of the group's summed transition counts, selected as `analyze run` selects a
+    drive's (`markov.stage.select`, refined; with ``vehicle``, towards the group's summed wheel
+    loads, `cycle_target`); ``n_candidates`` the Monte Carlo pool (None: the run's default)."""
     if statistics.counts is None or len(statistics.counts) == 0:
         return GroupCycle(group, None, {}, "no transitions counted in any log (speed, gradient and mass are "
                                            "needed together; see the logs' notes)")
+    options = CycleOptions(duration_s=duration_s, n_candidates=n_candidates, seed=seed, widths=statistics.counts.widths)
     try:
-        selection = select_cycle(statistics.counts, duration_s, n_candidates, seed)
+        chain = build_chain(statistics.counts)
+        target = load_target_of(statistics, vehicle, chain) if vehicle is not None else None
+        selection = select(options, statistics.counts, chain, target, vehicle if target is not None else None)[0]
     except UserError as exc:
         return GroupCycle(group, None, {}, str(exc))
     return GroupCycle(group, selection.cycle, selection.as_dict())
 
 
 def group_cycle_job(job: tuple) -> GroupCycle:
-    """`group_cycle` of one (group, statistics, duration_s, n_candidates, seed) tuple."""
+    """`group_cycle` of one (group, statistics, duration_s, n_candidates, seed, vehicle) tuple."""
     return group_cycle(*job)

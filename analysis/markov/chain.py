@@ -6,6 +6,11 @@ sample of a log cut while driving), and a stop the data never left (the parking 
 one-way drive; the log ends, so how long the truck stood there is censored, and keeping it would
 make a stop that lasts for ever, which every walk that finds a shortcut to the route's end falls
 into). What remains lets a walk go on for any duration.
+
+The censored final stop and the way into it are kept apart, as *ending* transitions (last in their
+rows, after ``free_end``): a walk never draws them on its way, only when it ends (`ending`), so a
+cycle can end as a one-way drive ends, at its final stop, and the stretch before it (which leads
+only there) is part of cycles that end with it.
 """
 
 from __future__ import annotations
@@ -34,7 +39,8 @@ class Chain:
     starts in: **[choice]** the first second of a stop, weighted by how often the data arrived
     there or began a drive there, so a cycle opens with a whole stop of typical length (starting
     anywhere in a stop would favour long stops); without stops, any state by its occupancy. Class centres per state in ``speed_mps`` [m/s], ``gradient_pct``
-    [%], ``mass_kg`` [kg].
+    [%], ``mass_kg`` [kg]. ``row_ptr[s]:free_end[s]`` are the transitions a walk draws on its way,
+    ``free_end[s]:row_ptr[s+1]`` those only a walk's ending draws (into the censored final stop).
     """
 
     widths: cls.ClassWidths
@@ -50,6 +56,17 @@ class Chain:
     mass_kg: np.ndarray
     n_states_observed: int
     transitions_left_out: int
+    free_end: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.free_end is None:
+            self.free_end = self.row_ptr[1:].copy()
+
+    @property
+    def drawn(self) -> np.ndarray:
+        """Mask of the transitions a walk draws on its way (not only when it ends)."""
+        rows = np.repeat(np.arange(len(self.row_ptr) - 1), np.diff(self.row_ptr))
+        return np.arange(len(self.dest)) < self.free_end[rows]
 
     @property
     def n_states(self) -> int:
@@ -84,36 +101,65 @@ def _prune(src: np.ndarray, dst: np.ndarray, n: int, standstill: np.ndarray) -> 
         keep &= ~drop
 
 
+def _ending_only(src: np.ndarray, dst: np.ndarray, keep: np.ndarray, standstill: np.ndarray) -> np.ndarray:
+    """Mask of the pruned transitions on a way from a kept state into a pruned stop that lasted
+    (a standstill state with a transition to itself: a censored final stop)."""
+    n = len(standstill)
+    kept_state = np.zeros(n, bool)
+    kept_state[src[keep]] = True
+    dropped = ~keep
+    leads = np.zeros(n, bool)
+    leads[src[dropped & (src == dst) & standstill[src]]] = True
+    leads &= ~kept_state
+    while True:
+        more = dropped & leads[dst] & ~kept_state[src] & ~leads[src]
+        if not more.any():
+            break
+        leads[src[more]] = True
+    reached = kept_state.copy()
+    while True:
+        more = dropped & leads[dst] & reached[src] & ~reached[dst]
+        if not more.any():
+            return dropped & leads[dst] & reached[src]
+        reached[dst[more]] = True
+
+
 def build_chain(counts: TransitionCounts) -> Chain:
-    """Prune dead ends, choose start states, lay the rows out as CSR."""
+    """Prune dead ends, keep the ways into a censored final stop as endings, choose start states,
+    lay the rows out as CSR."""
     if len(counts) == 0:
         raise ChainError("no transitions counted: the data has fewer than two usable 1 Hz samples in a row")
     states = np.unique(np.concatenate([counts.from_key, counts.to_key]))
     src_all = np.searchsorted(states, counts.from_key)
     dst_all = np.searchsorted(states, counts.to_key)
-    keep = _prune(src_all, dst_all, len(states), cls.decode(states)[0] == 0)
+    standstill_all = cls.decode(states)[0] == 0
+    keep = _prune(src_all, dst_all, len(states), standstill_all)
     if not keep.any():
         raise ChainError("the data never returns to any state it visited: too few samples for a chain "
                          "at these class widths (use wider classes or more data)")
+    ending = _ending_only(src_all, dst_all, keep, standstill_all)
+    used = keep | ending
     kept_state = np.zeros(len(states), bool)
-    kept_state[src_all[keep]] = True
+    kept_state[src_all[used]] = True
+    kept_state[dst_all[ending]] = True
     new_id = np.cumsum(kept_state) - 1
-    s, d, c = new_id[src_all[keep]], new_id[dst_all[keep]], counts.count[keep]
-    order = np.lexsort((d, s))
-    s, d, c = s[order], d[order], c[order].astype(np.int64)
+    s, d, c, late = new_id[src_all[used]], new_id[dst_all[used]], counts.count[used], ending[used]
+    order = np.lexsort((d, late, s))
+    s, d, c, late = s[order], d[order], c[order].astype(np.int64), late[order]
     n = int(kept_state.sum())
     keys = states[kept_state]
     row_ptr = np.concatenate([[0], np.cumsum(np.bincount(s, minlength=n))]).astype(np.int64)
+    free_end = row_ptr[:-1] + np.bincount(s[~late], minlength=n)
     cum = np.cumsum(c)
     cum_count = cum - np.repeat(np.concatenate([[0], cum[row_ptr[1:-1] - 1]]), np.diff(row_ptr))
     speed, gradient, mass = cls.centres(keys, counts.widths)
     standstill = speed == 0
-    weight = np.bincount(d, weights=c * (~standstill[s] & standstill[d]), minlength=n)
+    weight = np.bincount(d, weights=c * (~standstill[s] & standstill[d] & ~late), minlength=n)
     known = np.isin(counts.start_key, keys)
     weight[np.searchsorted(keys, counts.start_key[known])] += counts.start_count[known]
     if not weight.any():
-        weight = np.bincount(s, weights=c, minlength=n)
+        weight = np.bincount(s, weights=c * ~late, minlength=n)
     start = np.flatnonzero(weight)
     return Chain(counts.widths, keys, row_ptr, d.astype(np.int64), c, cum_count.astype(np.int64),
                  start.astype(np.int64), np.cumsum(weight[start]).astype(np.int64),
-                 speed, gradient, mass, len(states), int(counts.count[~keep].sum()))
+                 speed, gradient, mass, len(states), int(counts.count[~keep].sum()), free_end.astype(np.int64))

@@ -16,7 +16,6 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserError
-from ..export.fastsim import write_fastsim_cycle
 from ..vecto import COLUMNS as VDRI_COLUMNS, MIN_STEP_M, write_vdri
 
 CSV_COLUMNS = ("time_s", "speed_mps", "accel_mps2", "gradient_pct", "mass_kg", "distance_m")
@@ -125,6 +124,8 @@ def _metre_steps(rows: list[tuple]) -> list[tuple]:
 def write_cycle(cycle: pd.DataFrame, out_dir: str | Path, stem: str = "cycle") -> dict[str, Path]:
     """Write ``<stem>.csv``, ``<stem>.parquet``, ``<stem>.vdri`` and the FASTSim 3 cycle
     ``<stem>.fastsim.csv`` into ``out_dir``."""
+    from ..export.fastsim import write_fastsim_cycle  # its package pulls in ingest: not on the selection's path
+
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     columns = [c for c in CSV_COLUMNS if c in cycle.columns]

@@ -104,6 +104,16 @@ def load_target(signals: pd.DataFrame, vehicle: Vehicle, chain: Chain) -> LoadTa
     """Measured load values of ``signals`` and the per-state forces of ``chain`` for ``vehicle``."""
     loads = measured_loads(signals, vehicle)
     values, share, edges = values_of(loads)
+    torque = loads["wheel_torque_nm"].to_numpy(float)
+    span = float(torque.max() - torque.min()) if len(torque) else 1.0
+    return target_of(values, share, edges["residence_speed_rpm"], edges["residence_torque_nm"], span, vehicle, chain)
+
+
+def target_of(values: np.ndarray, share: np.ndarray, speed_edges_rpm: np.ndarray, torque_edges_nm: np.ndarray,
+              torque_span_nm: float, vehicle: Vehicle, chain: Chain) -> LoadTarget:
+    """The target of measured `LOAD_NAMES` ``values`` and residence time shares ``share`` on
+    uniform bins (``speed_edges_rpm`` × ``torque_edges_nm``), for ``chain`` and ``vehicle``;
+    ``torque_span_nm`` the measured wheel torque's span [Nm] (a scale for the rainflow kernel)."""
     scale = np.abs(values)
     scale[1] = max(scale[1], 0.1 * abs(values[0]))
     power_span = values[-2] - values[-4]
@@ -112,10 +122,9 @@ def load_target(signals: pd.DataFrame, vehicle: Vehicle, chain: Chain) -> LoadTa
     scale = np.where(scale > 0, scale, 1.0)
     resistance = np.asarray(road_load.resistance_force_n(chain.speed_mps, chain.gradient_pct, chain.mass_kg,
                                                          vehicle), float)
-    torque = loads["wheel_torque_nm"].to_numpy(float)
-    span = float(torque.max() - torque.min()) if len(torque) else 1.0
     return LoadTarget(float(vehicle.wheel_radius_m), chain.speed_mps, chain.mass_kg, resistance, values, scale,
-                      edges["residence_speed_rpm"], edges["residence_torque_nm"], share, max(span, 1.0))
+                      np.asarray(speed_edges_rpm, float), np.asarray(torque_edges_nm, float), share,
+                      max(float(torque_span_nm), 1.0))
 
 
 def cycle_loads(cycle: pd.DataFrame, vehicle: Vehicle) -> pd.DataFrame:

@@ -6,7 +6,10 @@ walk goes on from there; or the walk's tail is drawn anew; or the walk starts in
 state and is drawn until it meets the old walk's first window. Every transition of the result is one
 of the chain's (the re-drawn part from its rows, the joins at equal states), so the result is
 still a walk of the measured transitions. A splice that shortens the walk is continued from its
-end by the chain, one that lengthens it is cut at the cycle's duration. A move is kept when the
+end by the chain, one that lengthens it is cut at the cycle's duration. Walks end at a stop
+(`ending`): every draw is steered as the generator's are, the old walk is followed only while it
+can still reach a stop by the end, and a proposal ending farther from a stop than the walk it
+would replace is not taken. A move is kept when the
 objective (`score_kernels.objective`, computed in two parts) falls; the kernel works on paths and statistics only.
 """
 
@@ -15,7 +18,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .generate import GOLDEN, mix, path_statistics, uniform
+from .generate import GOLDEN, is_free, mix, path_statistics, plain_index, steered_end, steered_index, uniform
 from .score_kernels import kinematic_objective, load_objective, path_loads
 
 TAIL_SHARE = 0.2
@@ -26,14 +29,16 @@ draw from there until the old walk's first window is met."""
 
 
 @numba.njit(cache=True)
-def _next_state(row_ptr, dest, cum_count, s, rng):
-    a = row_ptr[s]
-    b = row_ptr[s + 1]
-    u = uniform(rng) * cum_count[b - 1]
-    j = a
-    while j < b - 1 and cum_count[j] <= u:
-        j += 1
-    return dest[j]
+def _next_state(row_ptr, dest, count, cum_count, s, r_after, ending, rng):
+    """The state after ``s`` with ``r_after`` seconds of the walk left after it, ending at a stop
+    as ``ending`` (`ending.Ending.as_tuple`) says; ``r_after`` < 0 past the walk's end. The callers
+    write the plain draw out (a call per state that passes arrays costs their reference counts)."""
+    free_end, steps_to_stop, reach_max, weight = ending
+    if is_free(s, r_after, reach_max, weight):
+        return dest[plain_index(row_ptr, free_end, cum_count, s, rng)]
+    j = steered_index(count, row_ptr[s], steered_end(row_ptr, free_end, s, r_after, weight), dest, r_after,
+                      steps_to_stop, weight, rng)
+    return dest[j if j >= 0 else plain_index(row_ptr, free_end, cum_count, s, rng)]
 
 
 @numba.njit(cache=True)
@@ -44,22 +49,34 @@ def _kinematic_deviation(path, speed, gradient, mass, measured, scale, q_index, 
 
 
 @numba.njit(cache=True)
-def _continue(current, n, k, c, row_ptr, dest, cum_count, rng, proposal):
-    """``proposal[k]`` is ``current[c]``: go on with the old walk after ``c``, then with the chain,
-    up to ``n`` states."""
-    while k < n - 1 and c < n - 1:
+def _continue(current, n, k, c, row_ptr, dest, count, cum_count, ending, rng, proposal):
+    """``proposal[k]`` is ``current[c]``: go on with the old walk after ``c`` while it can still
+    reach a stop by the end, then with the chain, up to ``n`` states."""
+    steps_to_stop = ending[1]
+    while k < n - 1 and c < n - 1 and steps_to_stop[current[c + 1]] <= n - 2 - k:
         k += 1
         c += 1
         proposal[k] = current[c]
     s = proposal[min(k, n - 1)]
+    free_end, reach_max, window = ending[0], ending[2], ending[3].shape[0]
     while k < n - 1:
         k += 1
-        s = _next_state(row_ptr, dest, cum_count, s, rng)
+        r_after = n - 1 - k
+        if r_after >= window and reach_max[s] <= r_after:
+            a = row_ptr[s]
+            b = free_end[s]
+            u = uniform(rng) * cum_count[b - 1]
+            j = a
+            while j < b - 1 and cum_count[j] <= u:
+                j += 1
+            s = dest[j]
+        else:
+            s = _next_state(row_ptr, dest, count, cum_count, s, r_after, ending, rng)
         proposal[k] = s
 
 
 @numba.njit(cache=True)
-def _rejoin(current, n, first, last, k, s, row_ptr, dest, cum_count, rng, limit, mark, proposal):
+def _rejoin(current, n, first, last, k, s, row_ptr, dest, count, cum_count, ending, rng, limit, mark, proposal):
     """From state ``s`` at ``proposal[k]``, draw until a state of ``current[first..last]`` is met
     (within ``limit`` steps) and go on with the old walk from there; False if none is met."""
     if uniform(rng) < 0.5:
@@ -70,9 +87,20 @@ def _rejoin(current, n, first, last, k, s, row_ptr, dest, cum_count, rng, limit,
             mark[current[c]] = c
     hit = mark[s]
     j = 0
+    free_end, reach_max, window = ending[0], ending[2], ending[3].shape[0]
     while hit < 0 and j < limit:
         j += 1
-        s = _next_state(row_ptr, dest, cum_count, s, rng)
+        r_after = n - 1 - k - j
+        if (r_after < 0 or (r_after >= window and reach_max[s] <= r_after)) and free_end[s] > row_ptr[s]:
+            a = row_ptr[s]
+            b = free_end[s]
+            u = uniform(rng) * cum_count[b - 1]
+            i = a
+            while i < b - 1 and cum_count[i] <= u:
+                i += 1
+            s = dest[i]
+        else:
+            s = _next_state(row_ptr, dest, count, cum_count, s, r_after, ending, rng)
         if k + j < proposal.shape[0]:
             proposal[k + j] = s
         hit = mark[s]
@@ -80,12 +108,13 @@ def _rejoin(current, n, first, last, k, s, row_ptr, dest, cum_count, rng, limit,
         mark[current[c]] = -1
     if hit < 0:
         return False
-    _continue(current, n, k + j, hit, row_ptr, dest, cum_count, rng, proposal)
+    _continue(current, n, k + j, hit, row_ptr, dest, count, cum_count, ending, rng, proposal)
     return True
 
 
 @numba.njit(cache=True)
-def _propose(current, n, row_ptr, dest, cum_count, start_state, start_cum, max_window, mark, rng, proposal):
+def _propose(current, n, row_ptr, dest, count, cum_count, start_state, start_cum, ending, max_window, mark, rng,
+             proposal):
     """A re-drawn window, tail or head of ``current[:n]`` into ``proposal[:n]``; False if the
     re-drawn part found no way back into the walk."""
     move = uniform(rng)
@@ -96,23 +125,23 @@ def _propose(current, n, row_ptr, dest, cum_count, start_state, start_cum, max_w
         while j < start_cum.shape[0] - 1 and start_cum[j] <= u:
             j += 1
         proposal[0] = start_state[j]
-        return _rejoin(current, n, 0, min(window, n - 1), 0, start_state[j], row_ptr, dest, cum_count, rng,
-                       window + window // 2, mark, proposal)
+        return _rejoin(current, n, 0, min(window, n - 1), 0, start_state[j], row_ptr, dest, count, cum_count,
+                       ending, rng, window + window // 2, mark, proposal)
     if move < HEAD_SHARE + TAIL_SHARE:
         a = max(n - 2 - int(uniform(rng) * min(max_window, n - 1)), 0)
         for k in range(a + 1):
             proposal[k] = current[k]
-        _continue(current, n, a, n - 1, row_ptr, dest, cum_count, rng, proposal)
+        _continue(current, n, a, n - 1, row_ptr, dest, count, cum_count, ending, rng, proposal)
         return True
     a = int(uniform(rng) * (n - 1))
     for k in range(a + 1):
         proposal[k] = current[k]
-    return _rejoin(current, n, a + 1, min(a + window, n - 1), a, current[a], row_ptr, dest, cum_count, rng,
-                   window + window // 2, mark, proposal)
+    return _rejoin(current, n, a + 1, min(a + window, n - 1), a, current[a], row_ptr, dest, count, cum_count,
+                   ending, rng, window + window // 2, mark, proposal)
 
 
 @numba.njit(cache=True, nogil=True)
-def refine_walk(path, row_ptr, dest, cum_count, start_state, start_cum, speed, gradient, mass, measured, kin_scale, q_index, s_index,
+def refine_walk(path, row_ptr, dest, count, cum_count, start_state, start_cum, ending, speed, gradient, mass, measured, kin_scale, q_index, s_index,
                 kin_allowance, use_loads, resistance, radius, speed_edges, torque_edges, share, range_scale,
                 load_measured, load_scale, load_allowance, n_moves, max_window, temperature, seed, stream, trace):
     """Improve ``path`` in place over ``n_moves`` proposals; ``trace[m]`` the best objective after
@@ -147,7 +176,8 @@ def refine_walk(path, row_ptr, dest, cum_count, start_state, start_cum, speed, g
     cooling = 0.001 ** (1.0 / max(n_moves, 1))
     t = temperature
     for m in range(n_moves):
-        if _propose(walk, n, row_ptr, dest, cum_count, start_state, start_cum, max_window, mark, rng, proposal):
+        if (_propose(walk, n, row_ptr, dest, count, cum_count, start_state, start_cum, ending, max_window, mark,
+                     rng, proposal) and ending[1][proposal[n - 1]] <= ending[1][walk[n - 1]]):
             # taken if value < current + t·ln(1/u): Metropolis, exp(−Δ/t) > u
             threshold = current - t * np.log(1.0 - uniform(rng)) if t > 0 else current
             value = value_of(proposal[:n], threshold)

@@ -10,7 +10,7 @@ import pandas as pd
 from .chain import Chain, build_chain
 from .counting import TransitionCounts
 from .criteria import ALLOWANCE, IS_MASS, Criteria, deviations, evaluate, scores
-from .generate import cycle_frame, run_batch
+from .generate import cycle_frame, run_batch, walk_ending
 
 BATCH = 2000
 
@@ -63,26 +63,31 @@ class Selection:
 
 
 def select_cycle(counts: TransitionCounts, duration_s: float = 1800.0, n_candidates: int = 100_000,
-                 seed: int = 0, update_counts: bool = False, chain: Chain | None = None) -> Selection:
+                 seed: int = 0, update_counts: bool = False, chain: Chain | None = None, end_at_stop: bool = True,
+                 progress=None) -> Selection:
     """Generate ``n_candidates`` cycles of ``duration_s`` [s], score them (eq. (15)) and return the
     valid one with the lowest score S, or, if none is valid, the lowest-scoring one (its criteria
-    say which failed)."""
+    say which failed). Cycles end at a stop unless ``end_at_stop`` is off (`ending`);
+    ``progress("candidates", done, total, lowest S)`` after each batch."""
     chain = chain or build_chain(counts)
+    ending = walk_ending(chain, duration_s, end_at_stop)
     measured = counts.statistics
     all_scores = np.empty(n_candidates)
     valid = np.empty(n_candidates, bool)
     valid_without_mass = np.empty(n_candidates, bool)
     for first in range(0, n_candidates, BATCH):
         size = min(BATCH, n_candidates - first)
-        stats, _ = run_batch(chain, duration_s, size, seed, first, update_counts)
+        stats, _ = run_batch(chain, duration_s, size, seed, first, update_counts, ending=ending)
         deviation = deviations(stats, measured, counts.widths)
         all_scores[first:first + size] = scores(deviation)
         passed = deviation <= ALLOWANCE
         valid[first:first + size] = passed.all(axis=1)
         valid_without_mass[first:first + size] = passed[:, ~IS_MASS].all(axis=1)
+        if progress:
+            progress("candidates", first + size, n_candidates, float(all_scores[:first + size].min()))
     pool = np.flatnonzero(valid) if valid.any() else np.arange(n_candidates)
     best = int(pool[np.argmin(all_scores[pool])])
-    _, path = run_batch(chain, duration_s, 1, seed, best, update_counts, keep_paths=True)
+    _, path = run_batch(chain, duration_s, 1, seed, best, update_counts, keep_paths=True, ending=ending)
     cycle = cycle_frame(chain, path[0])
     return Selection(cycle, evaluate(cycle, counts), best, int(seed), n_candidates, int(valid.sum()),
                      int(valid_without_mass.sum()), all_scores, chain)

@@ -5,6 +5,7 @@ memory, `CycleResult`); `write_cycle_files` is its part of the output step (``cy
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -14,14 +15,15 @@ import pandas as pd
 from .. import signals as signals_table
 from ..errors import UserError
 from ..stage import Stage
-from .chain import build_chain
+from ..vehicle import Vehicle
+from .chain import Chain, build_chain
 from .chapter import TITLE, cycle_chapter
 from .classes import ClassWidths
-from .converge import MOVES, POOL, select_refined
+from .converge import MOVES, POOL, Progress, select_refined
 from .counting import NEEDED, TransitionCounts, count_transitions, resample_1hz
 from .export import write_cycle
 from .figure import plot_cycle, plot_scores
-from .load_criteria import load_target
+from .load_criteria import LoadTarget, load_target
 from .select import Selection, select_cycle
 
 SELECTIONS = ("refined", "paper")
@@ -98,8 +100,12 @@ MOVING_MPS = 0.5
 """A drive whose wheel speed never exceeds this [m/s] stood still: no cycle, said so."""
 
 
-def _select(ctx, options: CycleOptions, counts) -> list[Selection]:
-    """The selections, best first."""
+def select(options: CycleOptions, counts: TransitionCounts, chain: Chain | None = None,
+           target: LoadTarget | None = None, vehicle: Vehicle | None = None,
+           progress: Progress | None = None) -> list[Selection]:
+    """The selections of ``options.selection``, best first: the refined one (`converge`, with the
+    load criteria of ``target`` and ``vehicle`` when given) or the paper's. The one selection code
+    of `analyze run`'s cycle stage and of the fleet's groups; ``progress`` hears how far it is."""
     method = options.selection
     if method not in SELECTIONS:
         raise UserError(f"cycle selection must be one of {', '.join(SELECTIONS)}, got {method!r}")
@@ -112,16 +118,46 @@ def _select(ctx, options: CycleOptions, counts) -> list[Selection]:
         if n_cycles > 1:
             raise UserError("several cycles need the refined selection (the paper's selection keeps one)")
         return [select_cycle(counts, options.duration_s, int(options.n_candidates or PAPER_CANDIDATES),
-                             int(options.seed), bool(options.update_counts))]
-    chain = build_chain(counts)
-    target = None
-    if ctx.vehicle is not None:
-        target = load_target(ctx.signals, ctx.vehicle, chain)
-    else:
-        ctx.say("cycle: no vehicle file, so the wheel loads are not part of the score (give vehicle_file)")
-    return select_refined(counts, options.duration_s, int(options.seed), chain, target, ctx.vehicle,
+                             int(options.seed), bool(options.update_counts), chain, progress=progress)]
+    return select_refined(counts, options.duration_s, int(options.seed), chain, target, vehicle,
                           n_cycles, int(options.n_candidates or POOL), n_moves=int(options.n_moves),
-                          update_counts=bool(options.update_counts))
+                          update_counts=bool(options.update_counts), progress=progress)
+
+
+PROGRESS_EVERY_S = 2.0
+"""Least time between two progress lines of the cycle search [s]."""
+_PROGRESS_LABELS = {"pool": ("pool walks", "score"), "candidates": ("candidates", "score"),
+                    "refined": ("walks refined", "objective")}
+
+
+def progress_line(say, every_s: float | None = None) -> Progress:
+    """A `converge.Progress` that says "cycle: 8 000 / 20 000 pool walks, best score 0.351" at
+    most every ``every_s`` seconds (None: `PROGRESS_EVERY_S`)."""
+    every_s = PROGRESS_EVERY_S if every_s is None else every_s
+    last = [time.monotonic()]
+
+    def progress(what: str, done: int, total: int, best: float) -> None:
+        now = time.monotonic()
+        if now - last[0] < every_s:
+            return
+        last[0] = now
+        label, metric = _PROGRESS_LABELS.get(what, (what, "score"))
+        count = lambda x: f"{x:,}".replace(",", " ")
+        say(f"cycle: {count(done)} / {count(total)} {label}, best {metric} {best:.3f}")
+
+    return progress
+
+
+def _select(ctx, options: CycleOptions, counts) -> list[Selection]:
+    """The selections of the run, best first, with the load criteria of the measured drive when
+    the run has a vehicle."""
+    chain = build_chain(counts) if options.selection == "refined" else None
+    target = None
+    if chain is not None and ctx.vehicle is not None:
+        target = load_target(ctx.signals, ctx.vehicle, chain)
+    elif chain is not None:
+        ctx.say("cycle: no vehicle file, so the wheel loads are not part of the score (give vehicle_file)")
+    return select(options, counts, chain, target, ctx.vehicle, progress_line(ctx.say))
 
 
 def _spread(selections) -> dict:
