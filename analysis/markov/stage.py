@@ -114,14 +114,26 @@ def select(options: CycleOptions, counts: TransitionCounts, chain: Chain | None 
         raise UserError(f"number of cycles must be at least 1, got {n_cycles}")
     if options.n_candidates is not None and int(options.n_candidates) < 1:
         raise UserError(f"number of candidates must be at least 1, got {options.n_candidates}")
-    if method == "paper":
-        if n_cycles > 1:
-            raise UserError("several cycles need the refined selection (the paper's selection keeps one)")
-        return [select_cycle(counts, options.duration_s, int(options.n_candidates or PAPER_CANDIDATES),
-                             int(options.seed), bool(options.update_counts), chain, progress=progress)]
-    return select_refined(counts, options.duration_s, int(options.seed), chain, target, vehicle,
-                          n_cycles, int(options.n_candidates or POOL), n_moves=int(options.n_moves),
-                          update_counts=bool(options.update_counts), progress=progress)
+    if method == "paper" and n_cycles > 1:
+        raise UserError("several cycles need the refined selection (the paper's selection keeps one)")
+
+    def selections(end_at_stop: bool) -> list[Selection]:
+        if method == "paper":
+            return [select_cycle(counts, options.duration_s, int(options.n_candidates or PAPER_CANDIDATES),
+                                 int(options.seed), bool(options.update_counts), chain, end_at_stop=end_at_stop,
+                                 progress=progress)]
+        return select_refined(counts, options.duration_s, int(options.seed), chain, target, vehicle,
+                              n_cycles, int(options.n_candidates or POOL), n_moves=int(options.n_moves),
+                              update_counts=bool(options.update_counts), end_at_stop=end_at_stop,
+                              progress=progress)
+
+    chosen = selections(end_at_stop=True)
+    if not np.any(chosen[0].cycle["speed_mps"].to_numpy() > 0):
+        # a drive whose only way from its stops to its end runs through the final parking (allowed
+        # to a walk only in its ending) leaves no walk that moves and still ends at a stop: such a
+        # cycle ends where it ends rather than standing still throughout
+        chosen = selections(end_at_stop=False)
+    return chosen
 
 
 PROGRESS_EVERY_S = 2.0
