@@ -2,11 +2,24 @@
 
 from __future__ import annotations
 
+from mcap.reader import make_reader
+
+from haulprofile import contract
 from haulprofile.logger import cli
 from haulprofile.logger.config import Config
 from haulprofile.logger.emulators.rig import record_drive
 from haulprofile.logger.emulators.signals import synthetic_drive
 from haulprofile.logger.status import last_diagnostics
+
+
+def _just_after_the_first_diagnostics(path) -> int:
+    """A cut a few bytes into the record after the first chunk that holds `/diagnostics` (which
+    chunk that is depends on when the daemon's first second ended: half the file was a race)."""
+    with open(path, "rb") as stream:
+        summary = make_reader(stream).get_summary()
+    channel = next(c.id for c in summary.channels.values() if c.topic == contract.DIAGNOSTICS.name)
+    first = next(c for c in summary.chunk_indexes if channel in c.message_index_offsets)
+    return first.chunk_start_offset + first.chunk_length + first.message_index_length + 10
 
 
 def test_status_of_a_log_directory(tmp_path, capsys):
@@ -17,7 +30,7 @@ def test_status_of_a_log_directory(tmp_path, capsys):
     assert set(record["sources"]) == {"can", "i2c", "gps"}
     cut = tmp_path / "cut" / path.name
     cut.parent.mkdir()
-    cut.write_bytes(path.read_bytes()[: path.stat().st_size // 2])  # as the file being written
+    cut.write_bytes(path.read_bytes()[:_just_after_the_first_diagnostics(path)])  # as the file being written
     assert last_diagnostics(cut) is not None
     toml = tmp_path / "logger.toml"
     toml.write_text(f'[logger]\ndirectory = "{tmp_path / "logs"}"\n')
