@@ -232,10 +232,10 @@ class LogDirectory:
 
     def _still_linked_here(self) -> bool:
         try:
-            here, open_file = os.stat(self.path), os.fstat(self._stream.fileno())
+            fd = self._stream.fileno()
+            return self._same_file(self.path, fd) and os.fstat(fd).st_nlink > 0
         except OSError:
             return False
-        return (here.st_dev, here.st_ino) == (open_file.st_dev, open_file.st_ino) and open_file.st_nlink > 0
 
     @staticmethod
     def _copy_open_file(fd: int, target: Path) -> int:
