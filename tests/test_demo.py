@@ -46,7 +46,7 @@ def demo(tmp_path_factory):
     root = tmp_path_factory.mktemp("demo")
     (root / "short.toml").write_text(SCENARIO)
     code = main(["demo", "--out", str(root / "out"), "--scenario", str(root / "short.toml"), "--seed", "5",
-                 "--realism", "ideal", "--quiet"])
+                 "--realism", "ideal", "--design-population", "16", "--design-generations", "4", "--quiet"])
     return code, root / "out"
 
 

@@ -111,7 +111,8 @@ def test_signals_and_run_on_a_gps_only_drive(nmea_drive, tmp_path):
     assert main(["signals", str(path), "-o", str(tmp_path / "signals.parquet")]) == 0
     signals = pd.read_parquet(tmp_path / "signals.parquet")
     assert {"speed_mps", "latitude_deg", "gps_altitude_m"} <= set(signals.columns)
-    code = main(["run", str(path), "--vehicle", "rigid-18t", "--out", str(tmp_path / "run"), "--quiet"])
+    code = main(["run", str(path), "--vehicle", "rigid-18t", "--out", str(tmp_path / "run"), "--design-population", "16",
+                 "--design-generations", "4", "--quiet"])
     assert code in (0, 3)
     summary = pd.read_json(tmp_path / "run" / "summary.json", typ="series")
     assert summary["ingest"]["sources"]["speed_mps"]["source"] == "gps"

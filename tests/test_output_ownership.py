@@ -111,7 +111,7 @@ def test_demo_keeps_a_users_log_in_its_logs_folder(tmp_path):
     (out / "logs").mkdir(parents=True)
     (out / "logs" / "truck07.mcap").write_bytes(LOG)
     argv = ["demo", "--out", str(out), "--scenario", str(tmp_path / "short.toml"), "--realism", "ideal",
-            "--direct", "--quiet"]
+            "--direct", "--design-population", "8", "--design-generations", "2", "--quiet"]
     for seed in ("1", "2"):
         assert main(argv + ["--seed", seed]) in (0, 3)
     assert (out / "logs" / "truck07.mcap").read_bytes() == LOG
@@ -141,7 +141,7 @@ def test_demo_through_the_daemon_keeps_a_users_log(tmp_path, monkeypatch):
     (out / "logs").mkdir(parents=True)
     (out / "logs" / "truck07.mcap").write_bytes(LOG)
     assert main(["demo", "--out", str(out), "--scenario", str(tmp_path / "short.toml"), "--realism", "ideal",
-                 "--quiet"]) in (0, 3)
+                 "--no-warmup", "--design-population", "8", "--design-generations", "2", "--quiet"]) in (0, 3)
     assert (out / "logs" / "truck07.mcap").read_bytes() == LOG
 
 

@@ -12,6 +12,9 @@ from haulprofile.analysis.cli import main
 from haulprofile.analysis.vehicle import load_vehicle
 from haulprofile.analysis.virtual_truck import drive, load_scenario, write_dem, write_mcap
 
+SMALL_DESIGN = ["--design-population", "16", "--design-generations", "4"]
+"""A concept search of 64 candidates: what these tests check does not depend on its size."""
+
 
 @pytest.fixture(scope="module")
 def demo_inputs(tmp_path_factory):
@@ -33,7 +36,7 @@ def run_cli(capsys, *argv):
 def first_run(demo_inputs, tmp_path_factory):
     out = tmp_path_factory.mktemp("out") / "run"  # made by the run
     code = main(["run", str(demo_inputs / "logs"), "--vehicle", "rigid-18t", "--dem", str(demo_inputs / "dem"),
-                 "--out", str(out), "--candidates", "1000", "--quiet"])
+                 "--out", str(out), "--candidates", "1000", *SMALL_DESIGN, "--quiet"])
     return code, out
 
 
@@ -60,7 +63,7 @@ def test_run_writes_every_output(first_run):
 def test_rerun_with_one_changed_option_reruns_only_what_depends_on_it(first_run, demo_inputs, capsys):
     _, out = first_run
     base = ["run", demo_inputs / "logs", "--vehicle", "rigid-18t", "--dem", demo_inputs / "dem", "--out", out,
-            "--candidates", "1000"]
+            *SMALL_DESIGN, "--candidates", "1000"]
     code, printed, _ = run_cli(capsys, *base)
     assert "[ingest] unchanged, from cache" in printed and "[simulation] unchanged, from cache" in printed
     code, printed, _ = run_cli(capsys, *base[:-1], "1500")
@@ -74,7 +77,7 @@ def test_rerun_with_one_changed_option_reruns_only_what_depends_on_it(first_run,
 def test_json_prints_only_the_summary(first_run, demo_inputs, capsys):
     _, out = first_run
     code, printed, _ = run_cli(capsys, "run", demo_inputs / "logs", "--vehicle", "rigid-18t", "--dem",
-                               demo_inputs / "dem", "--out", out, "--candidates", "1000", "--json")
+                               demo_inputs / "dem", "--out", out, "--candidates", "1000", *SMALL_DESIGN, "--json")
     assert json.loads(printed)["stages"]
 
 
@@ -126,7 +129,7 @@ def test_no_valid_mass_segment(tmp_path, capsys):
     path = tmp_path / "flat.csv"
     table.to_csv(path, index=False)
     code, _, err = run_cli(capsys, "run", path, "--vehicle", "rigid-18t", "--out", tmp_path / "o", "--quiet",
-                           "--candidates", "1")
+                           "--candidates", "1", *SMALL_DESIGN)
     line = one_line_error(err)
     assert code == 3 and "no segment has enough excitation" in line
 
@@ -134,7 +137,8 @@ def test_no_valid_mass_segment(tmp_path, capsys):
 def test_no_valid_cycle(demo_inputs, tmp_path, capsys):
     """One Monte Carlo candidate of 60 s cannot meet the criteria of an hour's drive."""
     code, _, err = run_cli(capsys, "run", demo_inputs / "truth.parquet", "--vehicle", "rigid-18t",
-                           "--out", tmp_path / "o", "--quiet", "--candidates", "1", "--cycle-duration", "60")
+                           "--out", tmp_path / "o", "--quiet", "--candidates", "1", "--cycle-duration", "60",
+                           *SMALL_DESIGN)
     line = one_line_error(err)
     assert code == 3 and "no valid cycle" in line and "--candidates" in line
 
@@ -179,14 +183,14 @@ def test_summary_json_is_strict_versioned_and_every_key_documented(first_run):
 def test_json_on_stdout_is_strict(demo_inputs, first_run, capsys):
     _, out = first_run
     code, stdout, _ = run_cli(capsys, "run", demo_inputs / "logs", "--vehicle", "rigid-18t", "--dem",
-                              demo_inputs / "dem", "--out", out, "--candidates", "1000", "--json")
+                              demo_inputs / "dem", "--out", out, "--candidates", "1000", *SMALL_DESIGN, "--json")
     assert code in (0, 3) and _strict(stdout)["schema_version"] == 1
 def test_private_run_keeps_positions_out_of_the_outputs(demo_inputs, first_run, tmp_path):
     _, normal = first_run
     assert {"latitude_deg", "longitude_deg", "wall_time_ns"} <= set(pd.read_parquet(normal / "signals.parquet"))
     out = tmp_path / "private"
     code = main(["run", str(demo_inputs / "logs"), "--vehicle", "rigid-18t", "--dem", str(demo_inputs / "dem"),
-                 "--out", str(out), "--candidates", "1000", "--quiet", "--private"])
+                 "--out", str(out), "--candidates", "1000", *SMALL_DESIGN, "--quiet", "--private"])
     assert code in (0, 3)
     signals = pd.read_parquet(out / "signals.parquet")
     assert not {"latitude_deg", "longitude_deg", "wall_time_ns"} & set(signals)

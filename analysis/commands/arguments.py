@@ -90,6 +90,28 @@ def add_cycle(parser) -> None:
                         help=f"random seed of the cycle generation ({defaults.seed})")
 
 
+def add_design_search(parser) -> None:
+    """The design stage's search size: NSGA-II population and generations, its defaults."""
+    from ..design.options import DesignOptions
+
+    defaults = DesignOptions()
+    parser.add_argument("--design-population", type=int, default=defaults.population,
+                        help=f"NSGA-II population of the e-powertrain concept search ({defaults.population})")
+    parser.add_argument("--design-generations", type=int, default=defaults.generations,
+                        help=f"NSGA-II generations of the concept search ({defaults.generations}; population x "
+                             f"generations candidates are simulated)")
+
+
+def design_options(args):
+    """`DesignOptions` of ``--design-population`` and ``--design-generations``; UserError if too small."""
+    from ..design.options import DesignOptions
+
+    if args.design_population < 4 or args.design_generations < 1:
+        raise UserError(f"--design-population must be at least 4 and --design-generations at least 1, got "
+                        f"{args.design_population} and {args.design_generations}")
+    return DesignOptions(population=args.design_population, generations=args.design_generations)
+
+
 def parse_known_masses(items: list[str] | None) -> dict[int, float]:
     """``["SEGMENT=KG", ...]`` (segment numbers from 1, as printed) -> {index from 0: kg}; a bare
     ``KG`` means the first segment. UserError on anything else."""

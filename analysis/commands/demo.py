@@ -8,7 +8,8 @@ real logger daemon against the device emulators (ECU on a virtual CAN bus, regis
 sensors, NMEA GPS on a pty) into ``DIR/logs/``, then runs every analysis stage on the log into
 ``DIR``. The emulated world runs ``--time-scale`` times faster than real time (40: the 38-minute
 drive is logged in under a minute, a progress line every 10 s); ``--direct`` writes the log without
-the daemon, in seconds.
+the daemon, in seconds. While the daemon logs, `warmup` compiles the analysis kernels in a second
+process, so a first run does not wait for numba after the logging.
 """
 
 from __future__ import annotations
@@ -21,10 +22,11 @@ from pathlib import Path
 from haulprofile.contract.private_files import make_dirs
 from haulprofile.logger.emulators.compression import DEMO_TIME_SCALE
 
+from .. import warmup
 from ..manifest import Manifest, staged_files
-from ..pipeline import RunContext, run as run_pipeline
+from ..pipeline import Options, RunContext, run as run_pipeline
 from ..virtual_truck import drive, load_scenario, realism_level, scenario_vehicle, write_dem, write_mcap, write_truth
-from .arguments import printer
+from .arguments import add_design_search, design_options, printer
 
 
 def add_arguments(parser) -> None:
@@ -39,6 +41,10 @@ def add_arguments(parser) -> None:
                         help=f"emulated seconds per real second while logging through the daemon ({DEMO_TIME_SCALE:g})")
     parser.add_argument("--direct", action="store_true",
                         help="write the log directly (analysis.virtual_truck.write_mcap), not through the daemon")
+    parser.add_argument("--no-warmup", action="store_true",
+                        help="do not compile the analysis kernels in a second process while logging (they are "
+                             "compiled where first used instead)")
+    add_design_search(parser)
     parser.add_argument("--quiet", action="store_true", help="print only errors and where to look")
 
 
@@ -52,6 +58,7 @@ def progress_line(progress) -> str:
 def run(args) -> int:
     say = printer(args.quiet)
     started = time.perf_counter()
+    options = Options(design=design_options(args))
     scenario = load_scenario(args.scenario)
     level = realism_level(args.realism)
     vehicle = scenario_vehicle(scenario)
@@ -59,6 +66,12 @@ def run(args) -> int:
     say(f"virtual truck: scenario {scenario.name}, {vehicle.name}, seed {args.seed}, realism {level.level}")
     virtual = drive(scenario, vehicle, seed=args.seed, realism=level)
     say(f"  drove {virtual.truth['distance_m'].iloc[-1] / 1000:.1f} km in {virtual.duration_s / 60:.1f} min")
+    with warmup.beside(not (args.direct or args.no_warmup), scenario, level.level):
+        return _log_and_analyse(args, say, started, options, scenario, vehicle, virtual)
+
+
+def _log_and_analyse(args, say, started, options, scenario, vehicle, virtual) -> int:
+    out: Path = args.out
     manifest = Manifest(out)
     make_dirs(out)
     staging = Path(tempfile.mkdtemp(prefix=".partial-demo-", dir=out))
@@ -84,7 +97,7 @@ def run(args) -> int:
     say(f"  log: {log} ({log.stat().st_size / 1e6:.1f} MB)")
     say(f"  ground truth: {', '.join(p.name for p in truth)} in {out}")
 
-    ctx = RunContext(inputs=[log], out_dir=out, vehicle=vehicle, dem_dir=out / "dem", say=say)
+    ctx = RunContext(inputs=[log], out_dir=out, vehicle=vehicle, dem_dir=out / "dem", options=options, say=say)
     run_pipeline(ctx)
     elapsed = time.perf_counter() - started
     print(f"demo done in {elapsed:.0f} s. Look at:")

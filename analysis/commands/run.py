@@ -23,8 +23,8 @@ from ..outputs import OutputOptions
 from ..pipeline import Options, RunContext, run as run_pipeline, verdict
 from ..simulate.stage import SimulateOptions
 from ..vehicle import load_vehicle
-from .arguments import (add_cycle, add_dem, add_inputs, add_known_road_and_mass, add_out, add_rate, add_vehicle,
-                        check_mass_kg, in_flags, parse_known_masses, printer)
+from .arguments import (add_cycle, add_dem, add_design_search, add_inputs, add_known_road_and_mass, add_out, add_rate,
+                        add_vehicle, check_mass_kg, design_options, in_flags, parse_known_masses, printer)
 
 EXIT_UNTRUSTWORTHY_RESULT = 3
 
@@ -38,6 +38,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--dbc", type=Path, help="a DBC file whose signals are decoded as further columns")
     add_cycle(parser)
     parser.add_argument("--payload-kg", type=float, help="payload of the simulated electric truck [kg]")
+    add_design_search(parser)
     parser.add_argument("--no-cache", action="store_true", help="rerun every stage (default: reuse unchanged ones)")
     parser.add_argument("--known-mass", action="append", metavar="SEGMENT=KG",
                         help="a weighed total mass of one segment (numbered from 1, as printed; KG alone: the "
@@ -64,6 +65,7 @@ def options_from(args) -> Options:
                    cycle=CycleOptions(duration_s=args.cycle_duration, n_candidates=args.candidates, seed=args.seed),
                    simulation=SimulateOptions(payload_kg=args.payload_kg),
                    loads=LoadsOptions(bin_overrides=read_overrides(args.load_bins) if args.load_bins else ()),
+                   design=design_options(args),
                    output=OutputOptions(private=args.private))
 
 
@@ -77,6 +79,7 @@ def check_arguments(args) -> None:
                         "calibrates the estimate), not both")
     if args.candidates is not None and args.candidates < 1:
         raise UserError(f"--candidates must be at least 1, got {args.candidates}")
+    design_options(args)
     if args.payload_kg is not None:
         checks.non_negative(args.payload_kg, "--payload-kg", "kg")
 
