@@ -262,9 +262,9 @@ def test_a_short_silence_is_bridged_a_long_one_stays_a_gap():
 
 
 def test_blocks_end_where_message_by_message_pending_would_flush():
-    """`table._blocks` cuts a window's records exactly where appending message after message and
-    flushing at `block` records did (so block sums, hence the table, stay bit-identical)."""
-    from haulprofile.analysis.ingest.table import _blocks
+    """`table._message_runs` cuts a window's messages exactly where appending message after message
+    and flushing at `block` records did (so block sums, hence the table, stay bit-identical)."""
+    from haulprofile.analysis.ingest.table import _message_runs
 
     rng = np.random.default_rng(3)
     for _ in range(50):
@@ -278,8 +278,124 @@ def test_blocks_end_where_message_by_message_pending_would_flush():
             if pending >= block:
                 expected.append(position)
                 pending = 0
-        pieces = list(_blocks(counts, records, held, block))
+        starts = np.concatenate(([0], np.cumsum(counts)))
+        pieces = [records[starts[a]:starts[b]] for a, b in _message_runs(counts, held, block)]
         ends = np.cumsum([len(piece) for piece in pieces]).tolist()
         assert np.array_equal(np.concatenate(pieces) if pieces else records[:0], records)
         assert ends[:len(expected)] == expected and len(ends) - len(expected) in (0, 1)
         assert len(ends) == len(expected) or ends[-1] not in expected
+
+
+def _blocks_fed(paths, monkeypatch, block_frames, block_imu, window_bytes=64 * 1024):
+    """(CAN blocks, IMU blocks per scale, summary) the ingest decodes, with small blocks and windows
+    (so blocks span windows and windows span chunks)."""
+    import functools
+
+    from haulprofile.analysis.ingest import logs, table as table_module
+
+    monkeypatch.setattr(table_module, "BLOCK_FRAMES", block_frames)
+    monkeypatch.setattr(table_module, "BLOCK_IMU", block_imu)
+    monkeypatch.setattr(logs, "read_windows", functools.partial(logs.read_windows, window_bytes=window_bytes))
+    can, imu = [], {}
+    feed_frames, bin_axes = table_module.Ingest.feed_frames, table_module.bin_kernels.bin_axes_in_order
+
+    def keep_frames(self, frames):
+        can.append(frames.copy())
+        return feed_frames(self, frames)
+
+    def keep_imu(t, accel_raw, scale, period_ns):
+        imu.setdefault(scale, []).append(np.array(t, copy=True))
+        return bin_axes(t, accel_raw, scale, period_ns)
+
+    monkeypatch.setattr(table_module.Ingest, "feed_frames", keep_frames)
+    monkeypatch.setattr(table_module.bin_kernels, "bin_axes_in_order", keep_imu)
+    _, summary = ingest_logs(paths)
+    return can, imu, summary
+
+
+def _message_ends(path, topic):
+    """Record count at the end of each message of ``topic`` (mcap library, file order)."""
+    itemsize = (contract.CAN_FRAMES if topic == contract.CAN_FRAMES.name else contract.IMU).dtype.itemsize
+    with open(path, "rb") as stream:
+        sizes = [len(m.data) // itemsize
+                 for _, _, m in make_reader(stream).iter_messages(topics=[topic], log_time_order=False)]
+    return set(np.cumsum(sizes).tolist())
+
+
+@pytest.mark.parametrize("damaged", [False, True])
+def test_blocks_hold_every_record_once_cut_between_messages(log, tmp_path, monkeypatch, damaged):
+    """Records copied straight from the chunks into the decoding blocks are the log's records (as
+    `read_frames` gives them), each block cut after a whole message, across window and chunk
+    boundaries; a damaged chunk is skipped and counted, its neighbours' records kept."""
+    path = log[0]
+    if damaged:
+        data = bytearray(path.read_bytes())
+        data[len(data) // 2] ^= 0xFF
+        path = tmp_path / "damaged.mcap"
+        path.write_bytes(bytes(data))
+    can, imu, summary = _blocks_fed([path], monkeypatch, block_frames=5_000, block_imu=3_000)
+    expected = read_frames([path])
+    assert np.concatenate(can).tobytes() == expected.can.tobytes()
+    (scale, times), = imu.items()
+    assert np.array_equal(np.concatenate(times), expected.imu["t_mono_ns"].view(np.int64))
+    assert all(len(block) >= 5_000 for block in can[:-1]) and all(len(block) >= 3_000 for block in times[:-1])
+    if not damaged:
+        assert set(np.cumsum([len(b) for b in can]).tolist()) <= _message_ends(path, contract.CAN_FRAMES.name)
+        assert set(np.cumsum([len(b) for b in times]).tolist()) <= _message_ends(path, contract.IMU.name)
+    assert (summary["files"][0]["bad_chunks"] == 1) == damaged
+
+
+def test_blocks_of_a_shifted_file_carry_the_shift(tmp_path, monkeypatch):
+    """The second file after a reboot: its records enter the blocks on the continuous time line."""
+    _write(tmp_path / "1.mcap", 10, 1, synthetic.T0_MONO_NS, synthetic.REALTIME_OFFSET_NS)
+    boot = 3 * 10**9
+    shift = synthetic.T0_MONO_NS + 70 * 10**9 - boot
+    _write(tmp_path / "2.mcap", 10, 2, boot, synthetic.REALTIME_OFFSET_NS + shift)
+    can, imu, _ = _blocks_fed([tmp_path], monkeypatch, block_frames=1_000, block_imu=700, window_bytes=16 * 1024)
+    expected = read_frames([tmp_path])
+    assert expected.timeline.offsets_ns[str(tmp_path / "2.mcap")] > 0
+    assert np.concatenate(can).tobytes() == expected.can.tobytes()
+    (_, times), = imu.items()
+    assert np.array_equal(np.concatenate(times), expected.imu["t_mono_ns"].view(np.int64))
+
+
+def test_imu_channels_of_two_scales_go_to_blocks_of_their_own(tmp_path, monkeypatch):
+    """Two IMU channels with different accelerometer scales, messages interleaved: each scale's
+    samples reach its blocks in file order, and a bin's value is the mean of both channels' scaled
+    samples (scales and counts chosen so every sum is exact)."""
+    from mcap.writer import Writer
+
+    scales = {1: 0.5, 2: 0.25}
+    rng = np.random.default_rng(5)
+    path = tmp_path / "two-imu.mcap"
+    sent = {1: [], 2: []}
+    with open(path, "wb") as stream:
+        writer = Writer(stream, chunk_size=8 * 1024)
+        writer.start(profile=contract.PROFILE, library="test")
+        schema = writer.register_schema(name=contract.IMU.schema_name, encoding=contract.IMU.schema_encoding,
+                                        data=contract.IMU.schema_data())
+        ids = {k: writer.register_channel(topic=contract.IMU.name, message_encoding=contract.IMU.encoding,
+                                          schema_id=schema, metadata={"accel_scale_mps2_per_lsb": repr(s)})
+               for k, s in scales.items()}
+        t = synthetic.T0_MONO_NS
+        for n in range(400):
+            k = 1 + n % 2
+            batch = np.zeros(int(rng.integers(1, 30)), contract.IMU_SAMPLE_DTYPE)
+            batch["t_mono_ns"] = t + np.arange(len(batch)) * 1_000_000
+            batch["accel_raw"] = rng.integers(-8, 8, (len(batch), 3))
+            t += len(batch) * 1_000_000
+            sent[k].append(batch)
+            writer.add_message(channel_id=ids[k], log_time=t, publish_time=t, sequence=n,
+                               data=contract.pack(contract.IMU, batch))
+        writer.finish()
+    _, imu, _ = _blocks_fed([path], monkeypatch, block_frames=1_000, block_imu=300, window_bytes=16 * 1024)
+    for k, scale in scales.items():
+        assert np.array_equal(np.concatenate(imu[scale]), np.concatenate(sent[k])["t_mono_ns"].view(np.int64))
+    monkeypatch.undo()
+    frame, _ = ingest_logs([path])
+    samples = np.concatenate([np.concatenate(sent[k]) for k in scales])
+    scaled = np.concatenate([np.concatenate(sent[k])["accel_raw"][:, 0] * scales[k] for k in scales])
+    bins = (samples["t_mono_ns"].astype(np.int64) - synthetic.T0_MONO_NS) // 100_000_000
+    expected = np.bincount(bins, scaled) / np.bincount(bins)
+    assert np.array_equal(frame["accel_x_mps2"].to_numpy()[:len(expected)], expected)
+

@@ -63,22 +63,14 @@ def bin_in_order(time_ns, values, period_ns, last):
 @numba.njit(cache=True, nogil=True)
 def bin_runs(time_ns, period_ns):
     """The bin of each run of consecutive samples in one bin (a log's times are nearly sorted: few
-    runs), and whether those bins ascend (then they are already the distinct bins, sorted)."""
+    runs), and whether those bins ascend (then they are already the distinct bins, sorted). One
+    pass: the runs go into room for one per sample (only the pages written are ever touched)."""
     n = len(time_ns)
-    runs = 0
-    low = np.int64(1)
-    high = np.int64(0)  # empty: the first sample starts a run
-    for i in range(n):
-        t = time_ns[i]
-        if t < low or t >= high:
-            low = (t // period_ns) * period_ns
-            high = low + period_ns
-            runs += 1
-    out = np.empty(runs, np.int64)
+    out = np.empty(n, np.int64)
     ascending = True
     k = 0
     low = np.int64(1)
-    high = np.int64(0)
+    high = np.int64(0)  # empty: the first sample starts a run
     for i in range(n):
         t = time_ns[i]
         if t < low or t >= high:
@@ -89,7 +81,7 @@ def bin_runs(time_ns, period_ns):
                 ascending = False
             out[k] = b
             k += 1
-    return out, ascending
+    return out[:k].copy(), ascending
 
 
 @numba.njit(cache=True, nogil=True)

@@ -1,7 +1,7 @@
 """Logs to binned streams: read, decode block by block, reduce to output bins.
 
-CAN frames are gathered into blocks of `BLOCK_FRAMES` records (one ``np.frombuffer`` over the
-joined payloads), decoded with NumPy (J1939 SPNs per source address, OBD-II and transport
+CAN frames are gathered into blocks of `BLOCK_FRAMES` records (copied once, from the decompressed
+chunks into the block's array), decoded with NumPy (J1939 SPNs per source address, OBD-II and transport
 protocol frames set aside for matching and reassembly at the end, a user's DBC), and reduced to
 output bins at once, so memory grows with the output, not with the log.
 """
@@ -143,16 +143,60 @@ def _decoder(names: tuple[str, ...]) -> msgspec.json.Decoder:
     return msgspec.json.Decoder(list[msgspec.defstruct("Record", wanted, gc=False)])
 
 
-def _blocks(counts: np.ndarray, records: np.ndarray, held: int, block: int):
-    """``records`` (of messages of ``counts`` records each) in pieces that end where ``held``
-    records plus the pieces first reach ``block`` (after whole messages), then the rest."""
+def _message_runs(counts: np.ndarray, held: int, block: int):
+    """(first, end) message ranges (of messages of ``counts`` records each) in pieces that end with
+    the message at which ``held`` records plus the piece first reach ``block``, then the rest."""
     ends = np.cumsum(counts)
-    start = 0
-    while start < len(records):
+    total = int(ends[-1]) if len(ends) else 0
+    start = first = 0
+    while start < total:
         k = int(np.searchsorted(ends, start + block - held))  # the message that reaches the block
-        stop = int(ends[k]) if k < len(ends) else len(records)
-        yield records[start:stop]
-        start, held = stop, 0
+        end = k + 1 if k < len(ends) else len(ends)
+        yield first, end
+        start, first, held = int(ends[end - 1]), end, 0
+
+
+class _BlockBuffer:
+    """Packed records of one block gathered in one preallocated array: straight from a window's
+    chunks (`add_window`, the one copy of each record) or from arrays (`add`)."""
+
+    def __init__(self, dtype: np.dtype, block: int):
+        self.dtype = dtype
+        self.block = block
+        self.buffer = np.zeros(0, np.uint8)
+        self.count = 0
+
+    def _room(self, more: int) -> np.ndarray:
+        size = self.dtype.itemsize
+        need = (self.count + more) * size
+        if need > len(self.buffer):
+            grown = np.empty(max(need, (self.block + 4096) * size, 2 * len(self.buffer)), np.uint8)
+            grown[:self.count * size] = self.buffer[:self.count * size]
+            self.buffer = grown
+        return self.buffer
+
+    def add_window(self, window, rows: np.ndarray, counts: np.ndarray, offset_ns: int) -> None:
+        """Records of the window's messages at ``rows`` (``counts`` whole records each), shifted."""
+        more = int(counts.sum())
+        first = self.count
+        window.copy_records(rows, counts, self.dtype.itemsize, self._room(more), first * self.dtype.itemsize)
+        self.count += more
+        contract.shift_times(self.records()[first:], offset_ns)
+
+    def add(self, records: np.ndarray) -> None:
+        size = self.dtype.itemsize
+        self._room(len(records))[self.count * size:(self.count + len(records)) * size] = \
+            np.ascontiguousarray(records, self.dtype).view(np.uint8)
+        self.count += len(records)
+
+    def records(self) -> np.ndarray:
+        return self.buffer[:self.count * self.dtype.itemsize].view(self.dtype)
+
+    def take(self) -> np.ndarray:
+        """The records gathered (their own array from now on); the buffer starts again empty."""
+        records = self.records()
+        self.buffer, self.count = np.zeros(0, np.uint8), 0
+        return records
 
 
 def _loads(payload: bytes):
@@ -181,10 +225,8 @@ class Ingest:
         self.dbc_messages = dbc_module.messages(database) if database is not None else []
         self.tp_parts: list[np.ndarray] = []
         self.obd_parts: list[np.ndarray] = []
-        self.can_pending: list[bytes] = []
-        self.can_pending_records = 0
-        self.imu_pending: dict[float, list[bytes]] = {}
-        self.imu_pending_bytes = 0
+        self.can_pending = _BlockBuffer(contract.CAN_FRAME_DTYPE, BLOCK_FRAMES)
+        self.imu_pending: dict[float, _BlockBuffer] = {}
         self.json: dict[str, JsonTopic] = {}
         self.log_pairs: tuple[list, list] = ([], [])
         self.topic_counts: dict[str, int] = {}
@@ -225,27 +267,18 @@ class Ingest:
                 stream.add(*window.json_array(np.flatnonzero(np.isin(window.channel_ids, ids))), offset_ns)
 
     def _pend_can(self, window, offset_ns: int) -> None:
-        """CAN records into blocks of at least `BLOCK_FRAMES`, cut only between messages."""
-        ids = window.packed_channels(contract.CAN_FRAMES.name)
-        if not ids:
-            return
-        records = contract.shift_times(window.topic_records(contract.CAN_FRAMES.name), offset_ns)
-        counts = np.concatenate([window.record_counts(cid) for cid in ids]) if len(ids) > 1 else \
-            window.record_counts(ids[0])
-        if len(ids) > 1:
-            order = np.concatenate([np.flatnonzero(window.channel_ids == cid) for cid in ids])
-            counts = counts[np.argsort(order, kind="stable")]
-        for part in _blocks(counts, records, self.can_pending_records, BLOCK_FRAMES):
-            self.can_pending.append(part)
-            self.can_pending_records += len(part)
-            if self.can_pending_records >= BLOCK_FRAMES:
+        """CAN records into blocks of at least `BLOCK_FRAMES`, cut only between messages, copied
+        once, from the window's chunks into the block."""
+        rows, counts = window.topic_rows(contract.CAN_FRAMES.name)
+        pending = self.can_pending
+        for a, b in _message_runs(counts, pending.count, BLOCK_FRAMES):
+            pending.add_window(window, rows[a:b], counts[a:b], offset_ns)
+            if pending.count >= BLOCK_FRAMES:
                 self.flush_can()
 
     def flush_can(self) -> None:
-        if self.can_pending:
-            frames = contract.join_records(self.can_pending, contract.CAN_FRAME_DTYPE)
-            self.can_pending, self.can_pending_records = [], 0
-            self.feed_frames(frames)
+        if self.can_pending.count:
+            self.feed_frames(self.can_pending.take())
 
     def _pend_imu(self, window, offset_ns: int) -> None:
         """IMU records per accelerometer scale (channel metadata), flushed together once all scales
@@ -267,33 +300,36 @@ class Ingest:
             return
         if len(scales) == 1:
             (cid, scale), = scales.items()
-            streams = [(scale, contract.shift_times(window.records(cid), offset_ns), window.record_counts(cid))]
-        else:  # several IMU channels: message by message in file order
-            order = np.concatenate([np.flatnonzero(window.channel_ids == cid) for cid in scales])
-            owner = np.concatenate([np.full(len(window.record_counts(cid)), cid) for cid in scales])
-            starts = {cid: np.concatenate(([0], np.cumsum(window.record_counts(cid)))) for cid in scales}
-            seen = dict.fromkeys(scales, 0)
-            streams = []
-            for cid in owner[np.argsort(order, kind="stable")].tolist():
-                k = seen[cid]
-                seen[cid] += 1
-                records = window.records(cid)[starts[cid][k]:starts[cid][k + 1]]
-                streams.append((scales[cid], contract.shift_times(records.copy(), offset_ns), np.array([len(records)])))
-        size = contract.IMU_SAMPLE_DTYPE.itemsize
-        for scale, records, counts in streams:
-            for part in _blocks(counts, records, self.imu_pending_bytes // size, BLOCK_IMU):
-                self.imu_pending.setdefault(scale, []).append(part)
-                self.imu_pending_bytes += len(part) * size
-                if self.imu_pending_bytes >= BLOCK_IMU * size:
-                    self.flush_imu()
+            rows = np.flatnonzero(window.channel_ids == cid)
+            self._pend_imu_rows(scale, window, rows, window.record_counts(cid), offset_ns)
+            return
+        # several IMU channels: message by message in file order
+        order = np.concatenate([np.flatnonzero(window.channel_ids == cid) for cid in scales])
+        owner = np.concatenate([np.full(len(window.record_counts(cid)), cid) for cid in scales])
+        counts = np.concatenate([window.record_counts(cid) for cid in scales])
+        by_order = np.argsort(order, kind="stable")
+        order, owner, counts = order[by_order], owner[by_order], counts[by_order]
+        for k, cid in enumerate(owner.tolist()):
+            self._pend_imu_rows(scales[cid], window, order[k:k + 1], counts[k:k + 1], offset_ns)
+
+    def _pend_imu_rows(self, scale: float, window, rows: np.ndarray, counts: np.ndarray, offset_ns: int) -> None:
+        """The window's IMU messages at ``rows`` (one accelerometer ``scale``) into their block."""
+        for a, b in _message_runs(counts, self._imu_pending_count(), BLOCK_IMU):
+            pending = self.imu_pending.get(scale)
+            if pending is None:
+                pending = self.imu_pending[scale] = _BlockBuffer(contract.IMU_SAMPLE_DTYPE, BLOCK_IMU)
+            pending.add_window(window, rows[a:b], counts[a:b], offset_ns)
+            if self._imu_pending_count() >= BLOCK_IMU:
+                self.flush_imu()
+
+    def _imu_pending_count(self) -> int:
+        return sum(p.count for p in self.imu_pending.values())
 
     def flush_imu(self) -> None:
-        self.imu_pending_bytes = 0
         for scale, pending in self.imu_pending.items():
-            if not pending:
+            if not pending.count:
                 continue
-            samples = contract.join_records(pending, contract.IMU_SAMPLE_DTYPE)
-            pending.clear()
+            samples = pending.take()
             self.imu_samples += len(samples)
             t = samples["t_mono_ns"].view(np.int64)
             in_order, bins, sums, counts, t0, t1 = bin_kernels.bin_axes_in_order(t, samples["accel_raw"], scale,

@@ -16,9 +16,10 @@ have no CRC of their own, so they are believed only where something checks them:
 Speed: where the chunks are is known ahead (the summary's chunk index when its CRC holds, else
 the chain of record headers), so chunks are decompressed (zstandard and lz4 release the GIL),
 CRC-checked and walked (`chunk_walk`, numba ``nogil``) on a thread pool ahead of the walk that
-decides, exactly as a sequential reader would, which chunks count. Packed topics (`/can/frames`,
-`/imu`) are scattered straight into one preallocated record array per channel and window of
-chunks; other messages stay where they are until asked for. numba is imported only when there
+decides, exactly as a sequential reader would, which chunks count. Every message stays in its
+decompressed chunk until asked for: packed topics' records (`/can/frames`, `/imu`) are copied from
+there into one record array per channel and window on first demand, or by `Window.copy_records`
+straight into the caller's own arrays (the ingest's decoding blocks: one copy of each record). numba is imported only when there
 (the logger extra has no numba; then `chunk_walk`'s Python versions run).
 """
 

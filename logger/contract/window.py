@@ -61,28 +61,50 @@ class Window:
         self._records: dict[int, np.ndarray] = {}
         self._counts: dict[int, np.ndarray] = {}
         self._use_numba = use_numba
-        self._scatter_all(use_numba)
+        self._packed: dict[int, Topic] = {}
+        for channel_id in np.unique(self.channel_ids).tolist():
+            topic = packed_topic(channels[channel_id])
+            if topic is not None:
+                self._packed[channel_id] = topic
 
     def __len__(self) -> int:
         return len(self.channel_ids)
 
-    def _scatter_all(self, use_numba: bool) -> None:
-        scatter = chunk_walk.kernels(use_numba)["scatter"]
-        for channel_id in np.unique(self.channel_ids).tolist():
-            topic = packed_topic(self.channels[channel_id])
-            if topic is None:
-                continue
-            itemsize = topic.dtype.itemsize
-            mine = self.channel_ids == channel_id
-            counts = self._lengths[mine] // itemsize
-            offsets = np.concatenate(([0], np.cumsum(counts * itemsize)))
-            target = np.empty(int(offsets[-1]), np.uint8)
-            rows = np.flatnonzero(mine)
-            starts, lengths, at = self._starts[rows], counts * itemsize, offsets[:-1]
+    def _scatter(self, channel_id: int) -> np.ndarray:
+        """The channel's records gathered from the chunks into one array (on first demand: a
+        caller that copies records straight into its own arrays, `copy_records`, never pays this)."""
+        topic = self._packed[channel_id]
+        rows = np.flatnonzero(self.channel_ids == channel_id)
+        counts = self.record_counts(channel_id)
+        target = np.empty(int(counts.sum()) * topic.dtype.itemsize, np.uint8)
+        self.copy_records(rows, counts, topic.dtype.itemsize, target, 0)
+        return unpack(topic, target)
+
+    def copy_records(self, rows: np.ndarray, counts: np.ndarray, itemsize: int, target: np.ndarray, at: int) -> int:
+        """Copy the whole records (``counts`` of ``itemsize`` bytes) of the messages at ``rows``
+        (ascending) one after another into ``target`` (uint8) from byte ``at`` on, straight from
+        the decompressed chunks; returns the byte after the last one copied."""
+        lengths = np.asarray(counts, dtype=np.int64) * itemsize
+        offsets = np.empty(len(rows) + 1, np.int64)
+        offsets[0] = at
+        np.cumsum(lengths, out=offsets[1:])
+        offsets[1:] += at
+        if len(rows):
+            scatter = chunk_walk.kernels(self._use_numba)["scatter"]
+            starts = self._starts[rows]
             for k, a, b in self._by_part(rows):
-                scatter(self._parts[k].records.array, starts[a:b], lengths[a:b], target, at[a:b])
-            self._records[channel_id] = unpack(topic, target)
-            self._counts[channel_id] = counts
+                scatter(self._parts[k].records.array, starts[a:b], lengths[a:b], target, offsets[a:b])
+        return int(offsets[-1])
+
+    def topic_rows(self, topic: str) -> tuple[np.ndarray, np.ndarray]:
+        """(message indices, whole records of each) of the packed channels of ``topic``, in file
+        order: the records `topic_records` gives, as `copy_records` takes them."""
+        ids = self.packed_channels(topic)
+        if not ids:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        rows = np.flatnonzero(self.channel_ids == ids[0]) if len(ids) == 1 else \
+            np.flatnonzero(np.isin(self.channel_ids, ids))
+        return rows, self._lengths[rows] // PACKED_TOPICS[topic].dtype.itemsize
 
     def _by_part(self, indices: np.ndarray) -> Iterator[tuple[int, int, int]]:
         """(part, first, end) of the runs of ascending message ``indices`` that lie in one part."""
@@ -94,25 +116,32 @@ class Window:
 
     def packed_channels(self, topic: str) -> list[int]:
         """Ids of the channels of a packed ``topic`` with messages in this window."""
-        return [cid for cid in self._records if self.channels[cid].topic == topic]
+        return [cid for cid in self._packed if self.channels[cid].topic == topic]
 
     def records(self, channel_id: int) -> np.ndarray:
         """Records of a packed channel in file order (a fresh writable array, contract dtype)."""
-        return self._records[channel_id]
+        records = self._records.get(channel_id)
+        if records is None:
+            records = self._records[channel_id] = self._scatter(channel_id)
+        return records
 
     def record_counts(self, channel_id: int) -> np.ndarray:
         """Whole records of each of the channel's messages, in order."""
-        return self._counts[channel_id]
+        counts = self._counts.get(channel_id)
+        if counts is None:
+            itemsize = self._packed[channel_id].dtype.itemsize
+            counts = self._counts[channel_id] = self._lengths[self.channel_ids == channel_id] // itemsize
+        return counts
 
     def topic_records(self, topic: str) -> np.ndarray:
         """Records of all channels of a packed ``topic`` in file order."""
         ids = self.packed_channels(topic)
         if len(ids) == 1:
-            return self._records[ids[0]]
+            return self.records(ids[0])
         if not ids:
             return np.zeros(0, PACKED_TOPICS[topic].dtype)
-        owner = np.concatenate([np.repeat(np.flatnonzero(self.channel_ids == cid), self._counts[cid]) for cid in ids])
-        return join_records([self._records[cid] for cid in ids], PACKED_TOPICS[topic].dtype)[np.argsort(owner, kind="stable")]
+        owner = np.concatenate([np.repeat(np.flatnonzero(self.channel_ids == cid), self.record_counts(cid)) for cid in ids])
+        return join_records([self.records(cid) for cid in ids], PACKED_TOPICS[topic].dtype)[np.argsort(owner, kind="stable")]
 
     def payload(self, index: int) -> bytes:
         k = int(np.searchsorted(self._part_starts, index, side="right") - 1)
