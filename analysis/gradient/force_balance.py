@@ -114,6 +114,7 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         source = f"the given mass {np.nanmedian(mass):.0f} kg"
         bias_sigma = G_MPS2 * vehicle.rolling_resistance_coefficient * ROLLING_RESISTANCE_UNCERTAINTY
         settings = replace(settings, smoother=replace(settings.smoother, imu_bias_prior_sigma_mps2=bias_sigma))
+    settings = replace(settings, smoother=replace(settings.smoother, force_balance=True))
     virtual = virtual_accelerometer_mps2(first, vehicle, mass)
     if not np.isfinite(virtual).any():
         raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
