@@ -68,12 +68,17 @@ def segment_masses_kg(frame: pd.DataFrame, vehicle) -> tuple[np.ndarray, np.ndar
     mass, sigma = np.full(len(frame), np.nan), np.full(len(frame), np.nan)
     for segment in result.segments:
         value, std = segment.get("mass_kg"), segment.get("mass_uncertainty_kg")
-        if value is None and segment.get("status") == "ok" and segment.get("mass_ls_kg") is not None and \
+        if value is None and segment.get("status") in ("ok", "uncertain") and segment.get("mass_ls_kg") is not None and \
                 "force balance does not hold" not in segment.get("mass_joint_reason", ""):
             # the LS of (9) where the joint fit is only uncertain: `mass_kg` no longer reports
             # it (not confident), but here it is a better first guess than the joint value (on
             # the matrix's urban gps+can drives: 0.46 against 1.08 %-pt)
-            value, std = segment["mass_ls_kg"], segment.get("uncertainty_kg")
+            # the LS's uncertainty has a fixed 0.1 %-pt gradient bias; the joint fit's has the
+            # first pass's stated gradient sigma, which is what the force balance inherits
+            regressor = segment.get("mass_regressor", "gradient")
+            value = segment["mass_ls_kg"]
+            std = np.nanmax([np.nan if v is None else v for v in (
+                segment.get("uncertainty_kg"), segment.get(f"mass_{regressor}_uncertainty_kg"), np.nan)])
         elif value is None and segment.get("mass_joint_status") == "uncertain":
             regressor = segment.get("mass_regressor", "gradient")
             value, std = segment.get(f"mass_{regressor}_kg"), segment.get(f"mass_{regressor}_uncertainty_kg")

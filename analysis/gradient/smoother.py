@@ -289,6 +289,8 @@ class GradientSmoother:
             if self._noise_by_likelihood(r, have):
                 x, _, _, _ = self.run(r, use=(True, False, True, True))
             reference = x[:, kalman.H] if (have[kalman.BARO] or have[kalman.GPS]) else None
+        elif have[kalman.GPS] and s.curvature_psd is None:
+            self.curvature_psd = self._most_likely_curvature(r)
         if have[kalman.DEM]:
             self._dem_model(reference)
             if reference is not None and not have[kalman.BARO]:
