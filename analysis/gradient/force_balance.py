@@ -125,6 +125,9 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
     result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
     _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
+    if not any(column in result.grid for column in ("gradient_baro_pct", "gradient_map_pct")) and \
+            not (result.grid.get("weight_smooth_gps", pd.Series([0.0])) > 0).any():
+        _widen_in_gaps(result, frame, virtual, settings.spacing_m)
     if mass_kg is None:
         result.samples["gradient_mass_pct"] = np.asarray(gradient, dtype=float)
         result.samples["gradient_mass_std_pct"] = np.asarray(gradient_std, dtype=float)
@@ -137,6 +140,44 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         result.grid = result.grid.rename(columns={"gradient_imu_pct": "gradient_force_balance_pct"})
         result.samples["gradient_force_balance_pct"] = result.samples.pop("gradient_imu_pct")
     return result
+
+
+def _widen_in_gaps(result: GradientResult, frame, virtual, spacing_m):
+    """With no height source, where the force balance measures nothing (braking downhill,
+    coasting) the smoother's random walk extrapolates the gradient with a sigma that grows far
+    slower than a road changes (matrix `can-only` typical: 75-79 % inside ±2σ). There the sigma
+    returns to what the road is known to do: a stationary (Gauss-Markov) gradient with the RMS
+    and the correlation length of the smoothed gradient where the force balance measured,
+    sigma² = sigma_edge² w + rms² (1 - w), w = exp(-2 d / L), d the distance to the nearest
+    measured grid point."""
+    from scipy.ndimage import distance_transform_edt
+
+    from . import grid as distance_grid
+    from .smoother import _correlation_length_bins
+    grid = result.grid
+    distance = frame["distance_m"].to_numpy(dtype=float) if "distance_m" in frame else None
+    if distance is None:
+        return
+    measured = np.zeros(len(grid), bool)
+    ok = np.isfinite(distance) & np.isfinite(virtual)
+    index = distance_grid.grid_index(distance[ok], spacing_m)
+    measured[index[(index >= 0) & (index < len(grid))]] = True
+    gradient = grid["gradient_smooth_pct"].to_numpy()
+    if measured.sum() < 50 or measured.all():
+        return
+    rms = float(np.sqrt(np.mean(gradient[measured] ** 2)))
+    length = _correlation_length_bins(np.where(measured, gradient, np.nan), max_lag=len(grid) // 2)
+    if not np.isfinite(length) or length <= 0:
+        return
+    w = np.exp(-2 * distance_transform_edt(~measured) / length)
+    std = grid["gradient_smooth_std_pct"].to_numpy()
+    std = np.sqrt(std ** 2 * w + np.maximum(rms ** 2, std ** 2) * (1 - w))
+    grid["gradient_smooth_std_pct"] = std
+    result.samples["gradient_smooth_std_pct"] = np.interp(distance, grid["distance_m"].to_numpy(), std,
+                                                          left=np.nan, right=np.nan)
+    result.notes.append(f"no height source: where the force balance measures nothing ({100 * (1 - measured.mean()):.0f} % "
+                        f"of the distance) the gradient's sigma returns to the road's own spread ({rms:.1f} %-pt "
+                        f"over {length * spacing_m:.0f} m)")
 
 
 def _add_mass_uncertainty(result: GradientResult, frame, virtual, relative, vehicle, spacing_m):
