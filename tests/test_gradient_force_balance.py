@@ -129,3 +129,18 @@ def test_with_nothing_but_can_the_sigma_covers_the_gaps_where_the_truck_does_not
     # 69 % inside ±2σ before, 89.5 % now (the rest in measured stretches, not in the gaps)
     assert np.mean(np.abs(error) <= 2 * grid["gradient_smooth_std_pct"].to_numpy()[keep]) >= 0.85
     assert any("returns to the road's own spread" in note for note in result.notes)
+
+
+def test_where_the_truck_brakes_the_gradient_stays_under_what_braking_allows(drive, monkeypatch):
+    """Braking, the wheels push at most what the engine gives: dv/dt + g sin(alpha) <= (F_engine -
+    F_aero)/m - g c_r. Across the force balance's gaps the random walk knew nothing of that and
+    carried the last pulling stretch's grade into the descent the truck brakes on."""
+    from haulprofile.analysis.gradient import force_balance
+    vehicle = load_vehicle("rigid-18t")
+    can_only = drive.drop(columns=["pressure_pa", "accel_x_mps2", "latitude_deg", "longitude_deg"])
+    mass = drive["true_mass_kg"].to_numpy()
+    bounded = estimate_gradient_force_balance(can_only, None, vehicle, mass_kg=mass)
+    assert any("braking bound" in note for note in bounded.notes)
+    monkeypatch.setattr(force_balance, "BRAKING_BOUND", False)
+    free = estimate_gradient_force_balance(can_only, None, vehicle, mass_kg=mass)
+    assert rmse_pct(bounded) < 0.8 * rmse_pct(free)

@@ -124,10 +124,21 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     if not np.isfinite(virtual).any():
         raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
     result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
+    measured = virtual
+    # only with no height source: there the sigma comes from the road's spread away from the
+    # measured bins (`_widen_in_gaps`); with GPS altitude the bound, taken as a measurement, made
+    # the smoother's sigma too small (urban gps+can: 97 -> 79 % inside ±2σ)
+    if BRAKING_BOUND and not _has_height_source(result):
+        bounded = _braking_bound(result, frame, virtual, vehicle, mass)
+        if bounded is not None:
+            virtual = bounded
+            result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
+            result.notes.append(f"the force balance's braking bound (the brakes only take force away) held the "
+                                f"gradient down on {np.sum(np.isfinite(virtual) & ~np.isfinite(measured))} samples "
+                                f"where it was above what braking allows")
     _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
-    if not any(column in result.grid for column in ("gradient_baro_pct", "gradient_map_pct")) and \
-            not (result.grid.get("weight_smooth_gps", pd.Series([0.0])) > 0).any():
-        _widen_in_gaps(result, frame, virtual, settings.spacing_m)
+    if not _has_height_source(result):
+        _widen_in_gaps(result, frame, measured, settings.spacing_m)
     if mass_kg is None:
         result.samples["gradient_mass_pct"] = np.asarray(gradient, dtype=float)
         result.samples["gradient_mass_std_pct"] = np.asarray(gradient_std, dtype=float)
@@ -140,6 +151,54 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         result.grid = result.grid.rename(columns={"gradient_imu_pct": "gradient_force_balance_pct"})
         result.samples["gradient_force_balance_pct"] = result.samples.pop("gradient_imu_pct")
     return result
+
+
+def _has_height_source(result: GradientResult) -> bool:
+    """Whether a barometer, the map or GPS altitude measured a height."""
+    grid = result.grid
+    return any(column in grid for column in ("gradient_baro_pct", "gradient_map_pct")) or \
+        bool((grid.get("weight_smooth_gps", pd.Series([0.0])) > 0).any())
+
+
+BRAKING_BOUND = True
+"""Hold the force balance's gradient under what braking allows (`_braking_bound`)."""
+
+
+def _braking_bound(result, frame, virtual, vehicle, mass):
+    """The force balance where the truck brakes: the brakes only take force away, so
+    dv/dt + g sin(alpha) <= (F_engine - F_aero)/m - g c_r with F_engine the engine's pull (>= 0). Where the smoothed gradient breaks that
+    bound the bound itself becomes the measurement (the smoother's estimate projected onto what the
+    physics allows; a truck brakes on descents, which the random walk across the gap does not know).
+    Returns the force balance with those samples added, or None where none breaks it."""
+    from ..road_load import aero_force_n
+    brake = frame["brake_switch"].to_numpy(dtype=float) if "brake_switch" in frame else None
+    torque = frame["engine_torque_nm"].to_numpy(dtype=float) if "engine_torque_nm" in frame else None
+    if brake is None or torque is None:
+        return None
+    speed = frame["speed_mps"].to_numpy(dtype=float)
+    accel = frame["accel_mps2"].to_numpy(dtype=float) if "accel_mps2" in frame else None
+    if accel is None:
+        return None
+    from ..road_load import wheel_force_from_torque_n, wheel_torque_from_engine_nm
+    rpm = frame["engine_speed_rpm"].to_numpy(dtype=float) if "engine_speed_rpm" in frame else None
+    if rpm is None:
+        return None
+    braking = (np.nan_to_num(brake) > 0.5) & (speed > 3.0) & ~np.isfinite(virtual)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        pushing = wheel_force_from_torque_n(wheel_torque_from_engine_nm(
+            np.clip(torque, 0, None), rpm, speed, vehicle.wheel_radius_m, vehicle.driveline_efficiency),
+            vehicle.wheel_radius_m)
+        bound = (np.nan_to_num(pushing) - aero_force_n(speed, vehicle.drag_coefficient, vehicle.frontal_area_m2)) \
+            / np.asarray(mass, dtype=float) - G_MPS2 * vehicle.rolling_resistance_coefficient
+    gradient = result.samples["gradient_smooth_pct"] / 100.0
+    bias = result.samples.get("imu_bias_mps2", np.zeros(len(frame)))
+    estimate = accel + G_MPS2 * gradient / np.sqrt(1 + gradient ** 2) + np.nan_to_num(bias)
+    broken = braking & np.isfinite(bound) & (estimate > bound)
+    if broken.sum() < 10:
+        return None
+    out = np.array(virtual, dtype=float)
+    out[broken] = bound[broken]
+    return out
 
 
 def _widen_in_gaps(result: GradientResult, frame, virtual, spacing_m):
