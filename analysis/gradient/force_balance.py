@@ -68,12 +68,17 @@ def segment_masses_kg(frame: pd.DataFrame, vehicle) -> tuple[np.ndarray, np.ndar
     mass, sigma = np.full(len(frame), np.nan), np.full(len(frame), np.nan)
     for segment in result.segments:
         value, std = segment.get("mass_kg"), segment.get("mass_uncertainty_kg")
-        if value is None and segment.get("status") == "ok" and segment.get("mass_ls_kg") is not None and \
+        if value is None and segment.get("status") in ("ok", "uncertain") and segment.get("mass_ls_kg") is not None and \
                 "force balance does not hold" not in segment.get("mass_joint_reason", ""):
             # the LS of (9) where the joint fit is only uncertain: `mass_kg` no longer reports
             # it (not confident), but here it is a better first guess than the joint value (on
             # the matrix's urban gps+can drives: 0.46 against 1.08 %-pt)
-            value, std = segment["mass_ls_kg"], segment.get("uncertainty_kg")
+            # the LS's uncertainty has a fixed 0.1 %-pt gradient bias; the joint fit's has the
+            # first pass's stated gradient sigma, which is what the force balance inherits
+            regressor = segment.get("mass_regressor", "gradient")
+            value = segment["mass_ls_kg"]
+            std = np.nanmax([np.nan if v is None else v for v in (
+                segment.get("uncertainty_kg"), segment.get(f"mass_{regressor}_uncertainty_kg"), np.nan)])
         elif value is None and segment.get("mass_joint_status") == "uncertain":
             regressor = segment.get("mass_regressor", "gradient")
             value, std = segment.get(f"mass_{regressor}_kg"), segment.get(f"mass_{regressor}_uncertainty_kg")
@@ -114,11 +119,26 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         source = f"the given mass {np.nanmedian(mass):.0f} kg"
         bias_sigma = G_MPS2 * vehicle.rolling_resistance_coefficient * ROLLING_RESISTANCE_UNCERTAINTY
         settings = replace(settings, smoother=replace(settings.smoother, imu_bias_prior_sigma_mps2=bias_sigma))
+    settings = replace(settings, smoother=replace(settings.smoother, force_balance=True))
     virtual = virtual_accelerometer_mps2(first, vehicle, mass)
     if not np.isfinite(virtual).any():
         raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
     result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
+    measured = virtual
+    # only with no height source: there the sigma comes from the road's spread away from the
+    # measured bins (`_widen_in_gaps`); with GPS altitude the bound, taken as a measurement, made
+    # the smoother's sigma too small (urban gps+can: 97 -> 79 % inside ±2σ)
+    if BRAKING_BOUND and not _has_height_source(result):
+        bounded = _braking_bound(result, frame, virtual, vehicle, mass)
+        if bounded is not None:
+            virtual = bounded
+            result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
+            result.notes.append(f"the force balance's braking bound (the brakes only take force away) held the "
+                                f"gradient down on {np.sum(np.isfinite(virtual) & ~np.isfinite(measured))} samples "
+                                f"where it was above what braking allows")
     _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
+    if not _has_height_source(result):
+        _widen_in_gaps(result, frame, measured, settings.spacing_m)
     if mass_kg is None:
         result.samples["gradient_mass_pct"] = np.asarray(gradient, dtype=float)
         result.samples["gradient_mass_std_pct"] = np.asarray(gradient_std, dtype=float)
@@ -131,6 +151,92 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         result.grid = result.grid.rename(columns={"gradient_imu_pct": "gradient_force_balance_pct"})
         result.samples["gradient_force_balance_pct"] = result.samples.pop("gradient_imu_pct")
     return result
+
+
+def _has_height_source(result: GradientResult) -> bool:
+    """Whether a barometer, the map or GPS altitude measured a height."""
+    grid = result.grid
+    return any(column in grid for column in ("gradient_baro_pct", "gradient_map_pct")) or \
+        bool((grid.get("weight_smooth_gps", pd.Series([0.0])) > 0).any())
+
+
+BRAKING_BOUND = True
+"""Hold the force balance's gradient under what braking allows (`_braking_bound`)."""
+
+
+def _braking_bound(result, frame, virtual, vehicle, mass):
+    """The force balance where the truck brakes: the brakes only take force away, so
+    dv/dt + g sin(alpha) <= (F_engine - F_aero)/m - g c_r with F_engine the engine's pull (>= 0). Where the smoothed gradient breaks that
+    bound the bound itself becomes the measurement (the smoother's estimate projected onto what the
+    physics allows; a truck brakes on descents, which the random walk across the gap does not know).
+    Returns the force balance with those samples added, or None where none breaks it."""
+    from ..road_load import aero_force_n
+    brake = frame["brake_switch"].to_numpy(dtype=float) if "brake_switch" in frame else None
+    torque = frame["engine_torque_nm"].to_numpy(dtype=float) if "engine_torque_nm" in frame else None
+    if brake is None or torque is None:
+        return None
+    speed = frame["speed_mps"].to_numpy(dtype=float)
+    accel = frame["accel_mps2"].to_numpy(dtype=float) if "accel_mps2" in frame else None
+    if accel is None:
+        return None
+    from ..road_load import wheel_force_from_torque_n, wheel_torque_from_engine_nm
+    rpm = frame["engine_speed_rpm"].to_numpy(dtype=float) if "engine_speed_rpm" in frame else None
+    if rpm is None:
+        return None
+    braking = (np.nan_to_num(brake) > 0.5) & (speed > 3.0) & ~np.isfinite(virtual)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        pushing = wheel_force_from_torque_n(wheel_torque_from_engine_nm(
+            np.clip(torque, 0, None), rpm, speed, vehicle.wheel_radius_m, vehicle.driveline_efficiency),
+            vehicle.wheel_radius_m)
+        bound = (np.nan_to_num(pushing) - aero_force_n(speed, vehicle.drag_coefficient, vehicle.frontal_area_m2)) \
+            / np.asarray(mass, dtype=float) - G_MPS2 * vehicle.rolling_resistance_coefficient
+    gradient = result.samples["gradient_smooth_pct"] / 100.0
+    bias = result.samples.get("imu_bias_mps2", np.zeros(len(frame)))
+    estimate = accel + G_MPS2 * gradient / np.sqrt(1 + gradient ** 2) + np.nan_to_num(bias)
+    broken = braking & np.isfinite(bound) & (estimate > bound)
+    if broken.sum() < 10:
+        return None
+    out = np.array(virtual, dtype=float)
+    out[broken] = bound[broken]
+    return out
+
+
+def _widen_in_gaps(result: GradientResult, frame, virtual, spacing_m):
+    """With no height source, where the force balance measures nothing (braking downhill,
+    coasting) the smoother's random walk extrapolates the gradient with a sigma that grows far
+    slower than a road changes (matrix `can-only` typical: 75-79 % inside ±2σ). There the sigma
+    returns to what the road is known to do: a stationary (Gauss-Markov) gradient with the RMS
+    and the correlation length of the smoothed gradient where the force balance measured,
+    sigma² = sigma_edge² w + rms² (1 - w), w = exp(-2 d / L), d the distance to the nearest
+    measured grid point."""
+    from scipy.ndimage import distance_transform_edt
+
+    from . import grid as distance_grid
+    from .smoother import _correlation_length_bins
+    grid = result.grid
+    distance = frame["distance_m"].to_numpy(dtype=float) if "distance_m" in frame else None
+    if distance is None:
+        return
+    measured = np.zeros(len(grid), bool)
+    ok = np.isfinite(distance) & np.isfinite(virtual)
+    index = distance_grid.grid_index(distance[ok], spacing_m)
+    measured[index[(index >= 0) & (index < len(grid))]] = True
+    gradient = grid["gradient_smooth_pct"].to_numpy()
+    if measured.sum() < 50 or measured.all():
+        return
+    rms = float(np.sqrt(np.mean(gradient[measured] ** 2)))
+    length = _correlation_length_bins(np.where(measured, gradient, np.nan), max_lag=len(grid) // 2)
+    if not np.isfinite(length) or length <= 0:
+        return
+    w = np.exp(-2 * distance_transform_edt(~measured) / length)
+    std = grid["gradient_smooth_std_pct"].to_numpy()
+    std = np.sqrt(std ** 2 * w + np.maximum(rms ** 2, std ** 2) * (1 - w))
+    grid["gradient_smooth_std_pct"] = std
+    result.samples["gradient_smooth_std_pct"] = np.interp(distance, grid["distance_m"].to_numpy(), std,
+                                                          left=np.nan, right=np.nan)
+    result.notes.append(f"no height source: where the force balance measures nothing ({100 * (1 - measured.mean()):.0f} % "
+                        f"of the distance) the gradient's sigma returns to the road's own spread ({rms:.1f} %-pt "
+                        f"over {length * spacing_m:.0f} m)")
 
 
 def _add_mass_uncertainty(result: GradientResult, frame, virtual, relative, vehicle, spacing_m):
