@@ -125,7 +125,8 @@ def _propose(current, n, row_ptr, dest, count, cum_count, start_state, start_cum
         while j < start_cum.shape[0] - 1 and start_cum[j] <= u:
             j += 1
         proposal[0] = start_state[j]
-        return _rejoin(current, n, 0, min(window, n - 1), 0, start_state[j], row_ptr, dest, count, cum_count,
+        head = np.int64(0)  # not the literal 0: one compiled _rejoin, not two
+        return _rejoin(current, n, head, min(window, n - 1), head, start_state[j], row_ptr, dest, count, cum_count,
                        ending, rng, window + window // 2, mark, proposal)
     if move < HEAD_SHARE + TAIL_SHARE:
         a = max(n - 2 - int(uniform(rng) * min(max_window, n - 1)), 0)

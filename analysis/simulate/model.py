@@ -142,9 +142,12 @@ def kernel_arguments(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, ept
     checks.rows(steps, f"simulating {cycle.name} at {settings.time_step_s:g} s steps",
                 "is the cycle's time or distance in the right unit?")
     out = np.empty((K.N_COLUMNS, steps))
-    return (cycle.time_based, cycle.position, cycle.target_speed_mps, cycle.gradient_pct, f_roll, f_climb,
-            cycle.mass_kg, cycle.stop_distance_m, cycle.stop_time_s, load_time, aux, epto, obc,
-            p, ratios, map_speed, map_torque, map_eff, out)
+    arrays = (cycle.position, cycle.target_speed_mps, cycle.gradient_pct, f_roll, f_climb, cycle.mass_kg,
+              cycle.stop_distance_m, cycle.stop_time_s, load_time, aux, epto, obc, p, ratios, map_speed, map_torque,
+              map_eff)
+    # writable: numba compiles a kernel once per read-only flag of its arrays (a column of a frame
+    # read from Parquet is read-only), and run_kernel takes 6 s to compile
+    return (cycle.time_based, *(np.require(a, requirements=["C", "W"]) for a in arrays), out)
 
 
 def simulate_cycle(cycle: SimCycle, vehicle: Vehicle, *, aux_power_w=None, epto_power_w=0.0, obc_power_w=0.0,
