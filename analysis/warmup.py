@@ -150,8 +150,10 @@ def main(argv=None) -> int:
     parser.add_argument("--realism", default="typical")
     args = parser.parse_args(argv)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))  # stopped by the demo: remove the work folder
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})  # until the folder is under the finally
     work_dir = Path(tempfile.mkdtemp(prefix="haulprofile-warmup-"))
     try:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
         warm(args.vehicle, args.realism, work_dir)
         stamp = stamp_path()
         stamp.parent.mkdir(parents=True, exist_ok=True)
