@@ -79,12 +79,10 @@ def start(scenario, realism: str) -> subprocess.Popen | None:
     """Start a warm-up process for the vehicle of ``scenario`` (`virtual_truck.Scenario`) at
     ``realism`` at the lowest CPU priority, or None when none is needed or one cannot start (a
     warm-up only ever saves time)."""
-    from .vehicle import EXAMPLES
-
     if not needed():
         return None
-    vehicle = scenario.vehicle if scenario.vehicle in EXAMPLES else str((scenario.base_dir / scenario.vehicle).resolve())
-    command = [sys.executable, "-m", "haulprofile.analysis.warmup", "--vehicle", vehicle, "--realism", realism]
+    command = [sys.executable, "-m", "haulprofile.analysis.warmup", "--vehicle", scenario.vehicle,
+               "--base-dir", str(Path(scenario.base_dir).resolve()), "--realism", realism]
     try:
         return subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL, preexec_fn=lambda: os.nice(19))
@@ -114,18 +112,19 @@ def beside(enabled: bool, scenario, realism: str):
         stop(process)
 
 
-def warm(vehicle_name: str, realism: str, work_dir: Path) -> None:
-    """Drive `SHORT_ROUTE` with ``vehicle_name`` at ``realism`` and run every stage on its log
-    (no output step: it holds no kernel, and its figures took a quarter of the warm-up)."""
+def warm(vehicle_name: str, realism: str, work_dir: Path, base_dir: Path = Path(".")) -> None:
+    """Drive `SHORT_ROUTE` with ``vehicle_name`` (a shipped example, or a file in ``base_dir`` as
+    a scenario names it) at ``realism`` and run every stage on its log (no output step: it holds
+    no kernel, and its figures took a quarter of the warm-up)."""
     import datetime as dt
 
-    from .pipeline import STAGES, RunContext, load_inputs, run_stage
+    from .pipeline import CYCLE, STAGES, RunContext, load_inputs, run_stage
     from .virtual_truck import drive, realism_level, scenario_vehicle, write_dem, write_mcap
     from .virtual_truck.scenario import scenario_from_dict
 
     head = {"name": "warmup", "vehicle": vehicle_name, "start_latitude_deg": 47.42, "start_longitude_deg": 8.47,
             "start_heading_deg": 70.0, "start_time": dt.datetime(2025, 5, 14, 6, 30, tzinfo=dt.timezone.utc)}
-    scenario = scenario_from_dict({"scenario": head, **SHORT_ROUTE}, "<warm-up>")
+    scenario = scenario_from_dict({"scenario": head, **SHORT_ROUTE}, "<warm-up>", base_dir)
     vehicle = scenario_vehicle(scenario)
     virtual = drive(scenario, vehicle, seed=0, realism=realism_level(realism))
     write_dem(virtual, work_dir / "dem")
@@ -138,15 +137,14 @@ def warm(vehicle_name: str, realism: str, work_dir: Path) -> None:
     # logging, before a warm-up could have compiled the cycle's kernels, so those come last and
     # the simulation and design kernels first, on the measured drive (the demo compiles the
     # cycle's kernels itself meanwhile, then finds the rest in the cache)
-    cycle = [stage for stage in STAGES if stage.name == "cycle"]
-    after_cycle = STAGES[STAGES.index(cycle[0]) + 1:]
-    for stage in [stage for stage in STAGES if stage not in cycle] + cycle + after_cycle:
+    for stage in [stage for stage in STAGES if stage is not CYCLE] + STAGES[STAGES.index(CYCLE):]:
         run_stage(ctx, stage)
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="compile and cache the analysis kernels (started by analyze demo)")
     parser.add_argument("--vehicle", default="rigid-18t")
+    parser.add_argument("--base-dir", type=Path, default=Path("."), help="folder a vehicle file name is relative to")
     parser.add_argument("--realism", default="typical")
     args = parser.parse_args(argv)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))  # stopped by the demo: remove the work folder
@@ -154,7 +152,7 @@ def main(argv=None) -> int:
     work_dir = Path(tempfile.mkdtemp(prefix="haulprofile-warmup-"))
     try:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
-        warm(args.vehicle, args.realism, work_dir)
+        warm(args.vehicle, args.realism, work_dir, args.base_dir)
         stamp = stamp_path()
         stamp.parent.mkdir(parents=True, exist_ok=True)
         stamp.touch()

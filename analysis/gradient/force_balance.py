@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserError
-from ..road_load import G_MPS2
+from ..road_load import G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_torque_from_engine_nm
 from .estimate import GradientResult, GradientSettings, estimate_gradient
 
 
@@ -170,19 +170,10 @@ def _braking_bound(result, frame, virtual, vehicle, mass):
     bound the bound itself becomes the measurement (the smoother's estimate projected onto what the
     physics allows; a truck brakes on descents, which the random walk across the gap does not know).
     Returns the force balance with those samples added, or None where none breaks it."""
-    from ..road_load import aero_force_n
-    brake = frame["brake_switch"].to_numpy(dtype=float) if "brake_switch" in frame else None
-    torque = frame["engine_torque_nm"].to_numpy(dtype=float) if "engine_torque_nm" in frame else None
-    if brake is None or torque is None:
+    if not {"brake_switch", "engine_torque_nm", "accel_mps2", "engine_speed_rpm"} <= set(frame.columns):
         return None
-    speed = frame["speed_mps"].to_numpy(dtype=float)
-    accel = frame["accel_mps2"].to_numpy(dtype=float) if "accel_mps2" in frame else None
-    if accel is None:
-        return None
-    from ..road_load import wheel_force_from_torque_n, wheel_torque_from_engine_nm
-    rpm = frame["engine_speed_rpm"].to_numpy(dtype=float) if "engine_speed_rpm" in frame else None
-    if rpm is None:
-        return None
+    brake, torque, accel, rpm, speed = (frame[c].to_numpy(dtype=float) for c in (
+        "brake_switch", "engine_torque_nm", "accel_mps2", "engine_speed_rpm", "speed_mps"))
     braking = (np.nan_to_num(brake) > 0.5) & (speed > 3.0) & ~np.isfinite(virtual)
     with np.errstate(invalid="ignore", divide="ignore"):
         pushing = wheel_force_from_torque_n(wheel_torque_from_engine_nm(
