@@ -15,12 +15,32 @@ import pandas as pd
 
 from .stage import Stage
 
+STANDING_GAP_S = 5.0
+"""Longest gap in the speed [s] between two standing samples that still counts as standstill:
+starting and ending at rest, a truck moves at most a t²/4 in it, under 10 m at 1.5 m/s²; a
+logger's dropout in a long stop must not cut the stop in two."""
+
 
 def distance_m(time_s: np.ndarray, speed_mps: np.ndarray) -> np.ndarray:
     """Driven distance [m]: trapezoidal integral of speed, NaN speeds counted as 0."""
     speed = np.nan_to_num(np.asarray(speed_mps, dtype=float))
     steps = 0.5 * (speed[1:] + speed[:-1]) * np.diff(np.asarray(time_s, dtype=float))
     return np.concatenate([[0.0], np.cumsum(steps)])
+
+
+def standing(time_s: np.ndarray, speed_mps: np.ndarray, stop_speed_mps: float,
+             max_gap_s: float = STANDING_GAP_S) -> np.ndarray:
+    """Samples at standstill: speed below ``stop_speed_mps``, and the missing speeds of a gap of at
+    most ``max_gap_s`` between two standing samples. Any other missing speed is not a stop (a gap
+    is no evidence of a load change)."""
+    time = np.asarray(time_s, dtype=float)
+    speed = np.asarray(speed_mps, dtype=float)
+    stopped = speed < stop_speed_mps
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.isnan(speed).astype(np.int8), [0]])))
+    for a, b in zip(edges[::2], edges[1::2]):
+        if 0 < a and b < len(speed) and stopped[a - 1] and stopped[b] and time[b] - time[a - 1] <= max_gap_s:
+            stopped[a:b] = True
+    return stopped
 
 
 def acceleration_mps2(time_s: np.ndarray, speed_mps: np.ndarray, window_s: float = 1.0) -> np.ndarray:

@@ -79,6 +79,17 @@ def test_segments_split_at_long_stops_only():
     assert segment_bounds(time, speed, SegmentSettings()) == [(0, 200), (290, 400)]
 
 
+def test_a_dropout_inside_a_stop_is_still_the_stop_but_a_long_gap_is_not():
+    time = np.arange(0, 400.0, 1.0)
+    speed = np.full(400, 10.0)
+    speed[200:290] = 0.0
+    speed[240:242] = np.nan   # the logger missed two samples of the loading stop
+    assert segment_bounds(time, speed, SegmentSettings()) == [(0, 200), (290, 400)]
+    speed[200:290] = np.nan   # 90 s without speed: no evidence of a stop
+    speed[[199, 290]] = 0.0
+    assert segment_bounds(time, speed, SegmentSettings()) == [(0, 400)]
+
+
 @pytest.fixture(scope="module")
 def payload_change_drive(tmp_path_factory):
     drive = synthetic_drive(seed=3, duration_s=2400, mass_kg=12_500, stops_s=(1100.0,), mass_after_stop_kg=17_800)

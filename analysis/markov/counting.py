@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from .. import kinematics
 from ..errors import UserError
 from . import classes as cls
 
@@ -34,14 +35,15 @@ class CountingError(UserError):
     pass
 
 
-def mass_at_stops(speed_mps: np.ndarray, mass_kg: np.ndarray, standing_mps: float = 0.1) -> np.ndarray:
+def mass_at_stops(time_s: np.ndarray, speed_mps: np.ndarray, mass_kg: np.ndarray,
+                  standing_mps: float = 0.1) -> np.ndarray:
     """Mass with the gaps a per-segment mass estimator leaves around stops filled: a driving run
     (between two stops) with some mass takes its median where it has none (slow samples at
     departure and arrival), and a stop takes the mass of the run before it (the truck arrived with
     it), or of the run after it when the one before has none. A driving run without any mass
-    stays a gap."""
+    stays a gap. A logger's short dropout inside a stop is part of the stop (`kinematics.standing`)."""
     mass = np.array(mass_kg, dtype=float)
-    standing = np.nan_to_num(speed_mps, nan=np.inf) < standing_mps
+    standing = kinematics.standing(time_s, speed_mps, standing_mps)
     starts, ends = _runs(standing)
     for a, b in zip(starts, ends):
         run = mass[a:b]
@@ -67,7 +69,8 @@ def resample_1hz(signals: pd.DataFrame, gap_s: float = GAP_S) -> pd.DataFrame:
     if missing:
         raise CountingError(f"signals lack column(s) {', '.join(missing)} needed for the driving cycle")
     frame = signals[list(NEEDED)].astype(float)
-    frame["mass_kg"] = mass_at_stops(frame["speed_mps"].to_numpy(), frame["mass_kg"].to_numpy())
+    frame["mass_kg"] = mass_at_stops(frame["time_s"].to_numpy(), frame["speed_mps"].to_numpy(),
+                                     frame["mass_kg"].to_numpy())
     usable = np.isfinite(frame.to_numpy()).all(axis=1)
     if "valid" in signals.columns:
         usable &= signals["valid"].fillna(False).to_numpy(bool)

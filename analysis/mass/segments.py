@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..kinematics import standing
 from ..road_load import G_MPS2
 from . import kernels
 
@@ -40,8 +41,8 @@ class SegmentSettings:
 
 def segment_bounds(time_s: np.ndarray, speed_mps: np.ndarray, settings: SegmentSettings) -> list[tuple[int, int]]:
     """[start, end) sample ranges between stops longer than ``min_stop_s``; stop samples belong
-    to no segment. NaN speed counts as not stopped (a gap is not evidence of a load change)."""
-    stopped = np.nan_to_num(speed_mps, nan=np.inf) < settings.stop_speed_mps
+    to no segment. A gap in the speed counts as stopped only inside a stop (`kinematics.standing`)."""
+    stopped = standing(time_s, speed_mps, settings.stop_speed_mps)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], stopped.astype(np.int8), [0]])))
     long_stops = [(a, b) for a, b in zip(edges[::2], edges[1::2]) if time_s[b - 1] - time_s[a] >= settings.min_stop_s]
     bounds, start = [], 0
@@ -75,7 +76,7 @@ def split_at_payload_changes(bounds, time_s, speed_mps, phi, y, settings: Segmen
     change is at least ``min_payload_change``. A delivery of a few seconds and a red light look the
     same in the speed; only the force balance tells them apart."""
     from scipy.stats import norm
-    stopped = np.nan_to_num(speed_mps, nan=np.inf) < settings.stop_speed_mps
+    stopped = standing(time_s, speed_mps, settings.stop_speed_mps)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], stopped.astype(np.int8), [0]])))
     short = [(a, b) for a, b in zip(edges[::2], edges[1::2])
              if settings.payload_stop_s <= time_s[b - 1] - time_s[a] < settings.min_stop_s]
