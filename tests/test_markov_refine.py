@@ -155,12 +155,15 @@ def test_time_quantiles_with_ties_and_half_seconds_at_the_ends():
 
 
 def test_time_quantiles_by_selection_equal_the_sorted_reference():
-    """Ties, repeated values, one or no half sample, any ascending shares: the same values."""
+    """Ties, repeated values, NaNs (sorted last), one or no half sample, any ascending shares: the
+    same values."""
     rng = np.random.default_rng(29)
     for trial in range(600):
         n = int(rng.integers(3, 300))
         values = [rng.integers(-3, 4, n).astype(float), rng.normal(size=n), np.round(rng.normal(size=n), 1),
-                  np.where(rng.random(n) < 0.9, 2.0, rng.normal(size=n))][trial % 4]
+                  np.where(rng.random(n) < 0.9, 2.0, rng.normal(size=n)),
+                  np.where(rng.random(n) < 0.2, np.nan, rng.integers(-3, 4, n).astype(float)),
+                  np.full(n, np.nan)][trial % 6]
         shares = np.sort(rng.uniform(0, 1, 3)) if trial % 2 else SHARES
         for n_half, a, b in ((2, 0, n - 1), (1, int(rng.integers(0, n)), 0), (0, 0, 0)):
             expected, out = np.empty(3), np.empty(3)

@@ -155,3 +155,17 @@ def test_a_payload_change_at_a_short_stop_is_found_from_the_data(after_kg):
     assert len(result.segments) == 2 and result.segments[0]["end_s"] < 900 < result.segments[1]["start_s"]
     for segment, true in zip(result.segments, (20_000.0, after_kg)):
         assert abs(segment["mass_kg"] / true - 1) < 0.02
+
+
+def test_the_kernels_condition_number_is_numpys():
+    """`kernels._condition_number` (Jacobi, no LAPACK to compile) decides singularity as
+    ``np.linalg.cond`` does, from well-conditioned to singular normal matrices."""
+    rng = np.random.default_rng(5)
+    for p in (1, 2, 3, 5):
+        for spread in (1.0, 1e4, 1e8, 1e14):
+            basis, _ = np.linalg.qr(rng.normal(size=(p, p)))
+            normal = basis @ np.diag(np.geomspace(1.0, 1.0 / spread, p)) @ basis.T
+            for fn in (kernels._condition_number, kernels._condition_number.py_func):
+                np.testing.assert_allclose(fn(normal), np.linalg.cond(normal), rtol=1e-3 if spread < 1e14 else 0.5)
+    assert kernels._condition_number(np.zeros((2, 2))) == np.inf
+    assert kernels._condition_number(np.array([[1.0, 1.0], [1.0, 1.0]])) > 1e12

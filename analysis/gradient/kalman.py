@@ -153,8 +153,7 @@ def smooth(z, r, dt, step, params, x0, p0, backward=True):
             _predict(x, p, spacing, dt[i], phi, q_c, q_r, q_b, dem_var)
             for a in range(ns):
                 p[a, a] += step[i, a]
-        x_pred[i] = x
-        p_pred[i] = p
+        _store(x, p, x_pred, p_pred, i)
         gamma = x[GAMMA]
         for m in range(N_MEASUREMENTS):
             if not (np.isfinite(z[i, m]) and np.isfinite(r[i, m]) and r[i, m] > 0):
@@ -193,8 +192,7 @@ def smooth(z, r, dt, step, params, x0, p0, backward=True):
                     p[a, b] -= pr[a] * pr[b] / s
             innovation[i, m] = nu
             innovation_var[i, m] = s
-        x_filt[i] = x
-        p_filt[i] = p
+        _store(x, p, x_filt, p_filt, i)
     x_s = x_filt.copy()
     p_s = p_filt.copy()
     if not backward:
@@ -238,6 +236,16 @@ def smooth(z, r, dt, step, params, x0, p0, backward=True):
                     acc += cd[a, k] * c[k, b]
                 p_s[i, a, b] = p_filt[i, a, b] + acc
     return x_s, p_s, innovation, innovation_var
+
+
+@numba.njit(cache=True)
+def _store(x, p, xs, ps, i):
+    """xs[i], ps[i] = x, p element by element: an array assignment would make numba compile its
+    shape-mismatch error message, seconds of a first run's compilation."""
+    for a in range(x.shape[0]):
+        xs[i, a] = x[a]
+        for b in range(x.shape[0]):
+            ps[i, a, b] = p[a, b]
 
 
 @numba.njit(cache=True)

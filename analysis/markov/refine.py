@@ -184,10 +184,12 @@ def refine_walk(path, row_ptr, dest, count, cum_count, start_state, start_cum, e
             value = value_of(proposal[:n], threshold)
             if value < threshold:
                 current = value
-                walk[:] = proposal[:n]
+                for k in range(n):  # element by element: no shape-mismatch error for numba to compile
+                    walk[k] = proposal[k]
                 if value < best:
                     best = value
-                    path[:] = walk
+                    for k in range(n):
+                        path[k] = walk[k]
         trace[m] = best
         t *= cooling
     return best
