@@ -3,8 +3,9 @@
 numba compiles each kernel at its first call and keeps it on disk (``cache=True``), so on a fresh
 install the first run of the chain spends about a minute compiling. `analyze demo` first logs its
 drive through the daemon and the emulated devices, which share one process and so one core, for
-about a minute; it starts this module beside it once its own drive is made (`beside`), so the
-virtual truck's kernels are already cached. The warm-up drives a short virtual
+about a minute; it starts this module beside it before its own drive (`beside`): the second core
+is idle until the logging starts, so the two compiling the virtual truck's kernels at once costs
+the demo nothing and the warm-up is done sooner. The warm-up drives a short virtual
 route of the same vehicle at the same realism and runs every stage on it with a small cycle pool
 and concept search, which compiles and caches the same kernels with the same argument types. The
 demo's own run then loads them. A kernel the demo needs while it is still being compiled here is

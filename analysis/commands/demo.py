@@ -64,9 +64,9 @@ def run(args) -> int:
     vehicle = scenario_vehicle(scenario)
     out: Path = args.out
     say(f"virtual truck: scenario {scenario.name}, {vehicle.name}, seed {args.seed}, realism {level.level}")
-    virtual = drive(scenario, vehicle, seed=args.seed, realism=level)
-    say(f"  drove {virtual.truth['distance_m'].iloc[-1] / 1000:.1f} km in {virtual.duration_s / 60:.1f} min")
     with warmup.beside(not (args.direct or args.no_warmup), scenario, level.level):
+        virtual = drive(scenario, vehicle, seed=args.seed, realism=level)
+        say(f"  drove {virtual.truth['distance_m'].iloc[-1] / 1000:.1f} km in {virtual.duration_s / 60:.1f} min")
         return _log_and_analyse(args, say, started, options, scenario, vehicle, virtual)
 
 
