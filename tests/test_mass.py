@@ -158,14 +158,15 @@ def test_a_payload_change_at_a_short_stop_is_found_from_the_data(after_kg):
 
 
 def test_the_kernels_condition_number_is_numpys():
-    """`kernels._condition_number` (Jacobi, no LAPACK to compile) decides singularity as
-    ``np.linalg.cond`` does, from well-conditioned to singular normal matrices."""
+    """`small_linalg.condition_number_symmetric` (Jacobi, no LAPACK to compile) decides
+    singularity as ``np.linalg.cond`` does, from well-conditioned to singular normal matrices."""
+    from haulprofile.analysis.small_linalg import condition_number_symmetric
     rng = np.random.default_rng(5)
     for p in (1, 2, 3, 5):
         for spread in (1.0, 1e4, 1e8, 1e14):
             basis, _ = np.linalg.qr(rng.normal(size=(p, p)))
             normal = basis @ np.diag(np.geomspace(1.0, 1.0 / spread, p)) @ basis.T
-            for fn in (kernels._condition_number, kernels._condition_number.py_func):
+            for fn in (condition_number_symmetric, condition_number_symmetric.py_func):
                 np.testing.assert_allclose(fn(normal), np.linalg.cond(normal), rtol=1e-3 if spread < 1e14 else 0.5)
-    assert kernels._condition_number(np.zeros((2, 2))) == np.inf
-    assert kernels._condition_number(np.array([[1.0, 1.0], [1.0, 1.0]])) > 1e12
+    assert condition_number_symmetric(np.zeros((2, 2))) == np.inf
+    assert condition_number_symmetric(np.array([[1.0, 1.0], [1.0, 1.0]])) > 1e12

@@ -29,6 +29,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ..small_linalg import cholesky, cholesky_solve
+
 N_STATES = 6
 N_MEASUREMENTS = 4
 H, GAMMA, DRIFT, RATE, BIAS, DEM_ERROR = range(N_STATES)
@@ -213,8 +215,8 @@ def smooth(z, r, dt, step, params, x0, p0, backward=True):
             fp[DRIFT, j] += dti * fp[RATE, j]
             fp[DEM_ERROR, j] *= phi
         # C^T = P_pred^-1 F P_filt by Cholesky (P_pred is symmetric positive definite)
-        _cholesky(p_pred[i + 1], chol)
-        _cholesky_solve(chol, fp, c)
+        cholesky(p_pred[i + 1], chol)
+        cholesky_solve(chol, fp, c)
         for a in range(ns):
             dx[a] = x_s[i + 1, a] - x_pred[i + 1, a]
             for b in range(ns):
@@ -246,38 +248,3 @@ def _store(x, p, xs, ps, i):
         xs[i, a] = x[a]
         for b in range(x.shape[0]):
             ps[i, a, b] = p[a, b]
-
-
-@numba.njit(cache=True)
-def _cholesky(a, out):
-    """Lower Cholesky factor of the symmetric positive definite ``a`` into ``out``."""
-    n = a.shape[0]
-    for i in range(n):
-        for j in range(i + 1):
-            acc = a[i, j]
-            for k in range(j):
-                acc -= out[i, k] * out[j, k]
-            if i == j:
-                out[i, i] = np.sqrt(max(acc, 1e-300))
-            else:
-                out[i, j] = acc / out[j, j]
-        for j in range(i + 1, n):
-            out[i, j] = 0.0
-
-
-@numba.njit(cache=True)
-def _cholesky_solve(chol, rhs, out):
-    """out = A^-1 rhs for A = chol chol^T, column by column."""
-    n = chol.shape[0]
-    y = np.empty(n)
-    for col in range(rhs.shape[1]):
-        for i in range(n):
-            acc = rhs[i, col]
-            for k in range(i):
-                acc -= chol[i, k] * y[k]
-            y[i] = acc / chol[i, i]
-        for i in range(n - 1, -1, -1):
-            acc = y[i]
-            for k in range(i + 1, n):
-                acc -= chol[k, i] * out[k, col]
-            out[i, col] = acc / chol[i, i]

@@ -10,6 +10,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ..small_linalg import cholesky, cholesky_solve, condition_number_symmetric
+
 
 def least_squares_reference(phi: np.ndarray, y: np.ndarray) -> np.ndarray:
     """(9): theta = (Phi^T Phi)^-1 Phi^T Y over finite rows; NaN where Phi^T Phi is singular."""
@@ -39,53 +41,16 @@ def least_squares(phi, y):
             rhs[i] += phi[k, i] * y[k]
             for j in range(p):
                 normal[i, j] += phi[k, i] * phi[k, j]
-    if used < p or _condition_number(normal) > 1e12:
+    if used < p or condition_number_symmetric(normal) > 1e12:
         return np.full(p, np.nan)
     if p == 1:
         rhs[0] /= normal[0, 0]
-    else:
-        _solve_symmetric_positive(normal, rhs, np.empty((p, p)))
-    return rhs
-
-
-@numba.njit(cache=True)
-def _condition_number(a):
-    """2-norm condition number of the symmetric ``a`` (``np.linalg.cond``) from its eigenvalues by
-    cyclic Jacobi rotations: a first run compiles these loops in a fraction of LAPACK's SVD."""
-    n = a.shape[0]
-    m = a.copy()
-    scale = 0.0
-    for i in range(n):
-        for j in range(n):
-            scale += m[i, j] * m[i, j]
-    for _sweep in range(60):
-        off = 0.0
-        for i in range(n):
-            for j in range(i + 1, n):
-                off += m[i, j] * m[i, j]
-        if off <= 1e-32 * scale:
-            break
-        for p in range(n):
-            for q in range(p + 1, n):
-                if m[p, q] == 0.0:
-                    continue
-                theta = (m[q, q] - m[p, p]) / (2.0 * m[p, q])
-                t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
-                if theta < 0.0:
-                    t = -t
-                c = 1.0 / np.sqrt(t * t + 1.0)
-                s = t * c
-                for k in range(n):
-                    kp, kq = m[k, p], m[k, q]
-                    m[k, p], m[k, q] = c * kp - s * kq, s * kp + c * kq
-                for k in range(n):
-                    pk, qk = m[p, k], m[q, k]
-                    m[p, k], m[q, k] = c * pk - s * qk, s * pk + c * qk
-    largest, smallest = 0.0, np.inf
-    for i in range(n):
-        largest = max(largest, abs(m[i, i]))
-        smallest = min(smallest, abs(m[i, i]))
-    return np.inf if smallest == 0.0 else largest / smallest
+        return rhs
+    lower = np.empty((p, p))
+    cholesky(normal, lower)
+    solution = np.empty((p, 1))
+    cholesky_solve(lower, rhs.reshape((p, 1)), solution)
+    return solution[:, 0].copy()
 
 
 def rls_reference(phi, y, forgetting_factor, theta0, p0):
@@ -168,7 +133,8 @@ def levenberg_marquardt(phi, y, forgetting_factor, damping, theta0):
     history = np.empty((n, p))
     damped = np.empty((p, p))
     lower = np.empty((p, p))
-    step = np.empty(p)
+    gradient = np.empty((p, 1))
+    step = np.empty((p, 1))
     for k in range(n):
         ok = np.isfinite(y[k])
         for i in range(p):
@@ -186,34 +152,11 @@ def levenberg_marquardt(phi, y, forgetting_factor, damping, theta0):
                 for i in range(p):
                     for j in range(p):
                         damped[i, j] = information[i, j] + (damping if i == j else 0.0)
-                    step[i] = phi[k, i] * error
-                _solve_symmetric_positive(damped, step, lower)
+                    gradient[i, 0] = phi[k, i] * error
+                cholesky(damped, lower)
+                cholesky_solve(lower, gradient, step)
                 for i in range(p):
-                    theta[i] += step[i]
+                    theta[i] += step[i, 0]
         for i in range(p):
             history[k, i] = theta[i]
     return history
-
-
-@numba.njit(cache=True)
-def _solve_symmetric_positive(a, b, lower):
-    """b <- a^-1 b for a symmetric positive definite ``a`` (here R_k + mu I, mu > 0) by Cholesky,
-    ``lower`` the factor's workspace: the few lines numba compiles in a fraction of the time of
-    ``np.linalg.solve``."""
-    n = a.shape[0]
-    for i in range(n):
-        for j in range(i + 1):
-            acc = a[i, j]
-            for m in range(j):
-                acc -= lower[i, m] * lower[j, m]
-            lower[i, j] = np.sqrt(acc) if i == j else acc / lower[j, j]
-    for i in range(n):
-        acc = b[i]
-        for m in range(i):
-            acc -= lower[i, m] * b[m]
-        b[i] = acc / lower[i, i]
-    for i in range(n - 1, -1, -1):
-        acc = b[i]
-        for m in range(i + 1, n):
-            acc -= lower[m, i] * b[m]
-        b[i] = acc / lower[i, i]
