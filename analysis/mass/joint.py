@@ -87,6 +87,9 @@ class JointFit:
     """Per segment, the share of its used samples the robust fit gave weight 0 (NaN: not fitted)."""
     condition: float = np.nan
     notes: list[str] = field(default_factory=list)
+    slope_share: np.ndarray | None = None
+    """Per segment, the robust weights' mean slope over their mean (`_biweight_slope_share`), which
+    the covariance's normal matrix carries (NaN: not fitted)."""
 
 
 @numba.njit(cache=True)
@@ -230,6 +233,20 @@ def _block_covariance(normal, free_idx, n_seg, seg, block, weights, residual, in
     return cov
 
 
+def _biweight_slope_share(residual, weights, seg, n_seg, tuning):
+    """Per segment, the mean slope psi'(u) of Tukey's psi(u) = u (1 - u²)² over its mean weight
+    psi(u)/u: the factor that turns the reweighted least squares' normal matrix into the robust
+    fit's own (its sandwich's bread, sum psi'(u_k) z_k x_k^T). Without it the covariance of a
+    biweight fit is too small (stated 0.85 of the spread of the masses over 100 synthetic drives)."""
+    used = weights > 0
+    scale = 1.4826 * np.median(np.abs(residual[used] - np.median(residual[used])))
+    u = residual / (tuning * max(scale, 1e-9))
+    slope = np.where(np.abs(u) < 1, (1 - u * u) * (1 - 5 * u * u), 0.0)
+    share = np.bincount(seg, weights=slope, minlength=n_seg) / np.maximum(np.bincount(seg, weights=weights,
+                                                                                        minlength=n_seg), 1e-12)
+    return np.clip(share, 1e-3, 1.0)
+
+
 def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, settings: JointSettings = JointSettings(),
               regressor_name: str = "", instrument=None, wind_regressors=None, offset_regressor=None) -> JointFit:
     """Masses of the segments ``bounds`` ([start, end) index pairs) and the shared c_r, c_d·A from
@@ -314,8 +331,10 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     precision = np.where(np.isfinite(prior_std), noise_var / prior_std ** 2, 0.0)
     theta, weights, normal, residual, regressor, row = _solve(f, x, c, q, ex, seg, m, theta0, free, settings,
                                                               prior=(centre, precision), instrument=z)
-    cov = _block_covariance(normal, np.flatnonzero(free), m, seg, block, weights, residual, row, theta, c, q, ex,
-                            extra_meat=noise_var * np.diag(precision))
+    share = _biweight_slope_share(residual, weights, seg, m, settings.robust_tuning)
+    bread, _ = _normal_equations(x, x if z is None else z, c, q, ex, seg, theta, m, weights * share[seg], residual)
+    cov = _block_covariance(bread + np.diag(precision), np.flatnonzero(free), m, seg, block, weights, residual, row,
+                            theta, c, q, ex, extra_meat=noise_var * np.diag(precision))
     scale = np.sqrt(np.abs(np.diag(normal)))
     informative = scale > 0  # a segment without a single usable sample has an empty row
     condition = float(np.linalg.cond(normal[np.ix_(informative, informative)]
@@ -358,6 +377,8 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
         result.reasons["torque_offset"] = "identified" if identified else (
             f"not identifiable on this drive (too few gears): its {100 * settings.torque_offset_uncertainty:g} % "
             f"prior is in every mass")
+    result.slope_share = np.full(n_seg, np.nan)
+    result.slope_share[kept] = share
     result.weights[ok] = weights
     result.rejected_share = np.full(n_seg, np.nan)
     result.rejected_share[kept] = np.bincount(seg, weights=(weights == 0).astype(float), minlength=m) / np.bincount(
