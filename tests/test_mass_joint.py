@@ -300,3 +300,18 @@ def test_the_stated_mass_sigma_matches_the_spread_over_drives():
     ratio = np.sqrt(np.mean(stated ** 2)) / np.sqrt(np.mean((errors - errors.mean(axis=0)) ** 2))
     print("stated / spread", ratio)
     assert 0.93 < ratio < 1.2
+
+
+def test_an_auxiliary_power_the_drive_cannot_resolve_is_a_systematic_term_of_the_mass():
+    """Where the drive cannot halve the prior's width (here a 300 W prior against data that resolve
+    about 0.5 kW), the power stays at the prior's mode 0 — fitted, P >= 0 would take up noise one
+    way only — the masses and their statistical sigma are those without the term, and the prior's
+    effect on each mass is a systematic term (like the torque gain's), not a want of excitation."""
+    drive, column = _aux_drive(0.0)
+    without = fit_joint(*drive, VEHICLE, JointSettings(aux_power_sigma_w=0.0), aux_regressor=column)
+    narrow = fit_joint(*drive, VEHICLE, JointSettings(aux_power_sigma_w=300.0), aux_regressor=column)
+    print(narrow.aux_power_w, narrow.aux_power_std_w, narrow.sensitivity_kg)
+    assert not narrow.aux_identified.any() and np.all(narrow.aux_power_w == 0.0)
+    np.testing.assert_allclose(narrow.masses_kg, without.masses_kg, rtol=1e-6)
+    np.testing.assert_allclose(narrow.mass_std_kg, without.mass_std_kg, rtol=1e-3)
+    assert np.all(narrow.sensitivity_kg > 0) and np.all(without.sensitivity_kg == 0)

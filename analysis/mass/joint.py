@@ -83,7 +83,8 @@ class JointFit:
     identified: dict[str, bool]
     reasons: dict[str, str]
     sensitivity_kg: np.ndarray
-    """Further systematic 1-sigma per segment [kg] (zero: the coefficients' uncertainty is in the covariance)."""
+    """Further systematic 1-sigma per segment [kg]: an auxiliary power's prior where the drive cannot
+    resolve it (the coefficients' uncertainty is in the covariance)."""
     weights: np.ndarray
     """Robust weight of every sample (0 for samples not used)."""
     regressor_values: np.ndarray
@@ -264,13 +265,15 @@ def _block_covariance(normal, free_idx, n_seg, seg, block, weights, residual, in
     return cov
 
 
-def _solve_positive_aux(data, theta0, free, aux_index, settings, prior, instrument, floor):
+def _solve_positive_aux(data, theta0, free, aux_index, settings, prior, instrument, floor, held=None):
     """`_solve` with every auxiliary power P_j >= 0 (active set: a P_j the unconstrained fit puts
-    below 0 is held at 0 and the rest fitted again). Returns what `_solve` returns, the normal
-    matrix over all ``free`` parameters (a held P_j's prior width stays in the covariance)."""
+    below 0 is held at 0 and the rest fitted again; ``held`` ones from the start). Returns what
+    `_solve` returns, the normal matrix over all ``free`` parameters (a held P_j's prior width stays
+    in the covariance)."""
     f, x, c, q, ex, aux, seg, m = data
-    held = np.zeros(len(theta0), bool)
-    theta = theta0
+    held = np.zeros(len(theta0), bool) if held is None else held.copy()
+    theta = theta0.copy()
+    theta[held] = 0.0
     while True:
         theta, weights, normal, residual, regressor, row = _solve(f, x, c, q, ex, aux, seg, m, theta, free & ~held,
                                                                   settings, prior=prior, instrument=instrument,
@@ -403,13 +406,29 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     # stays near the datasheet value and its datasheet uncertainty goes into every mass
     precision = np.where(np.isfinite(prior_std), noise_var / prior_std ** 2, 0.0)
     data = (f, x, c, q, ex, aux, seg, m)
-    theta, weights, normal, residual, regressor, row = _solve_positive_aux(data, theta0, free, aux_index, settings,
-                                                                           (centre, precision), z, floor)
-    share = _biweight_slope_share(residual, weights, seg, m, settings.robust_tuning)
-    bread, _ = _normal_equations(x, x if z is None else z, c, q, ex, aux, seg, theta, m, weights * share[seg],
-                                 residual)
-    cov = _block_covariance(bread + np.diag(precision), np.flatnonzero(free), m, seg, block, weights, residual, row,
-                            theta, c, q, ex, aux, extra_meat=noise_var * np.diag(precision))
+    unidentified = np.zeros(len(theta0), bool)
+    for _ in range(2):
+        # an auxiliary power the drive cannot tell from the mass stays at its prior's mode, 0, with
+        # the prior's width in the covariance: fitted, P >= 0 would take up noise one way only
+        theta, weights, normal, residual, regressor, row = _solve_positive_aux(
+            data, theta0, free, aux_index, settings, (centre, precision), z, floor, held=unidentified)
+        share = _biweight_slope_share(residual, weights, seg, m, settings.robust_tuning)
+        bread, _ = _normal_equations(x, x if z is None else z, c, q, ex, aux, seg, theta, m, weights * share[seg],
+                                     residual)
+        cov = _block_covariance(bread + np.diag(precision), np.flatnonzero(free), m, seg, block, weights, residual,
+                                row, theta, c, q, ex, aux, extra_meat=noise_var * np.diag(precision))
+        wide = aux_index[~(np.sqrt(np.diag(cov)[aux_index]) < settings.max_prior_fraction * settings.aux_power_sigma_w)]
+        if unidentified[wide].all():
+            break
+        unidentified[wide] = True
+    statistical = cov
+    if unidentified.any():
+        # like the torque gain, an auxiliary power the drive cannot resolve is a systematic term of
+        # the mass's uncertainty, not a want of excitation: out of the statistical covariance
+        seen = free & ~unidentified
+        statistical = _block_covariance((bread + np.diag(precision))[np.ix_(seen, seen)], np.flatnonzero(seen), m, seg,
+                                        block, weights, residual, row, theta, c, q, ex, aux,
+                                        extra_meat=noise_var * np.diag(precision))
     scale = np.sqrt(np.abs(np.diag(normal)))
     informative = scale > 0  # a segment without a single usable sample has an empty row
     condition = float(np.linalg.cond(normal[np.ix_(informative, informative)]
@@ -424,7 +443,8 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
                              f"{100 * std / prior_std[index]:.0f} % of the datasheet's): stays near the vehicle file")
     result.condition = condition
     result.masses_kg[kept] = theta[:m]
-    result.mass_std_kg[kept] = np.sqrt(np.diag(cov)[:m])
+    result.mass_std_kg[kept] = np.sqrt(np.diag(statistical)[:m])
+    result.sensitivity_kg[kept] = np.sqrt(np.maximum(np.diag(cov)[:m] - np.diag(statistical)[:m], 0.0))
     result.masses_kg[~np.isfinite(result.mass_std_kg)] = np.nan
     for index, name in ((m, COEFFICIENTS[0]), (m + 1, COEFFICIENTS[1])):
         result.coefficients[name] = float(theta[index])
