@@ -41,6 +41,9 @@ class SegmentMoments:
     blocks: np.ndarray
     bias_fraction: float = 0.0
     """The log's systematic regressor-bias 1-sigma of this segment's mass, relative to the mass."""
+    slope_share: float = 1.0
+    """The log's robust fit's mean weight slope over its mean weight on this segment (`JointFit.slope_share`):
+    the factor on its moments in the covariance's normal matrix."""
 
 
 def segment_moments(log: str, mass_result, time_s, settings: JointSettings = JointSettings()) -> list[SegmentMoments]:
@@ -69,8 +72,9 @@ def segment_moments(log: str, mass_result, time_s, settings: JointSettings = Joi
         blocks = np.zeros((int(block.max()) + 1, 5, 5))
         np.add.at(blocks, block, (w[:, None, None] * u[:, :, None] * u[:, None, :]))
         bias = float(fit.sensitivity_kg[j] / fit.masses_kg[j]) if fit.masses_kg[j] else 0.0
+        share = float(fit.slope_share[j]) if fit.slope_share is not None and np.isfinite(fit.slope_share[j]) else 1.0
         out.append(SegmentMoments(log, j + 1, float(segment["start_s"]), float(segment["end_s"]), int(used.sum()),
-                                  fit.regressor, blocks, bias))
+                                  fit.regressor, blocks, bias, share))
     return out
 
 
@@ -171,7 +175,9 @@ def fit_truck(parts: list[SegmentMoments], vehicle, known: dict[tuple[str, int],
         centre = theta0.copy()
         centre[n_seg + 1] = cda0 * gain_value
         theta, normal = _solve(theta0, totals, n_seg, settings, prior=(centre, precision))
-        cov = _covariance(theta, normal, parts, n_seg, extra_meat=noise_var * np.diag(precision))
+        shares = np.array([part.slope_share for part in parts])
+        bread = _linearised(theta, totals * shares[:, None, None], n_seg)[0] + np.diag(precision)
+        cov = _covariance(theta, bread, parts, n_seg, extra_meat=noise_var * np.diag(precision))
         std = np.sqrt(np.abs(np.diag(cov)))
         masses, mass_std = theta[:n_seg], std[:n_seg]
         bias = np.array([part.bias_fraction for part in parts]) * np.abs(masses)

@@ -19,7 +19,7 @@ import pandas as pd
 
 from ..road_load import G_MPS2
 from . import calibration
-from .joint import JointFit, JointSettings, fit_joint, offset_regressor, wind_regressors
+from .joint import JointFit, JointSettings, aux_power_regressor, fit_joint, offset_regressor, wind_regressors
 from .regression import FilterSettings, Regression, build_regression
 from .segments import SegmentSettings, estimate_segment, segment_bounds, split_at_payload_changes
 
@@ -103,11 +103,12 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
                      f"of {len(frame)}): no mass estimated")
     wind = _wind_regressors(frame, speed, time_s) if joint_settings.fit_wind else None
     offset = _offset_regressor(frame, regression, vehicle) if joint_settings.fit_torque_offset else None
+    aux = _aux_regressor(frame, regression) if joint_settings.aux_power_sigma_w > 0 else None
     if wind is not None:
         notes.append("the drive's wind fitted with the masses from the heading along the GPS track")
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
                               columns, max_mass, notes, segment_settings, wind,
-                              offset)
+                              offset, aux)
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint)
 
@@ -165,14 +166,34 @@ def _offset_regressor(frame, regression, vehicle):
     reference = getattr(vehicle, "engine_reference_torque_nm", None)
     if not reference or "engine_torque_nm" not in frame.columns or regression.force is None:
         return None
+    return offset_regressor(regression.force, _smoothed_torque(frame), reference)
+
+
+def _aux_regressor(frame, regression):
+    """The joint fit's auxiliary-power column (None without engine torque)."""
+    if "engine_torque_nm" not in frame.columns or regression.force is None:
+        return None
+    return aux_power_regressor(regression.force, _smoothed_torque(frame), frame["engine_speed_rpm"].to_numpy(dtype=float))
+
+
+def _smoothed_torque(frame):
+    """Engine torque [Nm] over the force's 1 s window, so that F_wheel / T_engine is the driveline's ratio."""
     torque = frame["engine_torque_nm"].to_numpy(dtype=float)
     window = max(1, int(round(1.0 / np.median(np.diff(frame["time_s"].to_numpy(dtype=float))))))
-    smooth = np.convolve(np.nan_to_num(torque), np.ones(window) / window, "same")
-    return offset_regressor(regression.force, smooth, reference)
+    return np.convolve(np.nan_to_num(torque), np.ones(window) / window, "same")
+
+
+def _aux_power(fit: JointFit, j: int, gain: float) -> dict:
+    """A segment's auxiliary power [W] and 1-sigma as the summary gives them (with the torque gain
+    taken out like the masses'), and whether the drive identified it; empty where not fitted."""
+    if fit.aux_power_w is None or not np.isfinite(fit.aux_power_w[j]):
+        return {}
+    return {"aux_power_w": float(fit.aux_power_w[j] / gain), "aux_power_std_w": float(fit.aux_power_std_w[j] / gain),
+            "aux_power_identified": bool(fit.aux_identified[j])}
 
 
 def _joint(regression, time_s, bounds, vehicle, settings, known, segments, columns, max_mass, notes,
-           segment_settings, wind=None, offset=None):
+           segment_settings, wind=None, offset=None, aux=None):
     """Joint fit with the IMU regressor (else the gradient one), calibration, and per segment the
     chosen ``mass_kg`` and its total ``mass_uncertainty_kg``; the gradient-based joint fit too,
     for comparison."""
@@ -180,13 +201,14 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
     if regression.excess_imu is not None:
         fits["imu"] = fit_joint(regression.force, regression.excess_imu, regression.cos_angle,
                                 regression.aero_per_cda, time_s, bounds, regression.usable_imu, vehicle, settings, "imu",
-                                instrument=regression.excess_gradient, wind_regressors=wind, offset_regressor=offset)
+                                instrument=regression.excess_gradient, wind_regressors=wind, offset_regressor=offset,
+                                aux_regressor=aux)
     else:
         notes.append("no accelerometer with a calibrated bias (accel_x_mps2, imu_bias_mps2): mass from the "
                      "gradient-based regressor")
     fits["gradient"] = fit_joint(regression.force, regression.excess_gradient, regression.cos_angle,
                                  regression.aero_per_cda, time_s, bounds, regression.usable, vehicle, settings, "gradient",
-                                 wind_regressors=wind, offset_regressor=offset)
+                                 wind_regressors=wind, offset_regressor=offset, aux_regressor=aux)
     chosen = fits.get("imu", fits["gradient"])
     gradient_bias = G_MPS2 * np.sin(np.arctan(segment_settings.gradient_bias_pct / 100))
     for name, fit in fits.items():
@@ -202,7 +224,11 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
     gain_uncertainty = float(np.hypot(settings.torque_gain_uncertainty, settings.driveline_efficiency_uncertainty))
     results = {}
     for name, fit in fits.items():
-        results[name] = calibration.calibrate(fit.masses_kg, fit.mass_std_kg, fit.sensitivity_kg, known,
+        # the fit the masses come from must have the weighed segments (else the user hears so); the
+        # other, for comparison, uses those it has a mass for
+        own = known if fit is chosen else {j: kg for j, kg in known.items()
+                                           if j < len(fit.masses_kg) and np.isfinite(fit.masses_kg[j])}
+        results[name] = calibration.calibrate(fit.masses_kg, fit.mass_std_kg, fit.sensitivity_kg, own,
                                               gain_uncertainty)
     masses, total, gain = results[chosen.regressor]
     for j, (segment, (start, end)) in enumerate(zip(segments, bounds)):
@@ -223,7 +249,8 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         elif chosen.mass_std_kg[j] > settings.max_relative_uncertainty * mass:
             status, reason = "uncertain", f"statistical uncertainty {chosen.mass_std_kg[j]:.0f} kg over " \
                                           f"{100 * settings.max_relative_uncertainty:.0f} %"
-        segment.update(mass_regressor=chosen.regressor, mass_joint_status=status, mass_joint_reason=reason)
+        segment.update(mass_regressor=chosen.regressor, mass_joint_status=status, mass_joint_reason=reason,
+                       **_aux_power(chosen, j, gain["gain"]))
         if status == "ok":
             segment["mass_kg"], segment["mass_uncertainty_kg"] = float(mass), float(sigma)
             columns["mass_kg"][start:end] = mass
@@ -238,6 +265,10 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
                                                             ls * gain["relative_std"]))
         else:
             segment["mass_kg"] = segment["mass_uncertainty_kg"] = None
+    if chosen.aux_power_w is not None:
+        notes.append(f"an auxiliary power (compressor, fan, alternator) fitted per segment, >= 0 with a "
+                     f"{settings.aux_power_sigma_w / 1000:g} kW prior; where the drive cannot tell it from the mass "
+                     f"(aux_power_identified false) that prior is in the mass's uncertainty")
     if chosen.outliers:
         notes.append(f"{chosen.outliers} samples got weight 0 in the joint fit: their force balance is broken "
                      f"(auxiliary loads, unflagged braking)")

@@ -31,6 +31,7 @@ def mass_chapter(m: dict, out_dir: Path) -> Section:
                      "LS [kg]": ls, "± LS [kg]": ls_sigma,
                      "RLS [kg]": rounded(s.get("mass_rls_kg"), s.get("uncertainty_kg"))[0],
                      "LM [kg]": rounded(s.get("mass_lm_kg"), s.get("uncertainty_kg"))[0],
+                     "auxiliaries [kW]": auxiliary_power(s),
                      "truck's CAN [kg]": s.get("reported_mass_kg"),
                      "status": s["reason"] if s.get("reason") else s["status"].replace("_", " ")})
     section.paragraphs.append(
@@ -42,7 +43,10 @@ def mass_chapter(m: dict, out_dir: Path) -> Section:
         "The mass column is the joint estimate: all segments together with the drive's own rolling-resistance "
         "coefficient and drag area, from the accelerometer where there is one (it measures a + g sin α itself, "
         "so the mass does not inherit the gradient estimate's errors), else from wheel speed and the gradient. "
-        "Samples whose force balance is broken (air compressor, fan, PTO, unflagged braking) get weight zero. "
+        "Samples whose force balance is broken (air compressor, fan, PTO, unflagged braking) get weight zero; "
+        "an auxiliary that runs through most of a segment is fitted as that segment's auxiliary power (what the "
+        "engine gives it reads at the wheel as a force falling with speed), and where the drive cannot tell it "
+        "from the mass its prior is in the ± column. "
         "A gain error in the engine's torque report cannot be told apart from mass within one drive: unless a "
         "weighed segment calibrates it (--known-mass), it is part of the ± column.")
     road_load = m.get("road_load") or {}
@@ -77,3 +81,11 @@ def rounded(mass_kg: float | None, sigma_kg: float | None) -> tuple[float | None
     from math import floor, log10
 
     return round(mass_kg, 1 - floor(log10(sigma))), sigma
+
+
+def auxiliary_power(segment: dict) -> str | None:
+    """A segment's fitted auxiliary power as "P ± σ" in kW ("(prior)" where the drive did not identify it)."""
+    power, std = segment.get("aux_power_w"), segment.get("aux_power_std_w")
+    if power is None or std is None:
+        return None
+    return f"{power / 1000:.1f} ± {std / 1000:.1f}" + ("" if segment.get("aux_power_identified") else " (prior)")

@@ -10,6 +10,10 @@ wheel speed and the estimated gradient):
 A torque-report (or driveline-efficiency) gain error k scales F_wheel: it turns every mass into
 k·m and c_d A into k·c_d A and cannot be seen within the data. Without a known mass it is part of
 each mass's uncertainty; one weighed segment calibrates it for all others.
+
+Optional columns: the drive's wind, an offset of the torque report (both shared) and an auxiliary
+power P_j per segment, the engine power the compressor, fan and alternator take before the
+driveline: P_j η / v at the wheel, P_j >= 0.
 """
 
 from __future__ import annotations
@@ -62,6 +66,10 @@ class JointSettings:
     balance the model does not hold (an auxiliary load running most of the time, a PTO, unflagged
     braking): its mass is "not confident" (measured: 65 % rejected on a segment 37 % off)."""
     min_samples: int = 150
+    aux_power_sigma_w: float = 5000.0
+    """Prior 1-sigma of each segment's auxiliary power [W] (half-normal, P >= 0): the average engine
+    power a truck's compressor, cooling fan, alternator and steering pump take while driving is a
+    few kW (the vehicle files' ``auxiliary_power_w`` for the same consumers: 4-6 kW). 0: not fitted."""
 
 
 @dataclass
@@ -75,7 +83,8 @@ class JointFit:
     identified: dict[str, bool]
     reasons: dict[str, str]
     sensitivity_kg: np.ndarray
-    """Further systematic 1-sigma per segment [kg] (zero: the coefficients' uncertainty is in the covariance)."""
+    """Further systematic 1-sigma per segment [kg]: an auxiliary power's prior where the drive cannot
+    resolve it (the coefficients' uncertainty is in the covariance)."""
     weights: np.ndarray
     """Robust weight of every sample (0 for samples not used)."""
     regressor_values: np.ndarray
@@ -87,17 +96,30 @@ class JointFit:
     """Per segment, the share of its used samples the robust fit gave weight 0 (NaN: not fitted)."""
     condition: float = np.nan
     notes: list[str] = field(default_factory=list)
+    aux_power_w: np.ndarray | None = None
+    """Per segment, the auxiliary power the fit found [W] (None: not fitted; NaN: segment not fitted)."""
+    aux_power_std_w: np.ndarray | None = None
+    aux_identified: np.ndarray | None = None
+    """Per segment, whether the drive at least halved the auxiliary power's prior width."""
+    slope_share: np.ndarray | None = None
+    """Per segment, the robust weights' mean slope over their mean (`_biweight_slope_share`), which
+    the covariance's normal matrix carries (NaN: not fitted)."""
 
 
 @numba.njit(cache=True)
-def _residual(force, excess, cos_angle, aero, extra, seg, theta, n_seg):
-    """F - m_j (psi + g c_r cos) - c_d A q - sum_e p_e extra_e per sample [N]."""
+def _residual(force, excess, cos_angle, aero, extra, aux, seg, theta, n_seg):
+    """F - m_j (psi + g c_r cos) - c_d A q - sum_e p_e extra_e - P_j aux per sample [N] (the
+    auxiliary powers P_j, one per segment, follow the shared extras in theta when it has them)."""
     c_r, cda = theta[n_seg], theta[n_seg + 1]
+    n_extra = extra.shape[1]
+    has_aux = len(theta) > n_seg + 2 + n_extra
     out = np.empty(len(force))
     for k in range(len(force)):
         value = force[k] - theta[seg[k]] * (excess[k] + G_MPS2 * c_r * cos_angle[k]) - cda * aero[k]
-        for e in range(extra.shape[1]):
+        for e in range(n_extra):
             value -= theta[n_seg + 2 + e] * extra[k, e]
+        if has_aux:
+            value -= theta[n_seg + 2 + n_extra + seg[k]] * aux[k]
         out[k] = value
     return out
 
@@ -113,19 +135,21 @@ def _biweight(residual, limit):
 
 
 @numba.njit(cache=True)
-def _normal_equations(excess, instrument, cos_angle, aero, extra, seg, theta, n_seg, weights, residual):
+def _normal_equations(excess, instrument, cos_angle, aero, extra, aux, seg, theta, n_seg, weights, residual):
     """Gauss-Newton normal matrix sum w z_k j_k^T (instrument rows z, Jacobian columns j) and
-    right-hand side sum w z_k r_k over all samples, parameters (m_1..m_J, c_r, c_d A, p_1..p_E)."""
+    right-hand side sum w z_k r_k over all samples, parameters (m_1..m_J, c_r, c_d A, p_1..p_E
+    and, where theta has them, P_1..P_J)."""
     n_extra = extra.shape[1]
-    n_p = n_seg + 2 + n_extra
+    n_p = len(theta)
+    n_local = 4 if n_p > n_seg + 2 + n_extra else 3
     full = np.zeros((n_p, n_p))
     rhs = np.zeros(n_p)
     c_r = theta[n_seg]
-    column = np.empty(3 + n_extra)
-    row = np.empty(3 + n_extra)
-    index = np.empty(3 + n_extra, dtype=np.int64)
+    column = np.empty(n_local + n_extra)
+    row = np.empty(n_local + n_extra)
+    index = np.empty(n_local + n_extra, dtype=np.int64)
     for e in range(n_extra):
-        index[3 + e] = n_seg + 2 + e
+        index[n_local + e] = n_seg + 2 + e
     for k in range(len(excess)):
         w = weights[k]
         if w == 0.0:
@@ -134,25 +158,28 @@ def _normal_equations(excess, instrument, cos_angle, aero, extra, seg, theta, n_
         rolling = G_MPS2 * c_r * cos_angle[k]
         column[0], column[1], column[2] = excess[k] + rolling, theta[j] * G_MPS2 * cos_angle[k], aero[k]
         row[0], row[1], row[2] = instrument[k] + rolling, column[1], column[2]
-        for e in range(n_extra):
-            column[3 + e] = extra[k, e]
-            row[3 + e] = extra[k, e]
         index[0], index[1], index[2] = j, n_seg, n_seg + 1
-        for a in range(3 + n_extra):
+        if n_local == 4:
+            column[3], row[3], index[3] = aux[k], aux[k], n_seg + 2 + n_extra + j
+        for e in range(n_extra):
+            column[n_local + e] = extra[k, e]
+            row[n_local + e] = extra[k, e]
+        for a in range(n_local + n_extra):
             wa = w * row[a]
             rhs[index[a]] += wa * residual[k]
-            for b in range(3 + n_extra):
+            for b in range(n_local + n_extra):
                 full[index[a], index[b]] += wa * column[b]
     return full, rhs
 
 
-def _solve(force, excess, cos_angle, aero, extra, seg, n_seg, theta, free, settings, weights=None, prior=None,
-           instrument=None):
+def _solve(force, excess, cos_angle, aero, extra, aux, seg, n_seg, theta, free, settings, weights=None, prior=None,
+           instrument=None, floor=1e-9):
     """Robust Gauss-Newton (iteratively reweighted, Tukey biweight on the residual scale); with
     ``weights`` given they stay fixed. With an ``instrument`` for ``excess`` (a regressor whose
     errors are independent of its noise) the normal equations are the instrumental-variable ones
-    Z^T W r = 0, so the noise of ``excess`` does not bias the masses low. Returns theta, weights,
-    the normal matrix of the free parameters, residuals, the mass regressor and its instrument."""
+    Z^T W r = 0, so the noise of ``excess`` does not bias the masses low. The iteration stops when
+    no free parameter moves by more than ``tolerance`` of max(|value|, ``floor``). Returns theta,
+    weights, the normal matrix of the free parameters, residuals, the mass regressor and its instrument."""
     theta = theta.copy()
     fixed_weights = weights is not None
     weights = np.ones(len(force)) if weights is None else weights
@@ -161,7 +188,7 @@ def _solve(force, excess, cos_angle, aero, extra, seg, n_seg, theta, free, setti
     normal = np.eye(len(free_idx))
     step, kept, halvings = None, None, 0
     for _ in range(settings.iterations):
-        residual = _residual(force, excess, cos_angle, aero, extra, seg, theta, n_seg)
+        residual = _residual(force, excess, cos_angle, aero, extra, aux, seg, theta, n_seg)
         if not fixed_weights:
             sample = residual[::max(1, len(residual) // 50_000)]  # a robust scale needs no more
             scale = 1.4826 * np.median(np.abs(sample - np.median(sample)))
@@ -175,7 +202,8 @@ def _solve(force, excess, cos_angle, aero, extra, seg, n_seg, theta, free, setti
                 halvings += 1
                 continue
             weights, kept = new_weights, new_kept
-        full, rhs = _normal_equations(excess, instrument, cos_angle, aero, extra, seg, theta, n_seg, weights, residual)
+        full, rhs = _normal_equations(excess, instrument, cos_angle, aero, extra, aux, seg, theta, n_seg, weights,
+                                      residual)
         if prior is not None:
             centre, precision = prior
             full += np.diag(precision)
@@ -186,10 +214,11 @@ def _solve(force, excess, cos_angle, aero, extra, seg, n_seg, theta, free, setti
         except np.linalg.LinAlgError:  # a parameter the weighted data no longer see: left where it is
             step = np.linalg.lstsq(normal, rhs[free_idx], rcond=None)[0]
         theta[free_idx] += step
-        if np.max(np.abs(step) / np.maximum(np.abs(theta[free_idx]), 1e-9)) < settings.tolerance:
+        if np.max(np.abs(step) / np.maximum(np.abs(theta[free_idx]), np.broadcast_to(floor, theta.shape)[free_idx])) \
+                < settings.tolerance:
             break
     c_r = theta[n_seg]
-    residual = _residual(force, excess, cos_angle, aero, extra, seg, theta, n_seg)
+    residual = _residual(force, excess, cos_angle, aero, extra, aux, seg, theta, n_seg)
     return theta, weights, normal, residual, excess + G_MPS2 * c_r * cos_angle, instrument + G_MPS2 * c_r * cos_angle
 
 
@@ -204,12 +233,12 @@ def _informed_inverse(normal: np.ndarray) -> np.ndarray:
 
 
 def _block_covariance(normal, free_idx, n_seg, seg, block, weights, residual, instrument_row, theta, cos_angle,
-                      aero, extra, extra_meat=None):
+                      aero, extra, aux, extra_meat=None):
     """Sandwich covariance N^-1 (sum_b s_b s_b^T) N^-T with s_b the score (instrument rows times
     residual) of residual block b: honest under correlation within blocks."""
     d_cr = theta[:n_seg][seg] * G_MPS2 * cos_angle
     n_blocks = int(block.max()) + 1
-    n_p = n_seg + 2 + extra.shape[1]
+    n_p = len(theta)
     scores = np.zeros((n_blocks, n_p))
     block_segment = np.zeros(n_blocks, dtype=np.int64)
     block_segment[block] = seg
@@ -219,19 +248,66 @@ def _block_covariance(normal, free_idx, n_seg, seg, block, weights, residual, in
     scores[:, n_seg + 1] = np.bincount(block, weights=weights * aero * residual, minlength=n_blocks)
     for e in range(extra.shape[1]):
         scores[:, n_seg + 2 + e] = np.bincount(block, weights=weights * extra[:, e] * residual, minlength=n_blocks)
+    if n_p > n_seg + 2 + extra.shape[1]:
+        scores[np.arange(n_blocks), n_seg + 2 + extra.shape[1] + block_segment] = np.bincount(
+            block, weights=weights * aux * residual, minlength=n_blocks)
     scores = scores[:, free_idx]
     p = len(free_idx)
     meat = scores.T @ scores * n_blocks / max(n_blocks - p, 1)
     if extra_meat is not None:
         meat = meat + extra_meat[np.ix_(free_idx, free_idx)]
     inverse = _informed_inverse(normal)
+    informed = free_idx[np.isfinite(np.diag(inverse))]
+    seen = np.isfinite(np.diag(inverse))
     cov = np.full((n_p, n_p), np.nan)
-    cov[np.ix_(free_idx, free_idx)] = inverse @ meat @ inverse.T
+    cov[np.ix_(informed, informed)] = (inverse[np.ix_(seen, seen)] @ meat[np.ix_(seen, seen)]
+                                       @ inverse[np.ix_(seen, seen)].T)
     return cov
 
 
+def _solve_positive_aux(data, theta0, free, aux_index, settings, prior, instrument, floor, held=None):
+    """`_solve` with every auxiliary power P_j >= 0 (active set: a P_j the unconstrained fit puts
+    below 0 is held at 0 and the rest fitted again; ``held`` ones from the start). Returns what
+    `_solve` returns, the normal matrix over all ``free`` parameters (a held P_j's prior width stays
+    in the covariance)."""
+    f, x, c, q, ex, aux, seg, m = data
+    held = np.zeros(len(theta0), bool) if held is None else held.copy()
+    theta = theta0.copy()
+    theta[held] = 0.0
+    while True:
+        theta, weights, normal, residual, regressor, row = _solve(f, x, c, q, ex, aux, seg, m, theta, free & ~held,
+                                                                  settings, prior=prior, instrument=instrument,
+                                                                  floor=floor)
+        negative = aux_index[theta[aux_index] < 0]
+        if not len(negative):
+            break
+        held[negative] = True
+        theta = theta.copy()
+        theta[held] = 0.0
+    if held.any():
+        normal, _ = _normal_equations(x, x if instrument is None else instrument, c, q, ex, aux, seg, theta, m,
+                                      weights, residual)
+        normal = (normal + np.diag(prior[1]))[np.ix_(free, free)]
+    return theta, weights, normal, residual, regressor, row
+
+
+def _biweight_slope_share(residual, weights, seg, n_seg, tuning):
+    """Per segment, the mean slope psi'(u) of Tukey's psi(u) = u (1 - u²)² over its mean weight
+    psi(u)/u: the factor that turns the reweighted least squares' normal matrix into the robust
+    fit's own (its sandwich's bread, sum psi'(u_k) z_k x_k^T). Without it the covariance of a
+    biweight fit is too small (stated 0.85 of the spread of the masses over 100 synthetic drives)."""
+    used = weights > 0
+    scale = 1.4826 * np.median(np.abs(residual[used] - np.median(residual[used])))
+    u = residual / (tuning * max(scale, 1e-9))
+    slope = np.where(np.abs(u) < 1, (1 - u * u) * (1 - 5 * u * u), 0.0)
+    share = np.bincount(seg, weights=slope, minlength=n_seg) / np.maximum(np.bincount(seg, weights=weights,
+                                                                                        minlength=n_seg), 1e-12)
+    return np.clip(share, 1e-3, 1.0)
+
+
 def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, settings: JointSettings = JointSettings(),
-              regressor_name: str = "", instrument=None, wind_regressors=None, offset_regressor=None) -> JointFit:
+              regressor_name: str = "", instrument=None, wind_regressors=None, offset_regressor=None,
+              aux_regressor=None) -> JointFit:
     """Masses of the segments ``bounds`` ([start, end) index pairs) and the shared c_r, c_d·A from
     the samples in ``usable`` (see the module docstring). Coefficients the drive cannot identify
     (relative std above ``max_relative_std``, a non-physical value, or a singular system) are fixed
@@ -247,7 +323,13 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     the reference torque [N] (`offset_regressor`); given, a constant offset of the torque report
     is fitted (prior ``torque_offset_uncertainty``): J1939's actual torque is a percentage of the
     reference torque with an offset of its own (friction model), which reads as mass in proportion
-    to the gear ratio."""
+    to the gear ratio.
+
+    ``aux_regressor`` (n,): the wheel force per watt of engine power taken before the driveline
+    [N/W] (`aux_power_regressor`, η/v); given (and ``aux_power_sigma_w`` > 0), an auxiliary power
+    P_j >= 0 is fitted per segment (half-normal prior of that width): an auxiliary running on most
+    of a segment is not rejected by the robust weights and reads as mass. Where the drive cannot
+    tell P_j from the mass, the prior's width is in that mass's covariance."""
     n_seg = len(bounds)
     seg_of = np.full(len(force), -1)
     for j, (start, end) in enumerate(bounds):
@@ -260,6 +342,9 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     n_extra = extra_all.shape[1]
     ok = usable & (seg_of >= 0) & np.isfinite(force) & np.isfinite(excess) & np.isfinite(cos_angle) & np.isfinite(aero)
     ok &= np.isfinite(extra_all).all(axis=1)
+    fit_aux = aux_regressor is not None and settings.aux_power_sigma_w > 0
+    if fit_aux:
+        ok &= np.isfinite(aux_regressor)
     if instrument is not None:
         ok &= np.isfinite(instrument)
     counts = np.bincount(seg_of[ok], minlength=n_seg)
@@ -279,30 +364,38 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     if len(kept) == 0:
         return result
     f, x, c, q, ex = force[ok], excess[ok], cos_angle[ok], aero[ok], np.ascontiguousarray(extra_all[ok])
+    aux = np.asarray(aux_regressor, dtype=float)[ok] if fit_aux else np.zeros(len(f))
     seg = remap[seg_of[ok]]
     t = time_s[ok]
     block_start = np.array([t[seg == j].min() for j in range(len(kept))])
     block_local = np.floor((t - block_start[seg]) / settings.block_s).astype(np.int64)
     _, block = np.unique(seg * 1_000_000 + block_local, return_inverse=True)
     m = len(kept)
+    n_aux = m if fit_aux else 0
     theta0 = np.concatenate([np.zeros(m), [result.coefficients["rolling_resistance_coefficient"],
-                                           result.coefficients["drag_area_m2"]], np.zeros(n_extra)])
+                                           result.coefficients["drag_area_m2"]], np.zeros(n_extra + n_aux)])
     regressor0 = x + G_MPS2 * theta0[m] * c
     theta0[:m] = (np.bincount(seg, weights=regressor0 * (f - theta0[m + 1] * q), minlength=m)
                   / np.bincount(seg, weights=regressor0 ** 2, minlength=m))
-    free = np.ones(m + 2 + n_extra, bool)
+    free = np.ones(len(theta0), bool)
+    aux_index = np.arange(m + 2 + n_extra, len(theta0))
     centre = theta0.copy()
     prior_std = np.concatenate([np.full(m, np.inf), [settings.rolling_resistance_uncertainty * theta0[m],
                                                      settings.drag_area_uncertainty * theta0[m + 1]],
                                 np.full(n_wind, settings.wind_sigma_mps * theta0[m + 1]),
-                                np.full(n_extra - n_wind, settings.torque_offset_uncertainty)])
+                                np.full(n_extra - n_wind, settings.torque_offset_uncertainty),
+                                np.full(n_aux, settings.aux_power_sigma_w)])
+    floor = np.where(np.arange(len(theta0)) >= m + 2 + n_extra, 1.0, 1e-9)  # a watt of auxiliary power
     z = None if instrument is None else instrument[ok]
     try:
         # the data alone: the noise level per unit of the normal matrix, from the block-robust covariance
-        theta, weights, normal, residual, regressor, row = _solve(f, x, c, q, ex, seg, m, theta0, free, settings,
-                                                                  instrument=z)
-        sandwich = _block_covariance(normal, np.flatnonzero(free), m, seg, block, weights, residual, row, theta, c, q,
-                                     ex)
+        # (the auxiliary powers need their prior: left at 0 here)
+        data_free = free.copy()
+        data_free[aux_index] = False
+        theta, weights, normal, residual, regressor, row = _solve(f, x, c, q, ex, aux, seg, m, theta0, data_free,
+                                                                  settings, instrument=z, floor=floor)
+        sandwich = _block_covariance(normal, np.flatnonzero(data_free), m, seg, block, weights, residual, row, theta,
+                                     c, q, ex, aux)
         ratio = np.diag(sandwich)[:m] / np.abs(np.diag(_informed_inverse(normal))[:m])
         noise_var = float(np.median(ratio[np.isfinite(ratio)])) if np.isfinite(ratio).any() else np.nan
     except np.linalg.LinAlgError:
@@ -312,10 +405,30 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     # the vehicle file's values as a prior of datasheet width: a coefficient the drive cannot tell
     # stays near the datasheet value and its datasheet uncertainty goes into every mass
     precision = np.where(np.isfinite(prior_std), noise_var / prior_std ** 2, 0.0)
-    theta, weights, normal, residual, regressor, row = _solve(f, x, c, q, ex, seg, m, theta0, free, settings,
-                                                              prior=(centre, precision), instrument=z)
-    cov = _block_covariance(normal, np.flatnonzero(free), m, seg, block, weights, residual, row, theta, c, q, ex,
-                            extra_meat=noise_var * np.diag(precision))
+    data = (f, x, c, q, ex, aux, seg, m)
+    unidentified = np.zeros(len(theta0), bool)
+    for _ in range(2):
+        # an auxiliary power the drive cannot tell from the mass stays at its prior's mode, 0, with
+        # the prior's width in the covariance: fitted, P >= 0 would take up noise one way only
+        theta, weights, normal, residual, regressor, row = _solve_positive_aux(
+            data, theta0, free, aux_index, settings, (centre, precision), z, floor, held=unidentified)
+        share = _biweight_slope_share(residual, weights, seg, m, settings.robust_tuning)
+        bread, _ = _normal_equations(x, x if z is None else z, c, q, ex, aux, seg, theta, m, weights * share[seg],
+                                     residual)
+        cov = _block_covariance(bread + np.diag(precision), np.flatnonzero(free), m, seg, block, weights, residual,
+                                row, theta, c, q, ex, aux, extra_meat=noise_var * np.diag(precision))
+        wide = aux_index[~(np.sqrt(np.diag(cov)[aux_index]) < settings.max_prior_fraction * settings.aux_power_sigma_w)]
+        if unidentified[wide].all():
+            break
+        unidentified[wide] = True
+    statistical = cov
+    if unidentified.any():
+        # like the torque gain, an auxiliary power the drive cannot resolve is a systematic term of
+        # the mass's uncertainty, not a want of excitation: out of the statistical covariance
+        seen = free & ~unidentified
+        statistical = _block_covariance((bread + np.diag(precision))[np.ix_(seen, seen)], np.flatnonzero(seen), m, seg,
+                                        block, weights, residual, row, theta, c, q, ex, aux,
+                                        extra_meat=noise_var * np.diag(precision))
     scale = np.sqrt(np.abs(np.diag(normal)))
     informative = scale > 0  # a segment without a single usable sample has an empty row
     condition = float(np.linalg.cond(normal[np.ix_(informative, informative)]
@@ -330,7 +443,8 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
                              f"{100 * std / prior_std[index]:.0f} % of the datasheet's): stays near the vehicle file")
     result.condition = condition
     result.masses_kg[kept] = theta[:m]
-    result.mass_std_kg[kept] = np.sqrt(np.diag(cov)[:m])
+    result.mass_std_kg[kept] = np.sqrt(np.diag(statistical)[:m])
+    result.sensitivity_kg[kept] = np.sqrt(np.maximum(np.diag(cov)[:m] - np.diag(statistical)[:m], 0.0))
     result.masses_kg[~np.isfinite(result.mass_std_kg)] = np.nan
     for index, name in ((m, COEFFICIENTS[0]), (m + 1, COEFFICIENTS[1])):
         result.coefficients[name] = float(theta[index])
@@ -358,6 +472,14 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
         result.reasons["torque_offset"] = "identified" if identified else (
             f"not identifiable on this drive (too few gears): its {100 * settings.torque_offset_uncertainty:g} % "
             f"prior is in every mass")
+    if fit_aux:
+        std = np.sqrt(np.diag(cov)[aux_index])
+        result.aux_power_w, result.aux_power_std_w = np.full(n_seg, np.nan), np.full(n_seg, np.nan)
+        result.aux_identified = np.zeros(n_seg, bool)
+        result.aux_power_w[kept], result.aux_power_std_w[kept] = theta[aux_index], std
+        result.aux_identified[kept] = std < settings.max_prior_fraction * settings.aux_power_sigma_w
+    result.slope_share = np.full(n_seg, np.nan)
+    result.slope_share[kept] = share
     result.weights[ok] = weights
     result.rejected_share = np.full(n_seg, np.nan)
     result.rejected_share[kept] = np.bincount(seg, weights=(weights == 0).astype(float), minlength=m) / np.bincount(
@@ -396,3 +518,14 @@ def offset_regressor(wheel_force_n, engine_torque_nm, reference_torque_nm: float
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.asarray(wheel_force_n, dtype=float) / torque * reference_torque_nm
     return np.where(torque > 0.05 * reference_torque_nm, out, np.nan)
+
+
+def aux_power_regressor(wheel_force_n, engine_torque_nm, engine_speed_rpm) -> np.ndarray:
+    """Wheel force per watt of engine power taken before the driveline [N/W]: F_wheel / (T_engine
+    ω_engine), i.e. η / v through the gear the truck is in (a power P at the crankshaft is a
+    torque P / ω there); NaN where the engine gives no torque or stands."""
+    torque = np.asarray(engine_torque_nm, dtype=float)
+    omega = np.asarray(engine_speed_rpm, dtype=float) * np.pi / 30.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.asarray(wheel_force_n, dtype=float) / (torque * omega)
+    return np.where((torque > 0) & (omega > 0), out, np.nan)

@@ -161,7 +161,9 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
         sigma = segment.get("mass_uncertainty_kg")
         if segment.get("mass_kg") is not None and sigma is not None and np.isfinite(sigma):
             out["mass_kg_within_2_sigma"].append(bool(abs(segment["mass_kg"] - true) <= 2 * sigma))
-    weighed = [(j, true) for j, segment, true in scored if segment.get("mass_kg") is not None]
+    # a weighing calibrates the joint fit: its segment needs a joint mass (not the LS standing in)
+    weighed = [(j, true) for j, segment, true in scored if segment.get("mass_kg") is not None
+               and segment.get(f"mass_{segment.get('mass_regressor')}_kg") is not None]
     if len(scored) >= 2 and weighed:
         first, known = weighed[0]
         calibrated = estimate_mass(frame, vehicle, known_masses={first: known})
