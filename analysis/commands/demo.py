@@ -8,8 +8,8 @@ real logger daemon against the device emulators (ECU on a virtual CAN bus, regis
 sensors, NMEA GPS on a pty) into ``DIR/logs/``, then runs every analysis stage on the log into
 ``DIR``. The emulated world runs ``--time-scale`` times faster than real time (40: the 38-minute
 drive is logged in under a minute, a progress line every 10 s); ``--direct`` writes the log without
-the daemon, in seconds. While the daemon logs, `warmup` compiles the analysis kernels in a second
-process, so a first run does not wait for numba after the logging.
+the daemon, in seconds. While the demo drives and the daemon logs, `warmup` compiles the analysis
+kernels in a second process, so a first run does not wait for numba after the logging.
 """
 
 from __future__ import annotations
@@ -62,7 +62,6 @@ def run(args) -> int:
     scenario = load_scenario(args.scenario)
     level = realism_level(args.realism)
     vehicle = scenario_vehicle(scenario)
-    out: Path = args.out
     say(f"virtual truck: scenario {scenario.name}, {vehicle.name}, seed {args.seed}, realism {level.level}")
     with warmup.beside(not (args.direct or args.no_warmup), scenario, level.level):
         virtual = drive(scenario, vehicle, seed=args.seed, realism=level)

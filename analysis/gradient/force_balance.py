@@ -125,10 +125,11 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
     result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
     measured = virtual
+    no_height_source = not _has_height_source(result)
     # only with no height source: there the sigma comes from the road's spread away from the
     # measured bins (`_widen_in_gaps`); with GPS altitude the bound, taken as a measurement, made
     # the smoother's sigma too small (urban gps+can: 97 -> 79 % inside ±2σ)
-    if BRAKING_BOUND and not _has_height_source(result):
+    if BRAKING_BOUND and no_height_source:
         bounded = _braking_bound(result, frame, virtual, vehicle, mass)
         if bounded is not None:
             virtual = bounded
@@ -137,7 +138,7 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
                                 f"gradient down on {np.sum(np.isfinite(virtual) & ~np.isfinite(measured))} samples "
                                 f"where it was above what braking allows")
     _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
-    if not _has_height_source(result):
+    if no_height_source:
         _widen_in_gaps(result, frame, measured, settings.spacing_m)
     if mass_kg is None:
         result.samples["gradient_mass_pct"] = np.asarray(gradient, dtype=float)
