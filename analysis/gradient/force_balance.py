@@ -151,6 +151,7 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     virtual = virtual_accelerometer_mps2(first, vehicle, mass)
     if not np.isfinite(virtual).any():
         raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
+    frame = frame.assign(accel_x_scale_var_m2ps4=scale_variance_m2ps4(virtual, relative, vehicle))
     result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
     measured = virtual
     no_height_source = not _has_height_source(result)
@@ -188,6 +189,15 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         result.grid = result.grid.rename(columns={"gradient_imu_pct": "gradient_force_balance_pct"})
         result.samples["gradient_force_balance_pct"] = result.samples.pop("gradient_imu_pct")
     return result
+
+
+def scale_variance_m2ps4(virtual, relative, vehicle) -> np.ndarray:
+    """Variance [m²/s⁴] per sample that a relative mass (or torque-gain) error of 1-sigma
+    ``relative`` gives the force balance: (relative (a_virtual + g c_r))², the error k
+    (F_wheel - F_aero)/m. Large where the truck pulls hard, near zero where it coasts: in the
+    smoother's noise it makes the gradient lean on the coasting samples and the height sources
+    where the mass is uncertain, on the pulling samples where it is known."""
+    return (np.nan_to_num(relative) * (virtual + G_MPS2 * vehicle.rolling_resistance_coefficient)) ** 2
 
 
 def _has_height_source(result: GradientResult) -> bool:
