@@ -37,8 +37,9 @@ class SmootherSettings:
     hilly the road is, from the data): with an IMU, the one whose barometer/GPS-only gradient best
     predicts the accelerometer (independent noise, so this is the gradient's own error); without,
     by the likelihood of the barometer/GPS innovations."""
-    curvature_candidates: tuple[float, ...] = (3e-9, 1e-8, 3e-8, 1e-7, 3e-7, 1e-6, 3e-6)
-    """1e-6 is one sigma of a 1 %-point change per 100 m (a 10 km vertical curve)."""
+    curvature_candidates: tuple[float, ...] = (3e-9, 1e-8, 3e-8, 1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 3e-5)
+    """1e-6 is one sigma of a 1 %-point change per 100 m (a 10 km vertical curve); 1e-5 and 3e-5
+    are an urban street's (the matrix's urban roads: 5e-6 to 1.3e-5 over 50-200 m)."""
     drift_rate_psd: float = 1e-8
     """Barometric drift-rate random walk [m²/s³]: a 1 hPa/h front building up over an hour."""
     bias_psd: float = 1e-8
