@@ -190,24 +190,24 @@ def test_coasting_samples_carry_the_gradient_where_the_mass_is_off(drive, monkey
 
 
 def test_where_the_force_balance_does_not_measure_the_sigma_is_the_height_sources(drive, monkeypatch):
-    """A segment without a plausible mass has no force balance: the gradient there is GPS
-    altitude's, with the road curvature chosen where the force balance measured over 10 m bins,
-    stiffer than the road is over hundreds of metres. Its sigma returns to at least the first
-    pass's (GPS altitude alone) away from the measured bins: 86 % of the bins inside ±2σ before,
-    100 % now."""
+    """Where the force balance does not measure (here the engine torque drops out after 700 s) the
+    gradient is GPS altitude's, with the road curvature chosen where the force balance measured
+    over 10 m bins, stiffer than the road is over hundreds of metres. Its sigma returns to at least
+    the first pass's (GPS altitude alone) away from the measured bins: 86 % of the bins inside ±2σ
+    before, 100 % now."""
     from haulprofile.analysis.gradient import force_balance
     vehicle = load_vehicle("rigid-18t")
     mass = drive["true_mass_kg"].to_numpy()
     later = drive["time_s"].to_numpy() > 700
-    monkeypatch.setattr(force_balance, "segment_masses_kg",
-                        lambda frame, v: (np.where(later, np.nan, mass), np.where(later, np.nan, 0.03 * mass)))
-    gps_can = drive.drop(columns=["pressure_pa", "accel_x_mps2"]).assign(gps_altitude_m=gps_altitude_m(drive),
-                                                                           gps_v_acc_m=4.0)
+    monkeypatch.setattr(force_balance, "segment_masses_kg", lambda frame, v: (mass, 0.03 * mass))
+    gps_can = drive.drop(columns=["pressure_pa", "accel_x_mps2"]).assign(
+        gps_altitude_m=gps_altitude_m(drive), gps_v_acc_m=4.0,
+        engine_torque_nm=np.where(later, np.nan, drive["engine_torque_nm"]))
     grid = estimate_gradient_force_balance(gps_can, None, vehicle).grid
     s = grid["distance_m"].to_numpy()
     error = grid["gradient_pct"].to_numpy() - 100 * np.interp(s, *_road_slope_table(s.max()))
-    no_mass = (s > np.interp(700, drive["time_s"], drive["distance_m"])) & (s < s.max() - 200)
-    assert np.mean(np.abs(error[no_mass]) <= 2 * grid["gradient_smooth_std_pct"].to_numpy()[no_mass]) >= 0.95
+    dropped = (s > np.interp(700, drive["time_s"], drive["distance_m"])) & (s < s.max() - 200)
+    assert np.mean(np.abs(error[dropped]) <= 2 * grid["gradient_smooth_std_pct"].to_numpy()[dropped]) >= 0.95
 
 
 def test_where_the_mass_is_uncertain_the_pulling_samples_weigh_less(drive, monkeypatch):
@@ -248,3 +248,25 @@ def test_with_height_sources_the_gradient_stays_under_what_braking_allows(drive,
     assert np.sqrt(np.mean(error["bounded"][pick] ** 2)) < 0.95 * np.sqrt(np.mean(error["free"][pick] ** 2))
     assert np.all(error["bounded"] <= error["free"] + 0.05)
     assert np.array_equal(bounded.grid["gradient_smooth_std_pct"], free.grid["gradient_smooth_std_pct"])
+
+
+def test_a_segment_without_a_mass_of_its_own_measures_with_the_drives(monkeypatch):
+    """A segment too short for the mass's filter had no force balance at all; with the drive's
+    median mass and a 40 % sigma its coasting samples measure and its pulling ones weigh little:
+    after a stop where the load went from 20 to 26 t (the guess 23 % light) 0.72 %-pt before, 0.38
+    now, the truth inside ±2σ on 94 % of those bins."""
+    from haulprofile.analysis.gradient import force_balance
+    drive = synthetic_drive(mass_after_stop_kg=26_000.0)
+    vehicle = load_vehicle("rigid-18t")
+    mass = drive["true_mass_kg"].to_numpy()
+    later = drive["time_s"].to_numpy() > 700
+    monkeypatch.setattr(force_balance, "segment_masses_kg", lambda frame, v: (
+        np.where(later, np.nan, mass), np.where(later, np.nan, 0.03 * mass)))
+    gps_can = drive.drop(columns=["pressure_pa", "accel_x_mps2"]).assign(gps_altitude_m=gps_altitude_m(drive),
+                                                                           gps_v_acc_m=4.0)
+    grid = estimate_gradient_force_balance(gps_can, None, vehicle).grid
+    s = grid["distance_m"].to_numpy()
+    error = grid["gradient_pct"].to_numpy() - 100 * np.interp(s, *_road_slope_table(s.max()))
+    part = (s > np.interp(700, drive["time_s"], drive["distance_m"])) & (s < s.max() - 200)
+    assert np.sqrt(np.mean(error[part] ** 2)) < 0.5
+    assert np.mean(np.abs(error[part]) <= 2 * grid["gradient_smooth_std_pct"].to_numpy()[part]) >= 0.9
