@@ -134,7 +134,8 @@ def test_with_nothing_but_can_the_sigma_covers_the_gaps_where_the_truck_does_not
 def test_where_the_truck_brakes_the_gradient_stays_under_what_braking_allows(drive, monkeypatch):
     """Braking, the wheels push at most what the engine gives: dv/dt + g sin(alpha) <= (F_engine -
     F_aero)/m - g c_r. Across the force balance's gaps the random walk knew nothing of that and
-    carried the last pulling stretch's grade into the descent the truck brakes on."""
+    carried the last pulling stretch's grade into the descent the truck brakes on (2.12 -> 1.40
+    %-pt; with the coasting samples measured the free run is 1.41, bounded 1.14)."""
     from haulprofile.analysis.gradient import force_balance
     vehicle = load_vehicle("rigid-18t")
     can_only = drive.drop(columns=["pressure_pa", "accel_x_mps2", "latitude_deg", "longitude_deg"])
@@ -143,4 +144,129 @@ def test_where_the_truck_brakes_the_gradient_stays_under_what_braking_allows(dri
     assert any("braking bound" in note for note in bounded.notes)
     monkeypatch.setattr(force_balance, "BRAKING_BOUND", False)
     free = estimate_gradient_force_balance(can_only, None, vehicle, mass_kg=mass)
-    assert rmse_pct(bounded) < 0.8 * rmse_pct(free)
+    assert rmse_pct(bounded) < 0.85 * rmse_pct(free)
+
+
+def test_coasting_in_gear_is_a_force_balance_where_the_torque_report_includes_the_drag(drive):
+    """With no brake and the clutch closed the force balance holds at any torque, the engine's
+    drag included: coasting and engine braking measure the gradient too (5 of the synthetic drive's
+    samples under 200 Nm were used before, 3605 now). A torque report without the drag (indicated
+    torque, 0 % in a fuel cut) keeps the mass filter's floor."""
+    from haulprofile.analysis.gradient.force_balance import reports_engine_drag
+    vehicle = load_vehicle("rigid-18t")
+    mass = drive["true_mass_kg"].to_numpy()
+    torque = drive["engine_torque_nm"].to_numpy()
+    virtual = virtual_accelerometer_mps2(drive.assign(gradient_pct=0.0), vehicle, mass)
+    low = (torque < 200) & np.isfinite(virtual)
+    assert reports_engine_drag(drive) and low.sum() > 1000
+    expected = drive["accel_mps2"] + 9.81 * np.sin(np.arctan(drive["true_gradient_pct"] / 100))
+    error = (virtual - expected)[low]
+    assert abs(np.median(error)) < 0.02 and np.percentile(np.abs(error), 90) < 0.1
+    indicated = drive.assign(engine_torque_nm=np.clip(torque, 0, None), gradient_pct=0.0)
+    assert not reports_engine_drag(indicated)
+    assert not np.isfinite(virtual_accelerometer_mps2(indicated, vehicle, mass)[torque < 150]).any()
+
+
+def test_coasting_samples_carry_the_gradient_where_the_mass_is_off(drive, monkeypatch):
+    """A coasting sample's force is small, so a mass error hardly moves it: with a first-pass mass
+    25 % too heavy the gps+can gradient was 0.63 %-pt, 0.49 now (0.58 and 0.36 with the true mass);
+    with nothing but CAN and the mass given, 1.40 and now 1.14 %-pt with the truth inside ±2σ on
+    98 and 100 % of the bins."""
+    from haulprofile.analysis.gradient import force_balance
+    vehicle = load_vehicle("rigid-18t")
+    mass = drive["true_mass_kg"].to_numpy()
+    gps_can = drive.drop(columns=["pressure_pa", "accel_x_mps2"]).assign(
+        gps_altitude_m=gps_altitude_m(drive, sigma_m=8.0), gps_v_acc_m=4.0)
+    monkeypatch.setattr(force_balance, "segment_masses_kg", lambda frame, v: (1.25 * mass, 0.25 * 1.25 * mass))
+    assert rmse_pct(estimate_gradient_force_balance(gps_can, None, vehicle)) < 0.55
+    can_only = drive.drop(columns=["pressure_pa", "accel_x_mps2", "latitude_deg", "longitude_deg"])
+    result = estimate_gradient_force_balance(can_only, None, vehicle, mass_kg=mass)
+    assert rmse_pct(result) < 1.25
+    grid = result.grid
+    s = grid["distance_m"].to_numpy()
+    keep = (s > 200) & (s < s.max() - 200)
+    error = grid["gradient_pct"].to_numpy()[keep] - 100 * np.interp(s, *_road_slope_table(s.max()))[keep]
+    assert np.mean(np.abs(error) <= 2 * grid["gradient_smooth_std_pct"].to_numpy()[keep]) >= 0.95
+
+
+def test_where_the_force_balance_does_not_measure_the_sigma_is_the_height_sources(drive, monkeypatch):
+    """Where the force balance does not measure (here the engine torque drops out after 700 s) the
+    gradient is GPS altitude's, with the road curvature chosen where the force balance measured
+    over 10 m bins, stiffer than the road is over hundreds of metres. Its sigma returns to at least
+    the first pass's (GPS altitude alone) away from the measured bins: 86 % of the bins inside ±2σ
+    before, 100 % now."""
+    from haulprofile.analysis.gradient import force_balance
+    vehicle = load_vehicle("rigid-18t")
+    mass = drive["true_mass_kg"].to_numpy()
+    later = drive["time_s"].to_numpy() > 700
+    monkeypatch.setattr(force_balance, "segment_masses_kg", lambda frame, v: (mass, 0.03 * mass))
+    gps_can = drive.drop(columns=["pressure_pa", "accel_x_mps2"]).assign(
+        gps_altitude_m=gps_altitude_m(drive), gps_v_acc_m=4.0,
+        engine_torque_nm=np.where(later, np.nan, drive["engine_torque_nm"]))
+    grid = estimate_gradient_force_balance(gps_can, None, vehicle).grid
+    s = grid["distance_m"].to_numpy()
+    error = grid["gradient_pct"].to_numpy() - 100 * np.interp(s, *_road_slope_table(s.max()))
+    dropped = (s > np.interp(700, drive["time_s"], drive["distance_m"])) & (s < s.max() - 200)
+    assert np.mean(np.abs(error[dropped]) <= 2 * grid["gradient_smooth_std_pct"].to_numpy()[dropped]) >= 0.95
+
+
+def test_where_the_mass_is_uncertain_the_pulling_samples_weigh_less(drive, monkeypatch):
+    """A relative mass error k moves the force balance by k (F_wheel - F_aero)/m: much where the
+    truck pulls hard, little where it coasts. With that variance in the smoother's noise, a
+    first-pass mass 25 % too light (stated 25 %) gives 0.48 %-pt, 0.75 without it."""
+    from haulprofile.analysis.gradient import force_balance
+    vehicle = load_vehicle("rigid-18t")
+    mass = drive["true_mass_kg"].to_numpy()
+    monkeypatch.setattr(force_balance, "segment_masses_kg", lambda frame, v: (0.75 * mass, 0.25 * 0.75 * mass))
+    gps_can = drive.drop(columns=["pressure_pa", "accel_x_mps2"]).assign(gps_altitude_m=gps_altitude_m(drive),
+                                                                           gps_v_acc_m=4.0)
+    assert rmse_pct(estimate_gradient_force_balance(gps_can, None, vehicle)) < 0.6
+
+
+def test_with_height_sources_the_gradient_stays_under_what_braking_allows(drive, monkeypatch):
+    """Braking with the engine not pulling, the wheels get no traction: a + g sin(alpha) <=
+    -F_aero/m - g c_r (to within the bound's own error). With poor GPS altitude (12 m) the
+    gradient across braking stretches went above that; held under it (a one-sided clip, the sigma
+    kept), the braking bins' error falls from 1.69 to 1.57 %-pt and no bin moves away from the
+    truth."""
+    from haulprofile.analysis.gradient import force_balance
+    vehicle = load_vehicle("rigid-18t")
+    gps_can = drive.drop(columns=["pressure_pa", "accel_x_mps2"]).assign(
+        gps_altitude_m=gps_altitude_m(drive, sigma_m=12.0), gps_v_acc_m=4.0)
+    bounded = estimate_gradient_force_balance(gps_can, None, vehicle)
+    assert any("braking bound" in note for note in bounded.notes)
+    monkeypatch.setattr(force_balance, "_hold_under_braking_bound", lambda *args: None)
+    free = estimate_gradient_force_balance(gps_can, None, vehicle)
+    s = bounded.grid["distance_m"].to_numpy()
+    truth = 100 * np.interp(s, *_road_slope_table(s.max()))
+    keep = (s > 200) & (s < s.max() - 200)
+    braking = np.zeros(len(s), bool)
+    braking[np.round(drive["distance_m"][drive["brake_switch"] > 0.5].to_numpy() / 10).astype(int)] = True
+    error = {name: np.abs(result.grid["gradient_pct"].to_numpy() - truth)[keep]
+             for name, result in (("bounded", bounded), ("free", free))}
+    pick = braking[keep]
+    assert np.sqrt(np.mean(error["bounded"][pick] ** 2)) < 0.95 * np.sqrt(np.mean(error["free"][pick] ** 2))
+    assert np.all(error["bounded"] <= error["free"] + 0.05)
+    assert np.array_equal(bounded.grid["gradient_smooth_std_pct"], free.grid["gradient_smooth_std_pct"])
+
+
+def test_a_segment_without_a_mass_of_its_own_measures_with_the_drives(monkeypatch):
+    """A segment too short for the mass's filter had no force balance at all; with the drive's
+    median mass and a 40 % sigma its coasting samples measure and its pulling ones weigh little:
+    after a stop where the load went from 20 to 26 t (the guess 23 % light) 0.72 %-pt before, 0.38
+    now, the truth inside ±2σ on 94 % of those bins."""
+    from haulprofile.analysis.gradient import force_balance
+    drive = synthetic_drive(mass_after_stop_kg=26_000.0)
+    vehicle = load_vehicle("rigid-18t")
+    mass = drive["true_mass_kg"].to_numpy()
+    later = drive["time_s"].to_numpy() > 700
+    monkeypatch.setattr(force_balance, "segment_masses_kg", lambda frame, v: (
+        np.where(later, np.nan, mass), np.where(later, np.nan, 0.03 * mass)))
+    gps_can = drive.drop(columns=["pressure_pa", "accel_x_mps2"]).assign(gps_altitude_m=gps_altitude_m(drive),
+                                                                           gps_v_acc_m=4.0)
+    grid = estimate_gradient_force_balance(gps_can, None, vehicle).grid
+    s = grid["distance_m"].to_numpy()
+    error = grid["gradient_pct"].to_numpy() - 100 * np.interp(s, *_road_slope_table(s.max()))
+    part = (s > np.interp(700, drive["time_s"], drive["distance_m"])) & (s < s.max() - 200)
+    assert np.sqrt(np.mean(error[part] ** 2)) < 0.5
+    assert np.mean(np.abs(error[part]) <= 2 * grid["gradient_smooth_std_pct"].to_numpy()[part]) >= 0.9

@@ -232,6 +232,7 @@ def _measurements(frame, index, n_bins, time_s, bin_baro, map_bins, map_accuracy
     z = np.full((n_bins, kalman.N_MEASUREMENTS), np.nan)
     count = np.zeros((n_bins, kalman.N_MEASUREMENTS))
     h_acc = v_acc = np.full(n_bins, np.nan)
+    imu_scale_var = None
     if bin_baro is not None:
         z[:, kalman.BARO] = bin_baro
         count[:, kalman.BARO] = np.isfinite(bin_baro) * map_accuracy["rate_count"]
@@ -242,6 +243,9 @@ def _measurements(frame, index, n_bins, time_s, bin_baro, map_bins, map_accuracy
     if imu_excess is not None:
         z[:, kalman.IMU] = distance_grid.bin_mean(index, imu_excess, n_bins)
         count[:, kalman.IMU] = _bin_count(index, imu_excess, n_bins)
+        scale_var = _column(frame, "accel_x_scale_var_m2ps4")
+        if scale_var is not None:
+            imu_scale_var = distance_grid.bin_mean(index, np.sqrt(scale_var), n_bins) ** 2
     else:
         notes.append("no IMU (accel_x_mps2): smoother without the accelerometer")
     altitude, v_acc_samples = _column(frame, "gps_altitude_m"), _column(frame, "gps_v_acc_m")
@@ -259,7 +263,7 @@ def _measurements(frame, index, n_bins, time_s, bin_baro, map_bins, map_accuracy
     speed = frame["speed_mps"].to_numpy(dtype=float)
     return Measurements(z=z, count=count, h_acc_m=h_acc, v_acc_m=v_acc,
                         dt_s=bin_times(index, speed, n_bins, settings.spacing_m), spacing_m=settings.spacing_m,
-                        stopped=standstill_bins(index, speed, n_bins))
+                        stopped=standstill_bins(index, speed, n_bins), imu_scale_var=imu_scale_var)
 
 
 def _map_bins(frame, dem, distance, valid, index, n_bins, settings, notes):

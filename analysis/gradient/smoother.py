@@ -37,8 +37,9 @@ class SmootherSettings:
     hilly the road is, from the data): with an IMU, the one whose barometer/GPS-only gradient best
     predicts the accelerometer (independent noise, so this is the gradient's own error); without,
     by the likelihood of the barometer/GPS innovations."""
-    curvature_candidates: tuple[float, ...] = (3e-9, 1e-8, 3e-8, 1e-7, 3e-7, 1e-6, 3e-6)
-    """1e-6 is one sigma of a 1 %-point change per 100 m (a 10 km vertical curve)."""
+    curvature_candidates: tuple[float, ...] = (3e-9, 1e-8, 3e-8, 1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 3e-5)
+    """1e-6 is one sigma of a 1 %-point change per 100 m (a 10 km vertical curve); 1e-5 and 3e-5
+    are an urban street's (the matrix's urban roads: 5e-6 to 1.3e-5 over 50-200 m)."""
     drift_rate_psd: float = 1e-8
     """Barometric drift-rate random walk [m²/s³]: a 1 hPa/h front building up over an hour."""
     bias_psd: float = 1e-8
@@ -111,6 +112,10 @@ class Measurements:
     spacing_m: float
     stopped: np.ndarray | None = None
     """(n_bins,) True where the truck stood still in the bin (None: never)."""
+    imu_scale_var: np.ndarray | None = None
+    """(n_bins,) variance [m²/s⁴] the accelerometer channel's scale error adds to each bin (the
+    force balance's mass or torque gain, `force_balance.scale_variance_m2ps4`), on top of its noise;
+    None: none."""
 
 
 @dataclass
@@ -213,6 +218,8 @@ class GradientSmoother:
         self.bias_psd = settings.bias_psd
         self.imu_noise_factor = 1.0
         self.offset_steps = np.zeros(n, bool)
+        self.imu_scale_var = (np.nan_to_num(measurements.imu_scale_var) if measurements.imu_scale_var is not None
+                              else np.zeros(n))
 
     def _params(self):
         return np.array([self.m.spacing_m, self.curvature_psd, self.s.drift_rate_psd, self.bias_psd,
@@ -390,7 +397,7 @@ class GradientSmoother:
         var = _mean_square(difference)
         if not np.isfinite(var):
             var = self.s.imu_led_start_sigma_mps2 ** 2
-        r[:, kalman.IMU] = max(var, 1e-6) * imu_scale
+        r[:, kalman.IMU] = max(var, 1e-6) * imu_scale + self.imu_scale_var
         self.imu_noise_factor = 1.0
         self.notes.append(f"no barometer and no IMU: the force balance carries the gradient (noise "
                           f"{np.sqrt(max(var, 1e-6)):.3f} m/s² per bin from its own differences, times a factor "
@@ -467,12 +474,12 @@ class GradientSmoother:
         axes = [(name, candidates) for name, candidates in axes if name in names]
         if not axes:
             return False
-        imu = r[:, kalman.IMU].copy()
+        imu = r[:, kalman.IMU] - self.imu_scale_var
         self.imu_noise_factor = 1.0
         use = (True, False, True, True)
 
         def likelihood():
-            r[:, kalman.IMU] = imu * self.imu_noise_factor
+            r[:, kalman.IMU] = imu * self.imu_noise_factor + self.imu_scale_var
             _, _, nu, var = self.run(r, use=use, backward=False)
             return float(-0.5 * np.nansum(np.log(var) + nu ** 2 / var))
 
@@ -493,7 +500,7 @@ class GradientSmoother:
                         setattr(self, name, kept)
             if not moved:
                 break
-        r[:, kalman.IMU] = imu * self.imu_noise_factor
+        r[:, kalman.IMU] = imu * self.imu_noise_factor + self.imu_scale_var
         return any(getattr(self, name) != value for name, value in start.items())
 
     def _most_likely_curvature(self, r):
