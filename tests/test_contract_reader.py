@@ -266,3 +266,47 @@ def test_windows_built_ahead_give_the_same_report_and_stop_with_the_caller(log, 
     with pytest.raises(MemoryError, match="no memory"):
         list(reader.read_windows(log, window_bytes=32 * 1024, ahead=1))
     assert not any(t.name == "mcap-windows" for t in threading.enumerate())
+
+
+def test_chunks_load_ahead_in_runs_each_once_and_an_error_waits_for_its_chunk(log, monkeypatch):
+    """Whatever the run of chunks one pool task loads, the messages and the report are those of a
+    sequential read and every chunk is loaded once; an error while loading one chunk of a run is
+    raised where the walk reaches that chunk, after the windows before it, as a sequential read
+    raises it."""
+    import collections
+
+    expected = reader._expected_chunks(log).tolist()
+    sequential_report = reader.ReadReport("log")
+    sequential = _ours(log, report=sequential_report, threads=0)
+    loads: collections.Counter = collections.Counter()
+    load_chunk = reader._load_chunk
+
+    def counted(view, pos, use_numba):
+        loads[pos] += 1
+        return load_chunk(view, pos, use_numba)
+
+    monkeypatch.setattr(reader, "_load_chunk", counted)
+    for task_bytes in (1, 40_000, 1 << 20):
+        monkeypatch.setattr(reader, "TASK_BYTES", task_bytes)
+        loads.clear()
+        report = reader.ReadReport("log")
+        assert _same(_ours(log, report=report, threads=2, window_bytes=64 * 1024), sequential)
+        assert vars(report) == vars(sequential_report)
+        assert [loads[pos] for pos in expected] == [1] * len(expected)
+
+    bad = expected[len(expected) // 2]
+
+    def failing(view, pos, use_numba):
+        if pos == bad:
+            raise RuntimeError("chunk loader failed")
+        return load_chunk(view, pos, use_numba)
+
+    monkeypatch.setattr(reader, "_load_chunk", failing)
+    before = []
+    for threads in (0, 2):
+        windows = 0
+        with pytest.raises(RuntimeError, match="chunk loader failed"):
+            for _ in reader.read_windows(log, threads=threads, window_bytes=1):
+                windows += 1
+        before.append(windows)
+    assert before[0] == before[1] > 0
