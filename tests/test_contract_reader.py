@@ -310,3 +310,30 @@ def test_chunks_load_ahead_in_runs_each_once_and_an_error_waits_for_its_chunk(lo
                 windows += 1
         before.append(windows)
     assert before[0] == before[1] > 0
+
+
+def test_a_walk_waiting_for_a_busy_pool_loads_the_unstarted_runs_itself(log):
+    """While the pool's only thread is busy, the walk loads the runs no pool thread has started
+    instead of waiting: the chunks come before the pool is free, equal to chunks loaded one by one."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    free = threading.Event()
+    unblock = threading.Timer(30.0, free.set)  # a walk that only waited would hang the test, not CI
+    unblock.start()
+    positions = reader._expected_chunks(log).tolist()[:6]
+    view = memoryview(log)
+    with ThreadPoolExecutor(1) as executor:
+        busy = executor.submit(free.wait)
+        scanner = reader._Scanner(log, view, executor, True, ahead_bytes=64 * 1024)
+        scanner.release(0)
+        chunks = [scanner.chunk(pos) for pos in positions]
+        assert not busy.done()
+        free.set()
+        scanner.close()
+    unblock.cancel()
+    for pos, chunk in zip(positions, chunks):
+        alone = reader._load_chunk(view, pos, True)
+        assert chunk.valid and alone.valid
+        assert chunk.records.data == alone.records.data
+        assert np.array_equal(chunk.records.table, alone.records.table)

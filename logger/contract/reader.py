@@ -26,6 +26,7 @@ straight into the caller's own arrays (the ingest's decoding blocks: one copy of
 from __future__ import annotations
 
 import bisect
+import collections
 import heapq
 import mmap
 import os
@@ -155,7 +156,10 @@ class _Scanner:
         self._expected: list[int] = _expected_chunks(buf).tolist()
         self._next_expected = 0
         self._loaded: dict[int, object] = {}
-        """Position → `_Chunk`, or (future of its task, index in the task) until asked for."""
+        """Position → `_Chunk` (or the exception loading it raised), or (future of its task, index
+        in the task) until asked for."""
+        self._tasks: collections.deque = collections.deque()
+        """(future, positions) of the submitted runs, oldest first (some already done)."""
         self._held: list[tuple[int, int]] = []
         """Heap of (position, bytes) of the loaded chunks, for `release`."""
         self._nothing_from: int | None = None
@@ -187,8 +191,30 @@ class _Scanner:
 
     def _submit(self, run: list[int]) -> None:
         future = self.executor.submit(_load_chunks, self.view, run, self.use_numba)
+        self._tasks.append((future, run))
         for index, at in enumerate(run):
             self._loaded[at] = (future, index)
+
+    def _wait(self, future) -> None:
+        """Until ``future`` is done, load here the runs no pool thread has started: this thread
+        would only wait, and the pool (one thread beside the walk in the ingest) is the slower side."""
+        while not future.done() and self._load_unstarted_run():
+            pass
+
+    def _load_unstarted_run(self) -> bool:
+        """Load the oldest submitted run that no pool thread has started; False if there is none."""
+        tasks = self._tasks
+        while tasks and tasks[0][0].done():
+            tasks.popleft()
+        for k, (future, run) in enumerate(tasks):
+            if future.cancel():
+                del tasks[k]
+                for index, (at, chunk) in enumerate(zip(run, _load_chunks(self.view, run, self.use_numba))):
+                    entry = self._loaded.get(at)
+                    if type(entry) is tuple and entry[0] is future:
+                        self._loaded[at] = chunk
+                return True
+        return False
 
     def _hold(self, pos: int, length: int) -> None:
         heapq.heappush(self._held, (pos, length))
@@ -204,12 +230,15 @@ class _Scanner:
         if loaded is None:
             loaded = self._loaded[pos] = _load_chunk(self.view, pos, self.use_numba)
             self._hold(pos, self._length(pos))
-        elif not isinstance(loaded, _Chunk):
+            return loaded
+        if type(loaded) is tuple:
             future, index = loaded
-            loaded = future.result()[index]
-            if isinstance(loaded, BaseException):
-                raise loaded
-            self._loaded[pos] = loaded
+            self._wait(future)
+            loaded = self._loaded[pos]
+            if type(loaded) is tuple:
+                loaded = self._loaded[pos] = future.result()[index]
+        if isinstance(loaded, BaseException):
+            raise loaded
         return loaded
 
     def release(self, below: int) -> None:
@@ -227,7 +256,7 @@ class _Scanner:
             self._dropped = upto
 
     def close(self) -> None:
-        futures = {id(loaded[0]): loaded[0] for loaded in self._loaded.values() if not isinstance(loaded, _Chunk)}
+        futures = {id(loaded[0]): loaded[0] for loaded in self._loaded.values() if type(loaded) is tuple}
         for future in futures.values():
             future.cancel()
         for future in futures.values():
@@ -235,6 +264,7 @@ class _Scanner:
                 future.result()
         self._loaded.clear()
         self._held.clear()
+        self._tasks.clear()
 
     def next_chunk(self, start: int) -> int:
         """Offset of the first compressed chunk at or after ``start`` that validates, or the size.
