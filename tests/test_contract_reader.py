@@ -337,3 +337,24 @@ def test_a_walk_waiting_for_a_busy_pool_loads_the_unstarted_runs_itself(log):
         assert chunk.valid and alone.valid
         assert chunk.records.data == alone.records.data
         assert np.array_equal(chunk.records.table, alone.records.table)
+
+
+def test_the_scanner_forgets_finished_runs(monkeypatch):
+    """Runs the walk has passed are not kept (their futures hold their chunks): the runs the
+    scanner holds never add up to more than its bytes ahead and a chunk or two, however long the file."""
+    log = _log(30.0)
+    monkeypatch.setattr(reader, "TASK_BYTES", 1)  # a run per chunk
+    ahead = 8 * 1024
+    length = {at: struct.unpack_from("<Q", log, at + 1)[0] for at in reader._expected_chunks(log).tolist()}
+    held_bytes = []
+    release = reader._Scanner.release
+
+    def noting_release(self, below):
+        release(self, below)
+        held_bytes.append(sum(length[at] for _, run in self._tasks for at in run))
+
+    monkeypatch.setattr(reader._Scanner, "release", noting_release)
+    for _ in reader.read_windows(log, threads=1, window_bytes=ahead):
+        pass
+    assert sum(length.values()) > 10 * ahead
+    assert max(held_bytes) <= ahead + 2 * max(length.values())

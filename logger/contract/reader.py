@@ -201,11 +201,17 @@ class _Scanner:
         while not future.done() and self._load_unstarted_run():
             pass
 
-    def _load_unstarted_run(self) -> bool:
-        """Load the oldest submitted run that no pool thread has started; False if there is none."""
+    def _forget_done_tasks(self) -> None:
+        """Drop the finished runs at the front of `_tasks` (their futures hold the chunks they
+        loaded: kept, they would keep every chunk of the file in memory)."""
         tasks = self._tasks
         while tasks and tasks[0][0].done():
             tasks.popleft()
+
+    def _load_unstarted_run(self) -> bool:
+        """Load the oldest submitted run that no pool thread has started; False if there is none."""
+        self._forget_done_tasks()
+        tasks = self._tasks
         for k, (future, run) in enumerate(tasks):
             if future.cancel():
                 del tasks[k]
@@ -249,6 +255,7 @@ class _Scanner:
             at, length = heapq.heappop(held)
             if self._loaded.pop(at, None) is not None:
                 self._held_bytes -= length
+        self._forget_done_tasks()
         self._prefetch(below)
         if below - self._dropped >= RELEASE_BYTES and hasattr(self.buf, "madvise"):
             upto = below // mmap.PAGESIZE * mmap.PAGESIZE
