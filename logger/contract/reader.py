@@ -139,8 +139,6 @@ def _load_chunks(view, positions: list[int], use_numba: bool) -> list:
     return loaded
 
 
-
-
 class _Scanner:
     """Chunks of a file: loaded ahead on a thread pool where they are expected (runs of
     `TASK_BYTES` per task), found by search (and loaded at once) where they are not."""
