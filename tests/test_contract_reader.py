@@ -266,3 +266,95 @@ def test_windows_built_ahead_give_the_same_report_and_stop_with_the_caller(log, 
     with pytest.raises(MemoryError, match="no memory"):
         list(reader.read_windows(log, window_bytes=32 * 1024, ahead=1))
     assert not any(t.name == "mcap-windows" for t in threading.enumerate())
+
+
+def test_chunks_load_ahead_in_runs_each_once_and_an_error_waits_for_its_chunk(log, monkeypatch):
+    """Whatever the run of chunks one pool task loads, the messages and the report are those of a
+    sequential read and every chunk is loaded once; an error while loading one chunk of a run is
+    raised where the walk reaches that chunk, after the windows before it, as a sequential read
+    raises it."""
+    import collections
+
+    expected = reader._expected_chunks(log).tolist()
+    sequential_report = reader.ReadReport("log")
+    sequential = _ours(log, report=sequential_report, threads=0)
+    loads: collections.Counter = collections.Counter()
+    load_chunk = reader._load_chunk
+
+    def counted(view, pos, use_numba):
+        loads[pos] += 1
+        return load_chunk(view, pos, use_numba)
+
+    monkeypatch.setattr(reader, "_load_chunk", counted)
+    for task_bytes in (1, 40_000, 1 << 20):
+        monkeypatch.setattr(reader, "TASK_BYTES", task_bytes)
+        loads.clear()
+        report = reader.ReadReport("log")
+        assert _same(_ours(log, report=report, threads=2, window_bytes=64 * 1024), sequential)
+        assert vars(report) == vars(sequential_report)
+        assert [loads[pos] for pos in expected] == [1] * len(expected)
+
+    bad = expected[len(expected) // 2]
+
+    def failing(view, pos, use_numba):
+        if pos == bad:
+            raise RuntimeError("chunk loader failed")
+        return load_chunk(view, pos, use_numba)
+
+    monkeypatch.setattr(reader, "_load_chunk", failing)
+    before = []
+    for threads in (0, 2):
+        windows = 0
+        with pytest.raises(RuntimeError, match="chunk loader failed"):
+            for _ in reader.read_windows(log, threads=threads, window_bytes=1):
+                windows += 1
+        before.append(windows)
+    assert before[0] == before[1] > 0
+
+
+def test_a_walk_waiting_for_a_busy_pool_loads_the_unstarted_runs_itself(log):
+    """While the pool's only thread is busy, the walk loads the runs no pool thread has started
+    instead of waiting: the chunks come before the pool is free, equal to chunks loaded one by one."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    free = threading.Event()
+    unblock = threading.Timer(30.0, free.set)  # a walk that only waited would hang the test, not CI
+    unblock.start()
+    positions = reader._expected_chunks(log).tolist()[:6]
+    view = memoryview(log)
+    with ThreadPoolExecutor(1) as executor:
+        busy = executor.submit(free.wait)
+        scanner = reader._Scanner(log, view, executor, True, ahead_bytes=64 * 1024)
+        scanner.release(0)
+        chunks = [scanner.chunk(pos) for pos in positions]
+        assert not busy.done()
+        free.set()
+        scanner.close()
+    unblock.cancel()
+    for pos, chunk in zip(positions, chunks):
+        alone = reader._load_chunk(view, pos, True)
+        assert chunk.valid and alone.valid
+        assert chunk.records.data == alone.records.data
+        assert np.array_equal(chunk.records.table, alone.records.table)
+
+
+def test_the_scanner_forgets_finished_runs(monkeypatch):
+    """Runs the walk has passed are not kept (their futures hold their chunks): the runs the
+    scanner holds never add up to more than its bytes ahead and a chunk or two, however long the file."""
+    log = _log(30.0)
+    monkeypatch.setattr(reader, "TASK_BYTES", 1)  # a run per chunk
+    ahead = 8 * 1024
+    length = {at: struct.unpack_from("<Q", log, at + 1)[0] for at in reader._expected_chunks(log).tolist()}
+    held_bytes = []
+    release = reader._Scanner.release
+
+    def noting_release(self, below):
+        release(self, below)
+        held_bytes.append(sum(length[at] for _, run in self._tasks for at in run))
+
+    monkeypatch.setattr(reader._Scanner, "release", noting_release)
+    for _ in reader.read_windows(log, threads=1, window_bytes=ahead):
+        pass
+    assert sum(length.values()) > 10 * ahead
+    assert max(held_bytes) <= ahead + 2 * max(length.values())

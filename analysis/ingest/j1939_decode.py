@@ -153,6 +153,20 @@ class _Session:
         self.parts: dict[int, bytes] = {}
 
 
+def _tp_columns(frames: np.ndarray) -> tuple[list[int], list[int], list[int], list[int], list[bytes]]:
+    """(time [ns], PDU format, destination, source, the data bytes the DLC gives, padded with 0xFF
+    to 8) of each frame, as Python values: the reassembly's loop then touches no NumPy scalar."""
+    ids = frames["arbitration_id"].astype(np.int64)
+    width = frames.dtype["data"].itemsize
+    raw = np.ascontiguousarray(frames["data"]).tobytes()
+    payloads = []
+    for k, dlc in enumerate(frames["dlc"].tolist()):
+        data = raw[k * width:k * width + min(dlc, width)]
+        payloads.append(data if len(data) >= 8 else data.ljust(8, b"\xff"))
+    return (frames["t_mono_ns"].tolist(), ((ids >> 16) & 0xFF).tolist(), ((ids >> 8) & 0xFF).tolist(),
+            (ids & 0xFF).tolist(), payloads)
+
+
 def reassemble(frames: np.ndarray) -> tuple[list[TpMessage], TpStats]:
     """Multi-packet messages of BAM and RTS/CTS sessions in time-sorted TP frames (J1939-21)."""
     stats = TpStats()
@@ -160,16 +174,11 @@ def reassemble(frames: np.ndarray) -> tuple[list[TpMessage], TpStats]:
     if len(frames) == 0:
         return messages, stats
     frames = frames[np.argsort(frames["t_mono_ns"], kind="stable")]
-    ids = frames["arbitration_id"].astype(np.int64)
-    pf = (ids >> 16) & 0xFF
-    destination = (ids >> 8) & 0xFF
-    source = ids & 0xFF
+    times, pf, destination, source, payloads = _tp_columns(frames)
     sessions: dict[tuple[int, int], _Session] = {}
     for k in range(len(frames)):
-        data = frames["data"][k].tobytes()[:max(int(frames["dlc"][k]), 0)]
-        if len(data) < 8:
-            data = data.ljust(8, b"\xff")
-        sa, da = int(source[k]), int(destination[k])
+        data = payloads[k]
+        sa, da = source[k], destination[k]
         if pf[k] == j1939.PGN_TP_CM >> 8:
             control = data[0]
             pgn = int.from_bytes(data[5:8], "little")
@@ -198,7 +207,7 @@ def reassemble(frames: np.ndarray) -> tuple[list[TpMessage], TpStats]:
                 session.parts[sequence] = data[1:8]
             if len(session.parts) == session.packets:
                 payload = b"".join(session.parts[i] for i in range(1, session.packets + 1))[:session.size]
-                messages.append(TpMessage(int(frames["t_mono_ns"][k]), session.pgn, sa, da, payload))
+                messages.append(TpMessage(times[k], session.pgn, sa, da, payload))
                 if session.kind == "bam":
                     stats.bam += 1
                 else:

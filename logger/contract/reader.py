@@ -25,6 +25,9 @@ straight into the caller's own arrays (the ingest's decoding blocks: one copy of
 
 from __future__ import annotations
 
+import bisect
+import collections
+import heapq
 import mmap
 import os
 import queue
@@ -51,6 +54,9 @@ RELEASE_BYTES = 64 << 20
 WINDOW_BYTES = 32 << 20
 """Decompressed bytes of chunks handed out together (one `Window`); as many compressed bytes of
 chunks are loaded ahead of the walk (so the pool decompresses while the caller works on a window)."""
+TASK_BYTES = 1 << 20
+"""Compressed bytes of consecutive chunks one pool task loads: a hand-over between threads (submit,
+wait for the result) costs some 20 µs of Python, a chunk of 256 KiB some 150 µs of decompression."""
 
 
 # -- one chunk ----------------------------------------------------------------------------------
@@ -58,19 +64,24 @@ chunks are loaded ahead of the walk (so the pool decompresses while the caller w
 class _Records:
     """The decoded records of a run of records: a chunk's content or one top-level record.
 
-    ``table``: `chunk_walk.walk_records` columns; ``definitions``: parsed schema and channel
-    records by row; ``parsed`` False when a record does not parse (the chunk counts as damaged)."""
+    ``table``: `chunk_walk.walk_records` columns (its rows also by name); ``definitions``: parsed
+    schema and channel records by row; ``parsed`` False when a record does not parse (the chunk
+    counts as damaged). ``all_rows`` and ``channel_set`` (the channel ids as a set) are made here, on
+    the pool's thread, for the walk's common case: a chunk of messages of known channels."""
 
-    __slots__ = ("data", "array", "opcodes", "starts", "ends", "channel_ids", "sequences", "log_times",
-                 "publish_times", "definitions", "parsed")
+    __slots__ = ("data", "array", "table", "opcodes", "starts", "ends", "channel_ids", "sequences", "log_times",
+                 "publish_times", "definitions", "parsed", "all_rows", "channel_set")
 
     def __init__(self, data, use_numba: bool):
         self.data = data
         self.array = np.frombuffer(data, np.uint8)
         walk = chunk_walk.kernels(use_numba)["walk_records"]
         status, table = walk(data if walk is chunk_walk.walk_records_python else self.array)
+        self.table = table
         (self.opcodes, starts, ends, self.channel_ids, self.sequences, self.log_times,
          self.publish_times) = table
+        self.all_rows = np.arange(table.shape[1])
+        self.channel_set = set(np.unique(self.channel_ids).tolist())
         self.starts, self.ends = starts.view(np.int64), ends.view(np.int64)
         self.parsed = status >= 0
         self.definitions: dict[int, tuple] = {}
@@ -116,9 +127,21 @@ def _load_chunk(view, pos: int, use_numba: bool) -> _Chunk:
     return _Chunk(True, records)
 
 
+def _load_chunks(view, positions: list[int], use_numba: bool) -> list:
+    """`_load_chunk` of each of ``positions`` in turn (one pool task for a run of chunks); an
+    exception is returned in its chunk's place, raised only if the walk asks for that chunk."""
+    loaded = []
+    for pos in positions:
+        try:
+            loaded.append(_load_chunk(view, pos, use_numba))
+        except Exception as exc:  # noqa: BLE001 - raised again by `_Scanner.chunk` for this position
+            loaded.append(exc)
+    return loaded
+
+
 class _Scanner:
-    """Chunks of a file: loaded ahead on a thread pool where they are expected, found by search
-    (and loaded at once) where they are not."""
+    """Chunks of a file: loaded ahead on a thread pool where they are expected (runs of
+    `TASK_BYTES` per task), found by search (and loaded at once) where they are not."""
 
     def __init__(self, buf, view, executor: ThreadPoolExecutor | None, use_numba: bool, ahead_bytes: int):
         self.buf = buf
@@ -128,23 +151,78 @@ class _Scanner:
         self.use_numba = use_numba
         self.ahead_bytes = ahead_bytes
         self._held_bytes = 0
-        self.expected = _expected_chunks(buf)
+        self._expected: list[int] = _expected_chunks(buf).tolist()
         self._next_expected = 0
         self._loaded: dict[int, object] = {}
+        """Position → `_Chunk` (or the exception loading it raised), or (future of its task, index
+        in the task) until asked for."""
+        self._tasks: collections.deque = collections.deque()
+        """(future, positions) of the submitted runs, oldest first (some already done)."""
+        self._held: list[tuple[int, int]] = []
+        """Heap of (position, bytes) of the loaded chunks, for `release`."""
         self._nothing_from: int | None = None
         self._dropped = 0
 
     def _prefetch(self, pos: int) -> None:
         if self.executor is None:
             return
-        expected = self.expected
+        expected = self._expected
+        if self._held_bytes > max(self.ahead_bytes - TASK_BYTES, 0) and (
+                self._next_expected >= len(expected) or expected[self._next_expected] > pos):
+            return  # refilled once a task's worth is free, in runs of `TASK_BYTES`
+        run: list[int] = []
+        run_bytes = 0
         while self._next_expected < len(expected) and (
                 self._held_bytes < self.ahead_bytes or expected[self._next_expected] <= pos):
-            at = int(expected[self._next_expected])
+            at = expected[self._next_expected]
             self._next_expected += 1
             if at >= pos and at not in self._loaded:
-                self._loaded[at] = self.executor.submit(_load_chunk, self.view, at, self.use_numba)
-                self._held_bytes += self._length(at)
+                length = self._length(at)
+                self._hold(at, length)
+                run.append(at)
+                run_bytes += length
+                if run_bytes >= TASK_BYTES:
+                    self._submit(run)
+                    run, run_bytes = [], 0
+        if run:
+            self._submit(run)
+
+    def _submit(self, run: list[int]) -> None:
+        future = self.executor.submit(_load_chunks, self.view, run, self.use_numba)
+        self._tasks.append((future, run))
+        for index, at in enumerate(run):
+            self._loaded[at] = (future, index)
+
+    def _wait(self, future) -> None:
+        """Until ``future`` is done, load here the runs no pool thread has started: this thread
+        would only wait, and the pool (one thread beside the walk in the ingest) is the slower side."""
+        while not future.done() and self._load_unstarted_run():
+            pass
+
+    def _forget_done_tasks(self) -> None:
+        """Drop the finished runs at the front of `_tasks` (their futures hold the chunks they
+        loaded: kept, they would keep every chunk of the file in memory)."""
+        tasks = self._tasks
+        while tasks and tasks[0][0].done():
+            tasks.popleft()
+
+    def _load_unstarted_run(self) -> bool:
+        """Load the oldest submitted run that no pool thread has started; False if there is none."""
+        self._forget_done_tasks()
+        tasks = self._tasks
+        for k, (future, run) in enumerate(tasks):
+            if future.cancel():
+                del tasks[k]
+                for index, (at, chunk) in enumerate(zip(run, _load_chunks(self.view, run, self.use_numba))):
+                    entry = self._loaded.get(at)
+                    if type(entry) is tuple and entry[0] is future:
+                        self._loaded[at] = chunk
+                return True
+        return False
+
+    def _hold(self, pos: int, length: int) -> None:
+        heapq.heappush(self._held, (pos, length))
+        self._held_bytes += length
 
     def _length(self, pos: int) -> int:
         """Bytes of the record at ``pos`` as its header says (bounded by the file)."""
@@ -155,17 +233,27 @@ class _Scanner:
         loaded = self._loaded.get(pos)
         if loaded is None:
             loaded = self._loaded[pos] = _load_chunk(self.view, pos, self.use_numba)
-            self._held_bytes += self._length(pos)
-        elif not isinstance(loaded, _Chunk):
-            loaded = self._loaded[pos] = loaded.result()
+            self._hold(pos, self._length(pos))
+            return loaded
+        if type(loaded) is tuple:
+            future, index = loaded
+            self._wait(future)
+            loaded = self._loaded[pos]
+            if type(loaded) is tuple:
+                loaded = self._loaded[pos] = future.result()[index]
+        if isinstance(loaded, BaseException):
+            raise loaded
         return loaded
 
     def release(self, below: int) -> None:
         """Forget loaded chunks before ``below`` (the walk has passed them), load further ahead,
         and hand the file's pages before it back (a mapped file's pages count in the RSS)."""
-        for at in [at for at in self._loaded if at < below]:
-            del self._loaded[at]
-            self._held_bytes -= self._length(at)
+        held = self._held
+        while held and held[0][0] < below:
+            at, length = heapq.heappop(held)
+            if self._loaded.pop(at, None) is not None:
+                self._held_bytes -= length
+        self._forget_done_tasks()
         self._prefetch(below)
         if below - self._dropped >= RELEASE_BYTES and hasattr(self.buf, "madvise"):
             upto = below // mmap.PAGESIZE * mmap.PAGESIZE
@@ -173,13 +261,15 @@ class _Scanner:
             self._dropped = upto
 
     def close(self) -> None:
-        for loaded in self._loaded.values():
-            if not isinstance(loaded, _Chunk):
-                loaded.cancel()
-        for loaded in self._loaded.values():
-            if not isinstance(loaded, _Chunk) and not loaded.cancelled():
-                loaded.result()
+        futures = {id(loaded[0]): loaded[0] for loaded in self._loaded.values() if type(loaded) is tuple}
+        for future in futures.values():
+            future.cancel()
+        for future in futures.values():
+            if not future.cancelled():
+                future.result()
         self._loaded.clear()
+        self._held.clear()
+        self._tasks.clear()
 
     def next_chunk(self, start: int) -> int:
         """Offset of the first compressed chunk at or after ``start`` that validates, or the size.
@@ -190,9 +280,9 @@ class _Scanner:
         if self._nothing_from is not None and start >= self._nothing_from:
             return self.size
         best = self.size
-        expected = self.expected
-        for k in range(int(np.searchsorted(expected, start)), len(expected)):
-            at = int(expected[k])
+        expected = self._expected
+        for k in range(bisect.bisect_left(expected, start), len(expected)):
+            at = expected[k]
             if self._compressed_at(at) and self.chunk(at).valid:
                 best = at
                 break
@@ -249,6 +339,7 @@ class _Channels:
         self.channels: dict[int, Channel] = {}
         self.pending: dict[int, list[_Part]] = {}
         self.known = np.zeros(1 << 16, dtype=bool)
+        self.known_ids: set[int] = set()
 
     def add_schema(self, parsed) -> None:
         schema_id, name, encoding, data = parsed
@@ -262,17 +353,17 @@ class _Channels:
             name, schema_encoding, data = self.schemas.get(schema_id, ("", "", b""))
             self.channels[channel_id] = Channel(channel_id, topic, encoding, name, schema_encoding, data, metadata)
             self.known[channel_id] = True
+            self.known_ids.add(channel_id)
         return channel_id
 
     def batch(self, records: _Records, report: ReadReport) -> list[_Part]:
         """The messages of ``records`` whose channel is known, in order, with earlier messages
         of a channel defined here placed where its definition is; the others wait."""
         parts: list[_Part] = []
-        if not records.definitions:  # most chunks: messages of known channels only
-            known = self.known[records.channel_ids]
-            if known.all():
-                report.messages += len(known)
-                return [_Part(records, np.arange(len(known)))] if len(known) else []
+        if not records.definitions and self.known_ids.issuperset(records.channel_set):
+            count = len(records.all_rows)  # most chunks: messages of known channels only
+            report.messages += count
+            return [_Part(records, records.all_rows)] if count else []
         message_rows = records.opcodes == OP_MESSAGE
         bounds = [0, *sorted(r + 1 for r in records.definitions), len(records.opcodes)] if records.definitions \
             else [0, len(records.opcodes)]

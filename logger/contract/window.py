@@ -48,16 +48,14 @@ class Window:
         per_batch = np.array([sum(len(p.rows) for p in batch) for batch in batches], dtype=np.int64)
         self.batch_starts = np.concatenate(([0], np.cumsum(per_batch)[:-1])) if len(batches) else per_batch
 
-        def column(name):
-            return np.concatenate([getattr(p.records, name)[p.rows] if len(p.rows) != len(p.records.opcodes)
-                                   else getattr(p.records, name) for p in parts]) if parts else np.zeros(0)
-
-        self.channel_ids = column("channel_ids").astype(np.uint16, copy=False)
-        self.sequences = column("sequences").astype(np.uint32, copy=False)
-        self.log_times_ns = column("log_times").astype(np.uint64, copy=False)
-        self.publish_times_ns = column("publish_times").astype(np.uint64, copy=False)
-        self._starts = column("starts").astype(np.int64, copy=False) + chunk_walk.MESSAGE_HEAD
-        self._lengths = np.maximum(column("ends").astype(np.int64, copy=False) - self._starts, 0)
+        table = np.concatenate([p.records.table if p.rows is p.records.all_rows else p.records.table[:, p.rows]
+                                for p in parts], axis=1) if parts else np.zeros((len(chunk_walk.COLUMNS), 0), np.uint64)
+        self.channel_ids = table[3].astype(np.uint16)
+        self.sequences = table[4].astype(np.uint32)
+        self.log_times_ns = table[5]
+        self.publish_times_ns = table[6]
+        self._starts = table[1].view(np.int64) + chunk_walk.MESSAGE_HEAD
+        self._lengths = np.maximum(table[2].view(np.int64) - self._starts, 0)
         self._records: dict[int, np.ndarray] = {}
         self._counts: dict[int, np.ndarray] = {}
         self._use_numba = use_numba
