@@ -358,3 +358,26 @@ def test_the_scanner_forgets_finished_runs(monkeypatch):
         pass
     assert sum(length.values()) > 10 * ahead
     assert max(held_bytes) <= ahead + 2 * max(length.values())
+
+
+def test_a_window_keeps_the_channels_of_its_own_time_while_later_ones_are_defined():
+    """A channel first defined late in a file does not appear in the windows before it: the
+    ingest's decoding thread walks a window's channels while the reader, on its own thread,
+    builds the next windows (a dict that grew under it raised "changed size during iteration")."""
+    from mcap.writer import Writer
+
+    stream = io.BytesIO()
+    writer = Writer(stream, chunk_size=4 * 1024)
+    writer.start()
+    schema = writer.register_schema("t", "jsonschema", b"{}")
+    early = writer.register_channel("/early", "json", schema)
+    for k in range(400):
+        writer.add_message(early, log_time=k, publish_time=k, data=b'{"v": %d}' % k, sequence=k)
+    late = writer.register_channel("/late", "json", schema)
+    for k in range(400, 800):
+        writer.add_message(late, log_time=k, publish_time=k, data=b'{"v": %d}' % k, sequence=k)
+    writer.finish()
+    windows = list(reader.read_windows(stream.getvalue(), window_bytes=8 * 1024))
+    topics = [{channel.topic for channel in window.channels.values()} for window in windows]
+    assert len(windows) > 2
+    assert topics[0] == {"/early"} and topics[-1] == {"/early", "/late"}

@@ -37,11 +37,12 @@ class Window:
     Per message, in file order: ``channel_ids``, ``sequences``, ``log_times_ns``,
     ``publish_times_ns`` (monotonic) and ``batch_starts`` (index of each batch's first message).
     Packed topics' records are in `records` (per channel, whole records only); other payloads by
-    `payloads`."""
+    `payloads`. ``channels``: the channels defined up to this window, a copy (the reader goes on
+    defining channels on its own thread while a caller walks this window's)."""
 
     def __init__(self, batches: list[list[_Part]], channels: dict[int, Channel], use_numba: bool):
         parts = [part for batch in batches for part in batch]
-        self.channels = channels
+        self.channels = dict(channels)
         self._parts = parts
         sizes = np.array([len(p.rows) for p in parts], dtype=np.int64)
         self._part_starts = np.concatenate(([0], np.cumsum(sizes)))
