@@ -283,11 +283,13 @@ def _gaps(grid, frame, virtual, spacing_m):
     return np.exp(-2 * distance_transform_edt(~measured) / length), measured, length
 
 
-def _set_std(result: GradientResult, frame, std):
-    result.grid["gradient_smooth_std_pct"] = std
-    result.samples["gradient_smooth_std_pct"] = np.interp(frame["distance_m"].to_numpy(dtype=float),
-                                                          result.grid["distance_m"].to_numpy(), std,
-                                                          left=np.nan, right=np.nan)
+def _set_grid(result: GradientResult, frame, **columns):
+    """Grid columns replaced, and their per-sample values interpolated again at the samples' distance."""
+    distance = frame["distance_m"].to_numpy(dtype=float)
+    s_grid = result.grid["distance_m"].to_numpy()
+    for name, values in columns.items():
+        result.grid[name] = values
+        result.samples[name] = np.interp(distance, s_grid, np.asarray(values, dtype=float), left=np.nan, right=np.nan)
 
 
 BRAKE_HELD_S = 1.0
@@ -339,15 +341,11 @@ def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, rela
         return
     gradient = np.where(above, limit_pct, gradient)
     height = _integrate(gradient / 100, spacing_m)
-    grid["height_smooth_m"] = height + np.mean(grid["height_smooth_m"].to_numpy() - height)
-    grid["gradient_smooth_pct"] = gradient
-    columns = ["gradient_smooth_pct", "height_smooth_m"]
+    height = height + np.mean(grid["height_smooth_m"].to_numpy() - height)
+    columns = {"gradient_smooth_pct": gradient, "height_smooth_m": height}
     if result.smoother.get("method") == "smoother":
-        grid["gradient_pct"], grid["height_m"] = grid["gradient_smooth_pct"], grid["height_smooth_m"]
-        columns += ["gradient_pct", "height_m"]
-    s_grid = grid["distance_m"].to_numpy()
-    for name in columns:
-        result.samples[name] = np.interp(distance, s_grid, grid[name].to_numpy(), left=np.nan, right=np.nan)
+        columns.update(gradient_pct=gradient, height_m=height)
+    _set_grid(result, frame, **columns)
     result.notes.append(f"braking bound: the gradient held under what braking allows on {above.sum()} grid points "
                         f"({100 * above.mean():.0f} % of the distance)")
 
@@ -368,7 +366,7 @@ def _widen_in_gaps(result: GradientResult, frame, virtual, spacing_m):
     gradient = result.grid["gradient_smooth_pct"].to_numpy()
     rms = float(np.sqrt(np.mean(gradient[measured] ** 2)))
     std = result.grid["gradient_smooth_std_pct"].to_numpy()
-    _set_std(result, frame, np.sqrt(std ** 2 * w + np.maximum(rms ** 2, std ** 2) * (1 - w)))
+    _set_grid(result, frame, gradient_smooth_std_pct=np.sqrt(std ** 2 * w + np.maximum(rms ** 2, std ** 2) * (1 - w)))
     result.notes.append(f"no height source: where the force balance measures nothing ({100 * (1 - measured.mean()):.0f} % "
                         f"of the distance) the gradient's sigma returns to the road's own spread ({rms:.1f} %-pt "
                         f"over {length * spacing_m:.0f} m)")
@@ -389,7 +387,7 @@ def _height_sources_sigma_in_gaps(result: GradientResult, frame, virtual, first_
     w, _, _ = gaps
     std = result.grid["gradient_smooth_std_pct"].to_numpy()
     first = np.nan_to_num(np.asarray(first_std_pct, dtype=float), nan=0.0)
-    _set_std(result, frame, np.sqrt(std ** 2 * w + np.maximum(first ** 2, std ** 2) * (1 - w)))
+    _set_grid(result, frame, gradient_smooth_std_pct=np.sqrt(std ** 2 * w + np.maximum(first ** 2, std ** 2) * (1 - w)))
 
 
 def _add_mass_uncertainty(result: GradientResult, frame, virtual, relative, vehicle, spacing_m):
@@ -412,8 +410,7 @@ def _add_mass_uncertainty(result: GradientResult, frame, virtual, relative, vehi
     filled = np.interp(s_grid, s_grid[ok], per_bin[ok])
     extra_pct = 100 * filled / G_MPS2 * grid["weight_smooth_imu"].to_numpy()
     std = np.hypot(grid["gradient_smooth_std_pct"].to_numpy(), extra_pct)
-    grid["gradient_smooth_std_pct"] = std
-    result.samples["gradient_smooth_std_pct"] = np.interp(distance, s_grid, std, left=np.nan, right=np.nan)
+    _set_grid(result, frame, gradient_smooth_std_pct=std)
 
 
 def estimate_gradient_for_log(frame: pd.DataFrame, dem, settings: GradientSettings = GradientSettings(),
