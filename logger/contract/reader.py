@@ -261,10 +261,11 @@ class _Scanner:
             self._dropped = upto
 
     def close(self) -> None:
-        futures = {id(loaded[0]): loaded[0] for loaded in self._loaded.values() if type(loaded) is tuple}
-        for future in futures.values():
+        """Cancel the runs no pool thread has started and wait for the others (`_tasks` keeps every
+        run not yet done)."""
+        for future, _ in self._tasks:
             future.cancel()
-        for future in futures.values():
+        for future, _ in self._tasks:
             if not future.cancelled():
                 future.result()
         self._loaded.clear()
