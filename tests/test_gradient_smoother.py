@@ -50,6 +50,34 @@ def test_kernel_equals_reference_and_recovers_the_gradient():
     assert np.all(p[:, kalman.GAMMA, kalman.GAMMA] > 0)
 
 
+def test_kernel_with_the_scale_state_equals_reference_and_finds_each_segments_scale():
+    """The optional 7th state k scales the IMU channel: z = e^k (g sin γ + u) - u + b, u the
+    regressor (dv/dt + g c_r), and restarts at a new segment: two segments with e^k = 1.10 and
+    0.95 are found to 0.02, each independent of the other."""
+    (z, r, dt, step, params, x0, p0), gamma = _random_problem()
+    n = len(dt)
+    rng = np.random.default_rng(1)
+    regressor = rng.uniform(-0.5, 1.5, n)
+    regressor[rng.random(n) < 0.1] = np.nan
+    factor = np.where(np.arange(n) < n // 2, 1.10, 0.95)
+    z = z.copy()
+    z[:, kalman.IMU] += (factor - 1) * (9.81 * gamma / np.sqrt(1 + gamma ** 2) + np.nan_to_num(regressor))
+    step7 = np.zeros((n, kalman.N_STATES_WITH_SCALE))
+    step7[:, :kalman.N_STATES] = step
+    step7[n // 2, kalman.SCALE] = 0.2 ** 2
+    x07, p07 = np.append(x0, 0.0), np.zeros((kalman.N_STATES_WITH_SCALE,) * 2)
+    p07[:kalman.N_STATES, :kalman.N_STATES] = p0
+    p07[kalman.SCALE, kalman.SCALE] = 0.2 ** 2
+    fast = kalman.smooth(z, r, dt, step7, params, x07, p07, True, regressor)
+    slow = kalman.smooth_reference(z, r, dt, step7, params, x07, p07, regressor)
+    for a, b in zip(fast, slow):
+        np.testing.assert_allclose(a, b, rtol=1e-7, atol=1e-9)
+    found = np.exp(fast[0][:, kalman.SCALE])
+    assert np.allclose(found[:n // 2], found[0]) and np.allclose(found[n // 2:], found[-1])
+    assert abs(found[0] - 1.10) < 0.02 and abs(found[-1] - 0.95) < 0.02
+    assert np.sqrt(np.mean((fast[0][:, kalman.GAMMA] - gamma) ** 2)) < 0.002
+
+
 @pytest.fixture(scope="module")
 def world(tmp_path_factory):
     signals, truth, dem = virtual_drive_data("regional-tunnel", tmp_path_factory)

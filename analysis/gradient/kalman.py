@@ -3,23 +3,30 @@ filter and backward Rauch-Tung-Striebel pass on the distance grid.
 
 State per grid point i (spacing Δ [m], time dt_i [s] spent since the previous point):
 
-    x = [h, γ, d, r, b, e]
+    x = [h, γ, d, r, b, e(, k)]
     h  road height [m]                 h' = h + Δ γ
     γ  gradient dh/ds [-]              γ' = γ + w_γ        (integrated random walk, curvature PSD q_c)
     d  barometric offset [m]           d' = d + dt r       (weather drift and the sensor's own height)
     r  its rate [m/s]                  r' = r + w_r        (drift rate random walk, PSD q_r)
     b  IMU bias [m/s²]                 b' = b + w_b        (mounting pitch g·sin δ plus accelerometer bias)
     e  DEM error at the fixes [m]      e' = φ e + w_e      (Gauss-Markov, φ = exp(-Δ/L), var σ_e²)
+    k  log scale of the IMU channel    k' = k, or a fresh  (optional 7th state: the force balance's
+       [-] (mass or torque gain)       draw at a reset     log(m_true/m), constant per mass segment)
 
 Measurements (columns of ``z``; NaN = none in that bin):
 
     0 barometric height (6)            z = h + d
     1 DEM height at the GPS fixes      z = h + e
-    2 IMU specific force minus dv/dt   z = g sin(atan γ) + b     (linearised at the prediction)
+    2 IMU specific force minus dv/dt   z = g sin(atan γ) + b              (linearised at the prediction)
+      with the scale state             z = e^k (g sin(atan γ) + u) - u + b,  u = dv/dt + g c_r per grid
+                                       point: the force balance reads e^k times the true specific force
+                                       (a log, so that no estimate can flip the force's sign)
     3 GPS altitude                     z = h
 
 ``step`` adds process variance per grid point on the diagonal: the barometric offset d steps at a
-standstill (door and ventilation change the cab's overpressure; `smoother.SmootherSettings`).
+standstill (door and ventilation change the cab's overpressure; `smoother.SmootherSettings`). For
+the scale state k a positive ``step`` is a reset instead: k restarts at 0 with that variance, the
+prior of a new mass segment's error (k' = 0 k + w, independent of the segment before).
 
 ``numba`` kernel `smooth` beside the NumPy reference `smooth_reference` (same contract, tested equal).
 """
@@ -32,22 +39,26 @@ import numpy as np
 from ..small_linalg import cholesky, cholesky_solve
 
 N_STATES = 6
+"""States without the optional scale state; with it, ``x0`` has `N_STATES_WITH_SCALE`."""
+N_STATES_WITH_SCALE = 7
 N_MEASUREMENTS = 4
-H, GAMMA, DRIFT, RATE, BIAS, DEM_ERROR = range(N_STATES)
+H, GAMMA, DRIFT, RATE, BIAS, DEM_ERROR, SCALE = range(N_STATES_WITH_SCALE)
 BARO, DEM, IMU, GPS = range(N_MEASUREMENTS)
 PARAMETERS = ("spacing_m", "curvature_psd", "drift_rate_psd", "bias_psd", "dem_sigma_m", "dem_correlation_m", "g")
 
 
-def _transition(spacing, dt, phi):
-    f = np.eye(N_STATES)
+def _transition(spacing, dt, phi, ns=N_STATES, reset=False):
+    f = np.eye(ns)
     f[H, GAMMA] = spacing
     f[DRIFT, RATE] = dt
     f[DEM_ERROR, DEM_ERROR] = phi
+    if ns > SCALE and reset:
+        f[SCALE, SCALE] = 0.0
     return f
 
 
-def _process_noise(spacing, dt, q_c, q_r, q_b, dem_var, phi):
-    q = np.zeros((N_STATES, N_STATES))
+def _process_noise(spacing, dt, q_c, q_r, q_b, dem_var, phi, ns=N_STATES):
+    q = np.zeros((ns, ns))
     q[H, H], q[H, GAMMA], q[GAMMA, GAMMA] = q_c * spacing ** 3 / 3, q_c * spacing ** 2 / 2, q_c * spacing
     q[GAMMA, H] = q[H, GAMMA]
     q[DRIFT, DRIFT], q[DRIFT, RATE], q[RATE, RATE] = q_r * dt ** 3 / 3, q_r * dt ** 2 / 2, q_r * dt
@@ -57,34 +68,42 @@ def _process_noise(spacing, dt, q_c, q_r, q_b, dem_var, phi):
     return q
 
 
-def smooth_reference(z, r, dt, step, params, x0, p0):
+def smooth_reference(z, r, dt, step, params, x0, p0, regressor=None):
     """Forward EKF + RTS smoother, matrix form. ``z``, ``r``: (n, 4) measurements and their
-    variances; ``dt``: (n,) seconds between grid points; ``step``: (n, 6) extra process variance
-    added to the diagonal on the way into each point; ``params`` as `PARAMETERS`; ``x0``, ``p0``:
-    prior of the first point. Returns (smoothed states (n, 6), smoothed covariances (n, 6, 6),
-    innovations (n, 4), innovation variances (n, 4))."""
+    variances; ``dt``: (n,) seconds between grid points; ``step``: (n, ns) extra process variance
+    added to the diagonal on the way into each point (for the scale state: its reset variance);
+    ``params`` as `PARAMETERS`; ``x0``, ``p0``: prior of the first point, ns = 6 states, or 7 with
+    the scale state, whose ``regressor`` u (n,) is then needed (NaN: 0). Returns (smoothed
+    states (n, ns), smoothed covariances (n, ns, ns), innovations (n, 4), innovation variances (n, 4))."""
     spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g = params
     n = len(dt)
+    ns = len(x0)
     phi = np.exp(-spacing / dem_corr)
-    x_pred, p_pred = np.empty((n, N_STATES)), np.empty((n, N_STATES, N_STATES))
-    x_filt, p_filt = np.empty((n, N_STATES)), np.empty((n, N_STATES, N_STATES))
+    x_pred, p_pred = np.empty((n, ns)), np.empty((n, ns, ns))
+    x_filt, p_filt = np.empty((n, ns)), np.empty((n, ns, ns))
     innovation, innovation_var = np.full((n, N_MEASUREMENTS), np.nan), np.full((n, N_MEASUREMENTS), np.nan)
     x, p = np.array(x0, dtype=float), np.array(p0, dtype=float)
+    u = np.zeros(n) if regressor is None else np.nan_to_num(np.asarray(regressor, dtype=float))
+    resets = np.zeros(n, bool) if ns <= SCALE else step[:, SCALE] > 0
     for i in range(n):
         if i > 0:
-            f = _transition(spacing, dt[i], phi)
+            f = _transition(spacing, dt[i], phi, ns, resets[i])
             x = f @ x
-            p = f @ p @ f.T + _process_noise(spacing, dt[i], q_c, q_r, q_b, dem_sigma ** 2, phi) + np.diag(step[i])
+            p = f @ p @ f.T + _process_noise(spacing, dt[i], q_c, q_r, q_b, dem_sigma ** 2, phi, ns) + np.diag(step[i])
         x_pred[i], p_pred[i] = x, p
         gamma = x[GAMMA]
-        rows = np.zeros((N_MEASUREMENTS, N_STATES))
+        rows = np.zeros((N_MEASUREMENTS, ns))
         rows[BARO, [H, DRIFT]] = 1.0
         rows[DEM, [H, DEM_ERROR]] = 1.0
         rows[IMU, GAMMA] = g / (1 + gamma * gamma) ** 1.5
         rows[IMU, BIAS] = 1.0
+        factor = np.exp(x[SCALE]) if ns > SCALE else 1.0
+        rows[IMU, GAMMA] *= factor
+        if ns > SCALE:
+            rows[IMU, SCALE] = factor * (g * gamma / np.sqrt(1 + gamma * gamma) + u[i])
         rows[GPS, H] = 1.0
         predicted = rows @ x
-        predicted[IMU] = g * gamma / np.sqrt(1 + gamma * gamma) + x[BIAS]
+        predicted[IMU] = factor * (g * gamma / np.sqrt(1 + gamma * gamma) + u[i]) - u[i] + x[BIAS]
         for m in range(N_MEASUREMENTS):
             if not (np.isfinite(z[i, m]) and np.isfinite(r[i, m]) and r[i, m] > 0):
                 continue
@@ -94,13 +113,13 @@ def smooth_reference(z, r, dt, step, params, x0, p0):
             nu = z[i, m] - predicted[m] - row @ (x - x_pred[i])
             gain = p @ row / s
             x = x + gain * nu
-            ikh = np.eye(N_STATES) - np.outer(gain, row)
+            ikh = np.eye(ns) - np.outer(gain, row)
             p = ikh @ p @ ikh.T + r[i, m] * np.outer(gain, gain)
             innovation[i, m], innovation_var[i, m] = nu, s
         x_filt[i], p_filt[i] = x, p
     x_s, p_s = x_filt.copy(), p_filt.copy()
     for i in range(n - 2, -1, -1):
-        f = _transition(spacing, dt[i + 1], phi)
+        f = _transition(spacing, dt[i + 1], phi, ns, resets[i + 1])
         c = np.linalg.solve(p_pred[i + 1], f @ p_filt[i]).T
         x_s[i] = x_filt[i] + c @ (x_s[i + 1] - x_pred[i + 1])
         p_s[i] = p_filt[i] + c @ (p_s[i + 1] - p_pred[i + 1]) @ c.T
@@ -113,11 +132,11 @@ def _predict(x, p, spacing, dt, phi, q_c, q_r, q_b, dem_var):
     x[H] += spacing * x[GAMMA]
     x[DRIFT] += dt * x[RATE]
     x[DEM_ERROR] *= phi
-    for j in range(N_STATES):  # rows: P <- F P
+    for j in range(p.shape[0]):  # rows: P <- F P
         p[H, j] += spacing * p[GAMMA, j]
         p[DRIFT, j] += dt * p[RATE, j]
         p[DEM_ERROR, j] *= phi
-    for i in range(N_STATES):  # columns: (F P) F^T
+    for i in range(p.shape[0]):  # columns: (F P) F^T
         p[i, H] += spacing * p[i, GAMMA]
         p[i, DRIFT] += dt * p[i, RATE]
         p[i, DEM_ERROR] *= phi
@@ -134,13 +153,28 @@ def _predict(x, p, spacing, dt, phi, q_c, q_r, q_b, dem_var):
 
 
 @numba.njit(cache=True)
-def smooth(z, r, dt, step, params, x0, p0, backward=True):
+def _reset_scale(x, p, variance):
+    """The scale state restarts at 0 with ``variance``, independent of every other state."""
+    x[SCALE] = 0.0
+    for a in range(p.shape[0]):
+        p[a, SCALE] = 0.0
+        p[SCALE, a] = 0.0
+    p[SCALE, SCALE] = variance
+
+
+@numba.njit(cache=True)
+def smooth(z, r, dt, step, params, x0, p0, backward=True, regressor=None):
     """`smooth_reference` as a numba kernel (same arguments and results); ``backward=False``
     stops after the forward filter (filtered states; innovations for a likelihood)."""
     spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g = (params[0], params[1], params[2], params[3], params[4],
                                                       params[5], params[6])
     n = len(dt)
-    ns = N_STATES
+    ns = x0.shape[0]
+    scaled = ns > SCALE
+    u = np.zeros(n)
+    if regressor is not None:
+        for i in range(n):
+            u[i] = regressor[i] if np.isfinite(regressor[i]) else 0.0
     phi = np.exp(-spacing / dem_corr)
     dem_var = dem_sigma * dem_sigma
     x_pred, p_pred = np.empty((n, ns)), np.empty((n, ns, ns))
@@ -153,8 +187,10 @@ def smooth(z, r, dt, step, params, x0, p0, backward=True):
     for i in range(n):
         if i > 0:
             _predict(x, p, spacing, dt[i], phi, q_c, q_r, q_b, dem_var)
-            for a in range(ns):
+            for a in range(N_STATES):
                 p[a, a] += step[i, a]
+            if scaled and step[i, SCALE] > 0:
+                _reset_scale(x, p, step[i, SCALE])
         _store(x, p, x_pred, p_pred, i)
         gamma = x[GAMMA]
         for m in range(N_MEASUREMENTS):
@@ -173,6 +209,11 @@ def smooth(z, r, dt, step, params, x0, p0, backward=True):
                 row[GAMMA] = g / (1 + gamma * gamma) ** 1.5
                 row[BIAS] = 1.0
                 predicted = g * gamma / np.sqrt(1 + gamma * gamma) + x_pred[i, BIAS]
+                if scaled:
+                    factor = np.exp(x_pred[i, SCALE])
+                    row[SCALE] = factor * (g * gamma / np.sqrt(1 + gamma * gamma) + u[i])
+                    row[GAMMA] *= factor
+                    predicted = row[SCALE] - u[i] + x_pred[i, BIAS]
             else:
                 row[H] = 1.0
                 predicted = x_pred[i, H]
@@ -214,6 +255,8 @@ def smooth(z, r, dt, step, params, x0, p0, backward=True):
             fp[H, j] += spacing * fp[GAMMA, j]
             fp[DRIFT, j] += dti * fp[RATE, j]
             fp[DEM_ERROR, j] *= phi
+            if scaled and step[i + 1, SCALE] > 0:
+                fp[SCALE, j] = 0.0
         # C^T = P_pred^-1 F P_filt by Cholesky (P_pred is symmetric positive definite)
         cholesky(p_pred[i + 1], chol)
         cholesky_solve(chol, fp, c)
