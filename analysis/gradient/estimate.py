@@ -199,6 +199,9 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     out["baro_drift_m"] = smoothed.drift_m if bin_baro is not None else np.nan
     out["imu_bias_mps2"] = smoothed.imu_bias_mps2 if imu_excess is not None else np.nan
     out["imu_bias_std_mps2"] = smoothed.imu_bias_std_mps2 if imu_excess is not None else np.nan
+    if smoothed.imu_scale is not None:
+        out["force_balance_log_scale"] = smoothed.imu_scale
+        out["force_balance_log_scale_std"] = smoothed.imu_scale_std
     out["map_gated"] = smoothed.map_gated
     for name, weight in smoothed.weights.items():
         out[f"weight_smooth_{name}"] = weight
@@ -232,7 +235,7 @@ def _measurements(frame, index, n_bins, time_s, bin_baro, map_bins, map_accuracy
     z = np.full((n_bins, kalman.N_MEASUREMENTS), np.nan)
     count = np.zeros((n_bins, kalman.N_MEASUREMENTS))
     h_acc = v_acc = np.full(n_bins, np.nan)
-    imu_scale_var = None
+    imu_scale_var = scale_regressor = scale_reset_var = None
     if bin_baro is not None:
         z[:, kalman.BARO] = bin_baro
         count[:, kalman.BARO] = np.isfinite(bin_baro) * map_accuracy["rate_count"]
@@ -246,6 +249,7 @@ def _measurements(frame, index, n_bins, time_s, bin_baro, map_bins, map_accuracy
         scale_var = _column(frame, "accel_x_scale_var_m2ps4")
         if scale_var is not None:
             imu_scale_var = distance_grid.bin_mean(index, np.sqrt(scale_var), n_bins) ** 2
+        scale_regressor, scale_reset_var = _scale_state_bins(frame, index, imu_excess, n_bins)
     else:
         notes.append("no IMU (accel_x_mps2): smoother without the accelerometer")
     altitude, v_acc_samples = _column(frame, "gps_altitude_m"), _column(frame, "gps_v_acc_m")
@@ -263,7 +267,34 @@ def _measurements(frame, index, n_bins, time_s, bin_baro, map_bins, map_accuracy
     speed = frame["speed_mps"].to_numpy(dtype=float)
     return Measurements(z=z, count=count, h_acc_m=h_acc, v_acc_m=v_acc,
                         dt_s=bin_times(index, speed, n_bins, settings.spacing_m), spacing_m=settings.spacing_m,
-                        stopped=standstill_bins(index, speed, n_bins), imu_scale_var=imu_scale_var)
+                        stopped=standstill_bins(index, speed, n_bins), imu_scale_var=imu_scale_var,
+                        imu_scale_regressor=scale_regressor, imu_scale_reset_var=scale_reset_var)
+
+
+def _scale_state_bins(frame, index, imu_excess, n_bins):
+    """The smoother's scale state from the columns `force_balance` adds: the regressor's bin means
+    (``accel_x_scale_regressor_mps2`` where the accelerometer channel measured) and, at each grid
+    point where a new mass segment (``accel_x_scale_segment``) starts, its prior variance
+    (``accel_x_scale_sigma``², of the log scale); (None, None) without those columns."""
+    regressor = _column(frame, "accel_x_scale_regressor_mps2")
+    segment = _column(frame, "accel_x_scale_segment")
+    sigma = _column(frame, "accel_x_scale_sigma")
+    if regressor is None or segment is None or sigma is None:
+        return None, None
+    measured = np.isfinite(imu_excess)
+    bins = distance_grid.bin_mean(index, np.where(measured, regressor, np.nan), n_bins)
+    labelled = (index >= 0) & np.isfinite(segment) & (segment >= 0)
+    label = np.full(n_bins, -1.0)
+    np.maximum.at(label, index[labelled], segment[labelled])
+    variance = np.zeros(n_bins)
+    np.maximum.at(variance, index[labelled], np.nan_to_num(sigma[labelled]) ** 2)
+    known = np.flatnonzero(label >= 0)
+    if len(known) == 0:
+        return None, None
+    filled = label[known[np.clip(np.searchsorted(known, np.arange(n_bins), side="right") - 1, 0, None)]]
+    starts = np.concatenate([[True], filled[1:] != filled[:-1]])
+    start_var = variance[known[np.clip(np.searchsorted(known, np.arange(n_bins), side="right") - 1, 0, None)]]
+    return bins, np.where(starts, start_var, 0.0)
 
 
 def _map_bins(frame, dem, distance, valid, index, n_bins, settings, notes):

@@ -116,6 +116,12 @@ class Measurements:
     """(n_bins,) variance [m²/s⁴] the accelerometer channel's scale error adds to each bin (the
     force balance's mass or torque gain, `force_balance.scale_variance_m2ps4`), on top of its noise;
     None: none."""
+    imu_scale_regressor: np.ndarray | None = None
+    """(n_bins,) with the scale state (`kalman.SCALE`): u [m/s²] of its measurement
+    z = e^k (g sin γ + u) - u + b, the force balance's dv/dt + g c_r (bin means); None: no scale state."""
+    imu_scale_reset_var: np.ndarray | None = None
+    """(n_bins,) the scale state's prior variance [-] where a new mass segment starts (its first
+    grid point; the first bin holds the first segment's), 0 elsewhere."""
 
 
 @dataclass
@@ -126,6 +132,9 @@ class SmootherResult:
     drift_m: np.ndarray
     imu_bias_mps2: np.ndarray
     imu_bias_std_mps2: np.ndarray
+    imu_scale: np.ndarray | None
+    """The scale state per grid point (log of the true mass over the force balance's), None without."""
+    imu_scale_std: np.ndarray | None
     dem_error_m: np.ndarray
     map_gated: np.ndarray
     weights: dict[str, np.ndarray]
@@ -220,6 +229,8 @@ class GradientSmoother:
         self.offset_steps = np.zeros(n, bool)
         self.imu_scale_var = (np.nan_to_num(measurements.imu_scale_var) if measurements.imu_scale_var is not None
                               else np.zeros(n))
+        self.scaled = measurements.imu_scale_regressor is not None
+        self.n_states = kalman.N_STATES_WITH_SCALE if self.scaled else kalman.N_STATES
 
     def _params(self):
         return np.array([self.m.spacing_m, self.curvature_psd, self.s.drift_rate_psd, self.bias_psd,
@@ -232,12 +243,14 @@ class GradientSmoother:
 
         baro, dem, gps = first(kalman.BARO), first(kalman.DEM), first(kalman.GPS)
         height = dem if np.isfinite(dem) else gps if np.isfinite(gps) else baro if np.isfinite(baro) else 0.0
-        x0 = np.zeros(kalman.N_STATES)
+        x0 = np.zeros(self.n_states)
         x0[kalman.H] = height
         x0[kalman.DRIFT] = baro - height if np.isfinite(baro) else 0.0
-        p0 = np.diag([100.0 ** 2, 0.1 ** 2, 100.0 ** 2, 0.01 ** 2, self.s.imu_bias_prior_sigma_mps2 ** 2,
-                      self.dem_sigma_m ** 2])
-        return x0, p0
+        variances = [100.0 ** 2, 0.1 ** 2, 100.0 ** 2, 0.01 ** 2, self.s.imu_bias_prior_sigma_mps2 ** 2,
+                     self.dem_sigma_m ** 2]
+        if self.scaled:
+            variances.append(max(float(self.m.imu_scale_reset_var[0]), 1e-12))
+        return x0, np.diag(variances)
 
     def run(self, r: np.ndarray, use=(True, True, True, True), backward=True):
         z = self.m.z.copy()
@@ -245,6 +258,9 @@ class GradientSmoother:
             if not on:
                 z[:, column] = np.nan
         x0, p0 = self._prior(z)
+        if self.scaled:
+            return kalman.smooth(z, r, self.m.dt_s, self._steps(), self._params(), x0, p0, backward,
+                                 self.m.imu_scale_regressor)
         return kalman.smooth(z, r, self.m.dt_s, self._steps(), self._params(), x0, p0, backward)
 
     def _steps(self):
@@ -252,8 +268,10 @@ class GradientSmoother:
         driving (offset_psd dt), and its step at a standstill on the way into the grid point
         after the standstill's."""
         n = len(self.m.dt_s)
-        step = np.zeros((n, kalman.N_STATES))
+        step = np.zeros((n, self.n_states))
         step[:, kalman.DRIFT] = self.offset_psd * self.m.dt_s
+        if self.scaled:
+            step[1:, kalman.SCALE] = self.m.imu_scale_reset_var[1:]
         if self.m.stopped is not None:
             after = np.zeros(n, bool)
             after[1:] = self.m.stopped[:-1]
@@ -322,7 +340,10 @@ class GradientSmoother:
         return SmootherResult(
             height_m=x[:, kalman.H], gradient=x[:, kalman.GAMMA], gradient_std=np.sqrt(p[:, kalman.GAMMA, kalman.GAMMA]),
             drift_m=x[:, kalman.DRIFT], imu_bias_mps2=x[:, kalman.BIAS],
-            imu_bias_std_mps2=np.sqrt(p[:, kalman.BIAS, kalman.BIAS]), dem_error_m=x[:, kalman.DEM_ERROR],
+            imu_bias_std_mps2=np.sqrt(p[:, kalman.BIAS, kalman.BIAS]),
+            imu_scale=x[:, kalman.SCALE] if self.scaled else None,
+            imu_scale_std=np.sqrt(p[:, kalman.SCALE, kalman.SCALE]) if self.scaled else None,
+            dem_error_m=x[:, kalman.DEM_ERROR],
             map_gated=self.gated.copy(), weights=weights,
             noise={"curvature_psd": self.curvature_psd, "offset_psd": self.offset_psd if have[kalman.BARO] else None,
                    "bias_psd": self.bias_psd if have[kalman.IMU] else None,
