@@ -8,17 +8,20 @@ measure (paper (1)/(10)):
 on the samples the mass's data filter keeps (no brake, no shift, clutch closed; with traction,
 and coasting and engine braking in gear where the torque report includes the engine's drag). It
 enters the smoother through the accelerometer's channel, whose bias state takes up a constant
-error (c_r, a torque offset); its noise and curvature are estimated from the data as for an IMU
-without a barometer. The mass comes from a first pass (GPS altitude and DEM), or is given.
+error (c_r, a torque offset) and, with masses from a first pass, a scale state per mass segment
+the mass's error (`SCALE_STATE`); its noise and curvature are estimated from the data as for an
+IMU without a barometer. The mass comes from a first pass (GPS altitude and DEM), or is given.
 
 Identifiability: a mass error dm/m scales the whole measurement, so it reads as a gradient error
 of -(dm/m)(a + g sin(alpha) + g c_r) / g, which the bias takes up only where that sum is
 constant. Within one drive the force balance alone cannot tell the mass from the gradient
 (any m with its own gradient fits the torque); only the height sources over long baselines
-(GPS altitude, the DEM, a barometer) pin the mass, and the mass estimated on the first pass's
-gradient is what carries that. Re-estimating the mass on the force-balance gradient returns the
-mass put in, so the two are not iterated; a torque-report gain enters the same way as a mass
-error and needs a weighing.
+(GPS altitude, the DEM, a barometer) and the acceleration pin the mass: the first pass's mass
+and, in the second pass, the scale state, whose stated sigma says how well (on the accuracy
+matrix too small: its truth inside ±2σ on 48-76 % of the segments, so it corrects the gradient
+and is reported, not used as a mass). Re-estimating the mass on the force-balance gradient
+returns the mass put in, so the two are not iterated; a torque-report gain enters the same way
+as a mass error and needs a weighing.
 """
 
 from __future__ import annotations
