@@ -291,10 +291,10 @@ def _scale_state_bins(frame, index, imu_excess, n_bins):
     known = np.flatnonzero(label >= 0)
     if len(known) == 0:
         return None, None
-    filled = label[known[np.clip(np.searchsorted(known, np.arange(n_bins), side="right") - 1, 0, None)]]
-    starts = np.concatenate([[True], filled[1:] != filled[:-1]])
-    start_var = variance[known[np.clip(np.searchsorted(known, np.arange(n_bins), side="right") - 1, 0, None)]]
-    return bins, np.where(starts, start_var, 0.0)
+    # a bin without a segment's samples belongs to the last segment before it (the first's before any)
+    last = known[np.clip(np.searchsorted(known, np.arange(n_bins), side="right") - 1, 0, None)]
+    starts = np.concatenate([[True], label[last][1:] != label[last][:-1]])
+    return bins, np.where(starts, variance[last], 0.0)
 
 
 def _map_bins(frame, dem, distance, valid, index, n_bins, settings, notes):
