@@ -264,7 +264,8 @@ def _report_scale(result: GradientResult, frame, mass):
     result.smoother["force_balance_scale"] = rows
     if rows:
         result.notes.append("force balance scale per segment (true mass / first pass's mass - 1, from the "
-                            "acceleration and the height sources): " + ", ".join(
+                            "acceleration and the height sources; a correction of the gradient, not a mass: its statistical "
+                            "sigma understates the error): " + ", ".join(
                                 f"{r['segment']}: {100 * r['scale']:+.1f} ± {100 * r['scale_std']:.1f} %" for r in rows))
 
 
