@@ -465,7 +465,7 @@ class GradientSmoother:
         cannot choose it, and a walk fitted to follow a cab's warm-up, 0.1-0.2 m/s² in half an hour,
         let the bias trade with the gradient: the matrix's no-baro typical p95 0.108 -> 0.169 %-pt).
         The bias is estimated in each block of ``bias_block_s`` of driving on its own (the IMU only
-        there, GPS altitude everywhere); the mean square of its differences from the whole drive's
+        there, GPS altitude there and over a block's length on either side); the mean square of its differences from the whole drive's
         bias, less the blocks' own error, is the drift's variance (zero if negative). The blocks' own
         error is the smoother's variance or, if larger, what the two halves of each block disagree
         by: GPS altitude's errors are correlated over a block, which its variance does not see (on
@@ -477,10 +477,14 @@ class GradientSmoother:
         def block_bias(inside):
             if np.sum(np.isfinite(z[inside, kalman.IMU])) < 10 or np.sum(np.isfinite(z[inside, kalman.GPS])) < 10:
                 return np.nan, np.nan
-            trial = r.copy()
-            trial[~inside, kalman.IMU] = np.nan
-            x, p, _, _ = self.run(trial, use=(True, False, True, True))
-            return float(np.mean(x[inside, kalman.BIAS])), float(np.mean(p[inside, kalman.BIAS, kalman.BIAS]))
+            index = np.flatnonzero(inside)
+            margin = len(index)
+            window = slice(max(index[0] - margin, 0), min(index[-1] + 1 + margin, len(inside)))
+            trial = r[window].copy()
+            trial[~inside[window], kalman.IMU] = np.nan
+            x, p = self._run_on(window, trial)
+            there = inside[window]
+            return float(np.mean(x[there, kalman.BIAS])), float(np.mean(p[there, kalman.BIAS, kalman.BIAS]))
 
         square, variance, halves_square = [], [], []
         for j in range(halves.max() // 2 + 1):
@@ -502,6 +506,19 @@ class GradientSmoother:
                               f"{self.s.bias_block_s / 60:.0f}-minute blocks beyond their own error (warm-up); "
                               f"in the gradient's sigma where the IMU carries it")
         return drift
+
+    def _run_on(self, part: slice, r):
+        """The map-free smoother over the grid points ``part`` alone (``r`` its variances there), with
+        this drive's noise levels: the cost of a block, not of the drive."""
+        m = self.m
+        block = GradientSmoother(Measurements(
+            z=m.z[part], count=m.count[part], h_acc_m=m.h_acc_m[part], v_acc_m=m.v_acc_m[part], dt_s=m.dt_s[part],
+            spacing_m=m.spacing_m, stopped=None if m.stopped is None else m.stopped[part],
+            imu_scale_var=None if m.imu_scale_var is None else m.imu_scale_var[part]), self.s)
+        block.curvature_psd, block.bias_psd = self.curvature_psd, self.bias_psd
+        block.dem_sigma_m, block.dem_correlation_m = self.dem_sigma_m, self.dem_correlation_m
+        x, p, _, _ = block.run(r, use=(True, False, True, True))
+        return x, p
 
     def _log_likelihood(self, r) -> float:
         """Gaussian log-likelihood of all sources' forward innovations, -1/2 sum(log S + nu²/S)."""
