@@ -469,7 +469,7 @@ class GradientSmoother:
         bias, less the blocks' own error, is the drift's variance (zero if negative). The blocks' own
         error is the smoother's variance or, if larger, what the two halves of each block disagree
         by: GPS altitude's errors are correlated over a block, which its variance does not see (on
-        the matrix's harsh drives 0.015-0.023 m/s² against a stated 0.003-0.006)."""
+        three of the matrix's harsh drives 0.011-0.023 m/s² against a stated 0.003-0.006)."""
         elapsed = np.cumsum(self.m.dt_s)
         halves = np.floor(2 * elapsed / self.s.bias_block_s).astype(int)
         z = self.m.z
