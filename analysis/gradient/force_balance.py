@@ -204,7 +204,9 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     if scaled:
         _report_scale(result, frame, mass)
     _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
-    if not no_height_source:
+    if no_height_source:
+        _add_road_load_uncertainty(result, frame, virtual, vehicle, mass, settings.spacing_m)
+    else:
         _height_sources_sigma_in_gaps(result, frame, measured, first_grid_std, settings.spacing_m)
     if no_height_source:
         # the gaps are where the truck does not pull: a coasting sample's force is a small sum of
@@ -453,14 +455,21 @@ def _add_mass_uncertainty(result: GradientResult, frame, virtual, relative, vehi
     the force balance where it carries the gradient: k (a + g sin alpha + g c_r) / g, a systematic
     error over a segment that the smoother, taking the force balance as an unbiased accelerometer,
     cannot see."""
+    specific = np.abs(virtual + G_MPS2 * vehicle.rolling_resistance_coefficient) * np.nan_to_num(relative)
+    _widen_where_measured(result, frame, specific, spacing_m)
+
+
+def _widen_where_measured(result: GradientResult, frame, specific_mps2, spacing_m):
+    """The gradient's sigma widened, in quadrature, by a systematic error of the force balance
+    ``specific_mps2`` [m/s², per sample, NaN where it does not measure] over g, in the share of each
+    grid point that the force balance carries (its weight in the smoother)."""
     from . import grid as distance_grid
     distance = frame["distance_m"].to_numpy(dtype=float) if "distance_m" in frame else None
     grid = result.grid
     if distance is None or "weight_smooth_imu" not in grid:
         return
-    specific = np.abs(virtual + G_MPS2 * vehicle.rolling_resistance_coefficient) * np.nan_to_num(relative)
     index = np.where(np.isfinite(distance), distance_grid.grid_index(distance, spacing_m), -1)
-    per_bin = distance_grid.bin_mean(index, specific, len(grid))
+    per_bin = distance_grid.bin_mean(index, specific_mps2, len(grid))
     s_grid = grid["distance_m"].to_numpy()
     ok = np.isfinite(per_bin)
     if not ok.any():
@@ -469,6 +478,42 @@ def _add_mass_uncertainty(result: GradientResult, frame, virtual, relative, vehi
     extra_pct = 100 * filled / G_MPS2 * grid["weight_smooth_imu"].to_numpy()
     std = np.hypot(grid["gradient_smooth_std_pct"].to_numpy(), extra_pct)
     _set_grid(result, frame, gradient_smooth_std_pct=std)
+
+
+TORQUE_OFFSET_UNCERTAINTY = 0.02
+"""1-sigma of the torque report's offset as a share of the reference torque (as
+`mass.joint.JointSettings.torque_offset_uncertainty`)."""
+
+
+def road_load_sigma_mps2(frame, vehicle, mass_kg) -> np.ndarray:
+    """1-sigma [m/s²] per sample of what the force balance with a given mass cannot know: the head
+    wind's linear drag rho c_d A v w / m (w the `WIND_PRIOR_MPS` prior) and the torque report's offset
+    (`TORQUE_OFFSET_UNCERTAINTY` of the reference torque, through the driveline's ratio), in quadrature.
+    The rolling resistance's 15 % is in the bias prior; a constant bias is all the given mass's
+    prior holds, while the wind's and the offset's share change with speed and gear."""
+    from ..road_load import AIR_DENSITY_KGPM3
+    speed = frame["speed_mps"].to_numpy(dtype=float)
+    mass = np.asarray(mass_kg, dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        wind = AIR_DENSITY_KGPM3 * vehicle.drag_coefficient * vehicle.frontal_area_m2 * speed * WIND_PRIOR_MPS / mass
+        offset = np.zeros(len(frame))
+        reference = (frame["engine_reference_torque_nm"].to_numpy(dtype=float) if "engine_reference_torque_nm" in frame
+                     else np.full(len(frame), getattr(vehicle, "engine_reference_torque_nm", None) or np.nan))
+        if "engine_speed_rpm" in frame:
+            offset = wheel_force_from_torque_n(wheel_torque_from_engine_nm(
+                TORQUE_OFFSET_UNCERTAINTY * reference, frame["engine_speed_rpm"].to_numpy(dtype=float), speed,
+                vehicle.wheel_radius_m, vehicle.driveline_efficiency), vehicle.wheel_radius_m) / mass
+    return np.hypot(np.nan_to_num(wind), np.nan_to_num(offset))
+
+
+def _add_road_load_uncertainty(result: GradientResult, frame, virtual, vehicle, mass, spacing_m):
+    """With a given mass and no height source, widen the gradient's sigma by the road load the force
+    balance cannot know (`road_load_sigma_mps2`) over g where it carries the gradient: with nothing
+    to tie it, a head wind reads as a steeper road (can-only harsh regional seed 2: its 9.8 m/s wind
+    and 1.7 % torque offset made the whole drive +0.1 m/s², +1 %-pt, with a stated sigma of
+    0.3-0.6 %-pt)."""
+    specific = np.where(np.isfinite(virtual), road_load_sigma_mps2(frame, vehicle, mass), np.nan)
+    _widen_where_measured(result, frame, specific, spacing_m)
 
 
 def estimate_gradient_for_log(frame: pd.DataFrame, dem, settings: GradientSettings = GradientSettings(),
