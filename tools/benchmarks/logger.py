@@ -116,20 +116,25 @@ def _noop(self, *args) -> None:
 
 
 def _note_fifo_read(self, *args) -> int:
-    _TimedSMBus.fifo_reads.append((time.monotonic_ns(), _run_queue_wait_ns()))
-    return sensors.EmulatedSMBus.read_byte_data(self, *args)
+    fifo_src = sensors.EmulatedSMBus.read_byte_data(self, *args)
+    _TimedSMBus.fifo_reads.append((time.monotonic_ns(), _run_queue_wait_ns(), fifo_src))
+    return fifo_src
 
 
 def _fifo_read_gaps(reads: list, level_period_ns: int, capacity_ns: int) -> dict:
-    """How late the bus thread read the IMU FIFO, and why: of the time by which gaps between reads
-    exceeded the read cadence by more than 8 ms, the share the thread spent waiting for a CPU (the
-    machine's load); the rest it waited for the interpreter lock, held by another thread of this
-    process (which may itself have been waiting for a CPU)."""
+    """How full the IMU FIFO was at each read (what the chip saw), how late the bus thread read it,
+    and why: of the time by which gaps between reads exceeded the read cadence by more than 8 ms,
+    the share the thread spent waiting for a CPU (the machine's load); the rest it waited for the
+    interpreter lock, held by another thread of this process (which may itself have been waiting
+    for a CPU)."""
+    levels = [fifo_src & lsm9ds1.FIFO_SRC_FSS for _, _, fifo_src in reads]
     gaps = [(b[0] - a[0], b[1] - a[1]) for a, b in zip(reads, reads[1:])]
     late = [(gap - level_period_ns, min(wait, gap - level_period_ns)) for gap, wait in gaps
             if gap - level_period_ns > 8_000_000]
     late_ns = sum(excess for excess, _ in late)
-    return {"reads": len(reads), "longest_gap_ms": round(max((g for g, _ in gaps), default=0) * 1e-6, 1),
+    return {"reads": len(reads), "fullest": max(levels, default=0),
+            "reads_with_overrun": sum(1 for *_, fifo_src in reads if fifo_src & lsm9ds1.FIFO_SRC_OVRN),
+            "longest_gap_ms": round(max((g for g, _ in gaps), default=0) * 1e-6, 1),
             "gaps_over_capacity": sum(1 for g, _ in gaps if g > capacity_ns),
             "reads_over_8ms_late": len(late), "late_ms_total": round(late_ns * 1e-6, 1),
             "late_share_waiting_for_a_cpu": round(sum(w for _, w in late) / late_ns, 2) if late_ns else None}
@@ -347,7 +352,8 @@ def _measure(can, quick: bool, duration_s: float, frames_per_s: float, buses: in
                cores=sorted(cores) if cores else "all",
                whole_logger_us_per_frame=measured["logger_cpu_s"] / frames_on_bus * 1e6, **pi),
         result(f"logger_full_load_{tag}_dropped_samples", dropped, "samples", source_drops=source_drops,
-               sensor_overruns=sensor_losses, imu_samples=imu_logged, imu_fifo_reads=measured["imu_fifo_reads"],
+               sensor_overruns=sensor_losses, imu_samples=imu_logged,
+               sensor_overruns_by_sensor={name: m.overwritten for name, m in devices.board.models.items()}, imu_fifo_reads=measured["imu_fifo_reads"],
                load_average=load, percent_of_one_core_whole_process=round(100 * measured["process_cpu_s"] / duration_s, 1),
                percent_of_one_core_peer=round(100 * measured["peer_cpu_s"] / duration_s, 1),
                percent_of_one_core_emulators_and_traffic=round(100 * measured["harness_cpu_s"] / duration_s, 1)),
