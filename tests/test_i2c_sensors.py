@@ -269,7 +269,7 @@ def _bus_thread_with_late_wakeups(late_ns: int):
 @pytest.mark.parametrize("late_ms", [0, 10, 20, 24])
 def test_bus_thread_reads_the_imu_fifo_before_it_fills_when_wakeups_come_late(late_ms):
     """The IMU FIFO holds 32 samples (33.6 ms at 952 Hz); the bus thread reads it early enough
-    that a wake-up up to 24 ms late loses nothing (read at half full, 17 ms late lost samples)."""
+    that a wake-up up to 24 ms late loses nothing (read at half full, 20 ms late lost samples)."""
     model, results = _bus_thread_with_late_wakeups(late_ms * 1_000_000)
     assert model.produced > 4000 and model.overwritten == 0
     assert sum(overruns for name, _, overruns, _, _ in results if name == "lsm9ds1") == 0

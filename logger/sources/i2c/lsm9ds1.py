@@ -33,7 +33,8 @@ FIFO_MODE_CONTINUOUS = 0b110
 FIFO_READ_LEVEL = 8
 """The FIFO is read when it holds this many samples (a quarter: 8.4 ms at 952 Hz), so a wake-up of
 the bus thread may come 25 ms late before a sample is lost. Read at half full (16) the margin was
-17 ms, which the thread missed some 4-10 times a minute at full load (issue 29, docs/logger.md)."""
+17 ms, which the thread missed 2-5 times a minute in the saturated-bus benchmark on a shared
+machine (issue 29, docs/logger.md)."""
 MAX_POLL_INTERVAL_S = 0.1
 """At low rates the FIFO is read at least this often [s]."""
 CTRL_REG8_BDU = 0x40
