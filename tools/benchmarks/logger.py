@@ -17,6 +17,12 @@ work, not the logger's) and minus the timing wrapper's own cost per SMBus call (
 no-op call, `_timing_overhead_ns`); the emulators and the generator run on threads of their own.
 Everything else the logger's threads do counts, including python-can's virtual bus copying each
 frame the logger sends into every other bus's queue (the kernel's work on socketcan).
+
+The dropped-samples line says why IMU samples were lost, if any: the gaps between the bus thread's
+reads of the emulated FIFO (what the chip sees), the share of their lateness the thread spent
+waiting for a CPU (``/proc/thread-self/schedstat``: the machine's load) rather than for the
+interpreter lock, and the CPU of the whole process split into logger, peer and the emulators and
+traffic generators, which share the logger's interpreter here but not on the truck.
 """
 
 from __future__ import annotations
@@ -41,6 +47,7 @@ from haulprofile.logger.emulators import sensors
 from haulprofile.logger.emulators.ecu import BAM_PERIOD_S, BROADCAST_PERIODS_S
 from haulprofile.logger.emulators.rig import EmulatedDevices, emulation_config, run_daemon_for
 from haulprofile.logger.emulators.signals import TimeSeries, synthetic_drive
+from haulprofile.logger.sources.i2c import lsm9ds1
 
 TARGET_FRAMES_PER_S = 1500.0
 SATURATED_FRAMES_PER_S = 3500.0
@@ -64,11 +71,26 @@ def _thread_wakeups(thread: threading.Thread) -> int:
         return 0
 
 
+def _run_queue_wait_ns() -> int:
+    """Time the calling thread has spent runnable but not running (waiting for a CPU) [ns]."""
+    with open("/proc/thread-self/schedstat") as schedstat:
+        return int(schedstat.read().split()[1])
+
+
 class _TimedSMBus(sensors.EmulatedSMBus):
-    """The emulated SMBus, keeping the CPU time spent inside it (sensor work, not logger work)."""
+    """The emulated SMBus, keeping the CPU time spent inside it (sensor work, not logger work),
+    and when the IMU's FIFO_SRC was read: (monotonic time, the reading thread's run-queue wait so
+    far) [ns], what the chip would see of the bus thread's schedule."""
 
     cpu_ns = 0
     calls = 0
+    imu_address = 0x6B
+    fifo_reads: list = []
+
+    def read_byte_data(self, *args):
+        if args[1] == lsm9ds1.FIFO_SRC and args[0] == self.imu_address:
+            return self._timed(_note_fifo_read, *args)
+        return self._timed(sensors.EmulatedSMBus.read_byte_data, *args)
 
     def _timed(self, method, *args):
         start = time.thread_time_ns()
@@ -82,9 +104,6 @@ class _TimedSMBus(sensors.EmulatedSMBus):
     def probe_noop(self, *args):
         return self._timed(_noop, *args)
 
-    def read_byte_data(self, *args):
-        return self._timed(sensors.EmulatedSMBus.read_byte_data, *args)
-
     def write_byte_data(self, *args):
         return self._timed(sensors.EmulatedSMBus.write_byte_data, *args)
 
@@ -94,6 +113,31 @@ class _TimedSMBus(sensors.EmulatedSMBus):
 
 def _noop(self, *args) -> None:
     return None
+
+
+def _note_fifo_read(self, *args) -> int:
+    fifo_src = sensors.EmulatedSMBus.read_byte_data(self, *args)
+    _TimedSMBus.fifo_reads.append((time.monotonic_ns(), _run_queue_wait_ns(), fifo_src))
+    return fifo_src
+
+
+def _fifo_read_gaps(reads: list, level_period_ns: int, capacity_ns: int) -> dict:
+    """How full the IMU FIFO was at each read (what the chip saw), how late the bus thread read it,
+    and why: of the time by which gaps between reads exceeded the read cadence by more than 8 ms,
+    the share the thread spent waiting for a CPU (the machine's load); the rest it waited for the
+    interpreter lock, held by another thread of this process (which may itself have been waiting
+    for a CPU)."""
+    levels = [fifo_src & lsm9ds1.FIFO_SRC_FSS for _, _, fifo_src in reads]
+    gaps = [(b[0] - a[0], b[1] - a[1]) for a, b in zip(reads, reads[1:])]
+    late = [(gap - level_period_ns, min(wait, gap - level_period_ns)) for gap, wait in gaps
+            if gap - level_period_ns > 8_000_000]
+    late_ns = sum(excess for excess, _ in late)
+    return {"reads": len(reads), "fullest": max(levels, default=0),
+            "reads_with_overrun": sum(1 for *_, fifo_src in reads if fifo_src & lsm9ds1.FIFO_SRC_OVRN),
+            "longest_gap_ms": round(max((g for g, _ in gaps), default=0) * 1e-6, 1),
+            "gaps_over_capacity": sum(1 for g, _ in gaps if g > capacity_ns),
+            "reads_over_8ms_late": len(late), "late_ms_total": round(late_ns * 1e-6, 1),
+            "late_share_waiting_for_a_cpu": round(sum(w for _, w in late) / late_ns, 2) if late_ns else None}
 
 
 def _timing_overhead_ns(calls: int = 200_000) -> float:
@@ -186,6 +230,7 @@ def _measure(can, quick: bool, duration_s: float, frames_per_s: float, buses: in
     config.encryption.recipients = [str(identity.to_public())]
     config.storage.rotate_interval_s = 4.0 if quick else 20.0
     clock = Clock()
+    _TimedSMBus.imu_address = config.i2c.lsm9ds1.address_ag
     sensors.EmulatedSMBus, original = _TimedSMBus, sensors.EmulatedSMBus
     try:
         devices = EmulatedDevices(TimeSeries(synthetic_drive(duration_s + 30)), clock).start(config)
@@ -224,10 +269,14 @@ def _measure(can, quick: bool, duration_s: float, frames_per_s: float, buses: in
         before = {t: _thread_cpu_s(t) for t in logger_threads + peer_threads}
         wakeups_before = {t: _thread_wakeups(t) for t in logger_threads + peer_threads}
         smbus_before, calls_before = _TimedSMBus.cpu_ns, _TimedSMBus.calls
+        _TimedSMBus.fifo_reads = []
+        process_before = time.process_time()
         can_readers = [t for t in logger_threads if t.name.startswith("can")]
         assert len(can_readers) == buses and len(peer_threads) == buses
         await asyncio.sleep(duration_s)
         after = {t: _thread_cpu_s(t) for t in before if t.is_alive()}
+        measured["process_cpu_s"] = time.process_time() - process_before
+        fifo_reads = list(_TimedSMBus.fifo_reads)
         measured["wakeups_per_s"] = {t.name: round((_thread_wakeups(t) - wakeups_before[t]) / duration_s)
                                      for t in after}
         calls = _TimedSMBus.calls - calls_before
@@ -240,6 +289,12 @@ def _measure(can, quick: bool, duration_s: float, frames_per_s: float, buses: in
         measured["threads"]["smbus_emulator"] = round((_TimedSMBus.cpu_ns - smbus_before) * 1e-9, 3)
         measured["threads"]["smbus_timing_overhead"] = round(measured["timing_overhead_s"], 3)
         measured["smbus_transactions_per_s"] = round(calls / duration_s)
+        imu = config.i2c.lsm9ds1
+        measured["imu_fifo_reads"] = _fifo_read_gaps(
+            fifo_reads, int(lsm9ds1.FIFO_READ_LEVEL / imu.odr_hz * 1e9), int(lsm9ds1.FIFO_DEPTH / imu.odr_hz * 1e9))
+        logger_threads_raw_s = sum(after[t] - before[t] for t in after if t not in peer_threads)
+        measured["harness_cpu_s"] = measured["process_cpu_s"] - logger_threads_raw_s - measured["peer_cpu_s"] + \
+            (_TimedSMBus.cpu_ns - smbus_before) * 1e-9
         stop.set()
         return await task
 
@@ -297,7 +352,11 @@ def _measure(can, quick: bool, duration_s: float, frames_per_s: float, buses: in
                cores=sorted(cores) if cores else "all",
                whole_logger_us_per_frame=measured["logger_cpu_s"] / frames_on_bus * 1e6, **pi),
         result(f"logger_full_load_{tag}_dropped_samples", dropped, "samples", source_drops=source_drops,
-               sensor_overruns=sensor_losses, imu_samples=imu_logged),
+               sensor_overruns=sensor_losses, imu_samples=imu_logged,
+               sensor_overruns_by_sensor={name: m.overwritten for name, m in devices.board.models.items()}, imu_fifo_reads=measured["imu_fifo_reads"],
+               load_average=load, percent_of_one_core_whole_process=round(100 * measured["process_cpu_s"] / duration_s, 1),
+               percent_of_one_core_peer=round(100 * measured["peer_cpu_s"] / duration_s, 1),
+               percent_of_one_core_emulators_and_traffic=round(100 * measured["harness_cpu_s"] / duration_s, 1)),
         result(f"logger_full_load_{tag}_peak_rss", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "MiB",
                note="whole benchmark process (logger, emulators and peer)"),
         result(f"logger_full_load_{tag}_written (encrypted)", size_mb / run_s * 3600, "MB/h", "python-can BLF (CAN only)",

@@ -24,11 +24,11 @@ LOST_AFTER_ERRORS = 3
 REPROBE_INTERVAL_S = 1.0
 """How often a lost sensor is probed (WHO_AM_I) and, once it answers, configured again [s]."""
 HANDOVER_INTERVAL_S = 0.1
+"""How often the bus thread hands what it read to the event loop: one wake-up of the loop for
+all sensors instead of one per poll that produced a sample [s]."""
 RAIL_LIMIT = 32
 """Readings in a row with every byte 0x00 or 0xFF, or at full scale, before a sensor counts as
 stuck (a held bus, a dead sensor) or saturated: a real sensor's noise changes its low bits."""
-"""How often the bus thread hands what it read to the event loop: one wake-up of the loop for
-all sensors instead of one per poll that produced a sample [s]."""
 
 
 class SMBusLike(Protocol):

@@ -30,9 +30,13 @@ FIFO_SRC_OVRN = 0x40
 FIFO_SRC_FSS = 0x3F
 FIFO_DEPTH = 32
 FIFO_MODE_CONTINUOUS = 0b110
+FIFO_READ_LEVEL = 8
+"""The FIFO is read when it holds this many samples (a quarter: 8.4 ms at 952 Hz), so a wake-up of
+the bus thread may come 25 ms late before a sample is lost. Read at half full (16) the margin was
+17 ms, which the thread missed 2-5 times a minute in the saturated-bus benchmark on a shared
+machine (issue 29, docs/logger.md)."""
 MAX_POLL_INTERVAL_S = 0.1
-"""The FIFO is read when half full (16.8 ms at 952 Hz: a poll may come that late again before a
-sample is lost), at low rates at least this often [s]."""
+"""At low rates the FIFO is read at least this often [s]."""
 CTRL_REG8_BDU = 0x40
 CTRL_REG8_IF_ADD_INC = 0x04
 CTRL_REG9_FIFO_EN = 0x02
@@ -75,7 +79,7 @@ class Lsm9ds1(Driver):
         self.odr_hz = odr_hz
         self.accel_range_g = accel_range_g
         self.gyro_range_dps = gyro_range_dps
-        self.poll_interval_s = min(FIFO_DEPTH / 2 / odr_hz, MAX_POLL_INTERVAL_S)
+        self.poll_interval_s = min(FIFO_READ_LEVEL / odr_hz, MAX_POLL_INTERVAL_S)
         self._period_ns = int(1e9 / odr_hz)
         self.sample_clock = FifoSampleClock(self._period_ns)
         self.batch_ns = int(batch_s * 1e9)
