@@ -16,6 +16,7 @@ from ..simulate.model import DriverSettings, simulate_cycle
 from ..vehicle import Vehicle
 from . import components as C
 from . import requirements as R
+from .choice import CHOICES, criterion
 from .evaluate import UNLIMITED, Evaluator
 from .options import DesignOptions
 from .result import DesignResult
@@ -56,6 +57,18 @@ def check_options(options: DesignOptions) -> None:
         raise UserError("population must be at least 4 and generations at least 1")
     if options.daily_distance_m is not None and options.daily_distance_m <= 0:
         raise UserError(f"daily_distance_m {options.daily_distance_m:g} must be positive")
+    if options.choice not in CHOICES:
+        raise UserError(f"choice {options.choice!r}: give one of {', '.join(CHOICES)}")
+    if not 0.0 <= options.energy_price_eur_per_kwh <= 10.0:
+        raise UserError(f"energy_price_eur_per_kwh {options.energy_price_eur_per_kwh:g}: give 0..10 EUR/kWh")
+    if not 0.0 < options.service_life_years <= 50.0 or not 0.0 < options.operating_days_per_year <= 366.0:
+        raise UserError(f"service_life_years {options.service_life_years:g} and operating_days_per_year "
+                        f"{options.operating_days_per_year:g}: give 0 < years <= 50 and 0 < days <= 366")
+    if not 0.0 <= options.near_optimal_share <= 1.0:
+        raise UserError(f"near_optimal_share {options.near_optimal_share:g}: give 0..1")
+
+
+MEASURED = "measured drive"
 
 
 def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOptions,
@@ -85,7 +98,7 @@ def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOpt
     dt = options.time_step_s
     drives = {}
     if measured is not None:
-        drives["measured drive"] = measured
+        drives[MEASURED] = measured
     for cycle in cycles:
         if cycle.name not in drives:  # the measured drive as its own cycle is already there, as measured
             drives[cycle.name] = driven(cycle, vehicle, dt)
@@ -99,14 +112,17 @@ def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOpt
     margin = ranges["positive_wheel_kwh_per_km"]["high"] / nominal if nominal and math.isfinite(nominal) else 1.0
     daily_m = options.daily_distance_m or 1000.0 * max(ranges["distance_km"]["value"], 1e-3)
     evaluator = Evaluator(vehicle, cycles, options, targets, daily_m, max(margin, 1.0))
-    outcome = run_search(evaluator)
+    rule = criterion(options, daily_m)
+    outcome = run_search(evaluator, rule)
     search_s = time.perf_counter() - started
     reference = _reference_powertrain(vehicle, cycles, dt)
+    if reference is not None:
+        reference["ownership_cost_eur"] = float(rule.ownership_eur([[reference["battery_kwh_per_km"], reference["cost_eur"]]])[0])
     return DesignResult(options=options, vehicle=vehicle, evaluator=evaluator, outcome=outcome, ranges=ranges,
                         per_drive=per_drive, targets=targets, daily_distance_m=daily_m, energy_margin=margin,
                         mass_sigma_kg=mass_sigma_kg, drives=drives,
                         exclusions=exclusions(outcome, _regions(outcome, evaluator)), reference=reference,
-                        loads=loads_summary or {}, search_s=search_s)
+                        loads=loads_summary or {}, search_s=search_s, criterion=rule)
 
 
 def _regions(outcome, evaluator) -> list[str]:

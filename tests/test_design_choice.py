@@ -1,0 +1,94 @@
+"""The concept is chosen by the least cost of ownership: on a front with a closed-form optimum it
+picks that optimum, it does not move when the front's far end does (the knee does), and on a fixed
+cycle the search's seeds agree on the concept within stated tolerances."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from haulprofile.analysis.design import DesignOptions, design_concepts
+from haulprofile.analysis.design.choice import Criterion, choose, choose_by, criterion, near_optimal
+from haulprofile.analysis.errors import UserError
+from haulprofile.analysis.simulate import distance_cycle
+from haulprofile.analysis.vehicle import load_vehicle
+
+EUR_PER_KWH_PER_KM = 12_000.0
+
+
+def hyperbolic_front(energy_kwh_per_km: np.ndarray, floor: float = 0.7, scale_eur: float = 30.0,
+                     base_eur: float = 20_000.0) -> np.ndarray:
+    """Cost = base + scale / (e - floor): energy bought with components; cheapest (highest energy) first."""
+    e = np.sort(energy_kwh_per_km)[::-1]
+    return np.column_stack([e, base_eur + scale_eur / (e - floor)])
+
+
+def test_ownership_picks_the_closed_form_optimum():
+    """d/de [scale / (e - floor) + K e] = 0 at e* = floor + sqrt(scale / K)."""
+    front = hyperbolic_front(np.linspace(0.71, 0.95, 2401))
+    rule = Criterion("ownership", EUR_PER_KWH_PER_KM)
+    optimum = 0.7 + np.sqrt(30.0 / EUR_PER_KWH_PER_KM)
+    assert front[choose_by(rule, front), 0] == pytest.approx(optimum, abs=1e-4)
+
+
+def test_ownership_stays_where_the_knee_follows_the_front_s_far_end():
+    """A search that explored further towards the expensive end changes the knee, not the optimum."""
+    rule = Criterion("ownership", EUR_PER_KWH_PER_KM)
+    short = hyperbolic_front(np.linspace(0.74, 0.95, 200))
+    long = hyperbolic_front(np.concatenate([np.linspace(0.74, 0.95, 200), [0.705, 0.71, 0.72]]))
+    assert short[choose_by(rule, short), 0] == long[choose_by(rule, long), 0]
+    assert short[choose(short), 0] != long[choose(long), 0]
+
+
+def test_near_optimal_holds_the_candidates_within_the_share():
+    objectives = np.array([[0.80, 20_000.0], [0.79, 20_100.0], [0.90, 20_000.0], [0.78, 30_000.0]])
+    feasible = np.array([True, True, True, False])
+    rule = Criterion("ownership", EUR_PER_KWH_PER_KM)
+    # ownership: 29 600, 29 580, 30 800, (39 360): the second is chosen; 1 % lets the first in
+    assert list(near_optimal(rule, objectives, feasible, 1, 0.01)) == [0, 1]
+
+
+def test_criterion_lifetime_energy_cost_and_weights_override():
+    options = DesignOptions(energy_price_eur_per_kwh=0.25, service_life_years=4.0, operating_days_per_year=200.0)
+    rule = criterion(options, 100e3)
+    assert rule.name == "ownership"
+    assert rule.eur_per_kwh_per_km == pytest.approx(0.25 * 100.0 * 200.0 * 4.0)
+    assert criterion(DesignOptions(weights=(1.0, 0.0)), 100e3).name == "weights"
+    assert criterion(DesignOptions(choice="knee"), 100e3).name == "knee"
+
+
+@pytest.mark.parametrize("changes, words", [
+    ({"choice": "cheapest"}, "choice 'cheapest'"),
+    ({"energy_price_eur_per_kwh": -0.1}, "energy_price_eur_per_kwh -0.1"),
+    ({"service_life_years": 0.0}, "service_life_years 0"),
+    ({"near_optimal_share": 2.0}, "near_optimal_share 2"),
+])
+def test_bad_ownership_options_are_one_line(changes, words):
+    with pytest.raises(UserError, match=words):
+        design_concepts([hill_cycle()], load_vehicle("rigid-18t"), DesignOptions(**changes))
+
+
+def hill_cycle(mass_kg=15_000.0):
+    """4 km at 60 km/h: a 4 % climb of 1 km, a stop, a gentle descent."""
+    distance = np.arange(0.0, 4100.0, 100.0)
+    stop = (distance == 0.0) | (distance == 2000.0) | (distance == distance[-1])
+    gradient = np.where((distance > 500) & (distance < 1500), 4.0, np.where(distance > 2500, -1.0, 0.0))
+    frame = pd.DataFrame({"distance_m": distance, "target_speed_mps": np.where(stop, 0.0, 60 / 3.6),
+                          "stop_time_s": np.where(stop, 10.0, 0.0), "gradient_pct": gradient})
+    return distance_cycle(frame, mass_kg, "hill")
+
+
+def test_seeds_agree_on_the_concept():
+    """Seeds 0 and 1 of a small NSGA-II (24 x 40) and the pattern search: the same region, cost of
+    ownership and battery within 1 %, total peak power within 5 % (measured: 0.1 %, 0 %, 0.2 %).
+    The knee without the pattern search, at the same 1 920 candidates (24 x 80), chose one machine
+    on seed 0 and two on seed 1, 3 % apart in component cost (docs/design.md, "Stability")."""
+    rigid = load_vehicle("rigid-18t")
+    concepts = []
+    for seed in (0, 1):
+        options = DesignOptions(population=24, generations=40, seed=seed, time_step_s=1.0, daily_distance_m=200e3,
+                                thermal_windows_s=(10.0, 60.0))
+        concepts.append(design_concepts([hill_cycle()], rigid, options).summary()["concept"])
+    assert len({(c["topology"], c["machines"], c["gears"]) for c in concepts}) == 1
+    for key, tolerance in (("ownership_cost_eur", 0.01), ("battery_energy_kwh", 0.01), ("total_peak_power_w", 0.05)):
+        values = [c[key] for c in concepts]
+        assert max(values) <= min(values) * (1 + tolerance), (key, values)
