@@ -43,6 +43,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--population", type=int, default=80, help="NSGA-II population")
     parser.add_argument("--generations", type=int, default=70, help="NSGA-II generations")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--cycle-only", action="store_true",
+                        help="simulate the candidates on the cycle alone, not on the run's measured drive too "
+                             "(faster; the concept then follows whatever the generated cycle holds)")
     parser.add_argument("--choice", choices=["ownership", "knee"], default="ownership",
                         help="choose the concept by the least cost of ownership (components + energy over the "
                              "service life; default) or by the Pareto front's knee")
@@ -75,7 +78,7 @@ def options_from(args):
         population=args.population, generations=args.generations, seed=args.seed,
         weights=tuple(args.weights) if args.weights else None, choice=args.choice,
         energy_price_eur_per_kwh=args.energy_price_eur_per_kwh, service_life_years=args.service_life_years,
-        operating_days_per_year=args.operating_days)
+        operating_days_per_year=args.operating_days, simulate_measured_drive=not args.cycle_only)
 
 
 def inputs_of(source: Path, vehicle, payload_kg):

@@ -65,6 +65,8 @@ class DesignOptions:
     """Working days a year, each driving ``daily_distance_m`` [1/a]."""
     near_optimal_share: float = 0.01
     """Concepts within this share of the chosen one's cost of ownership are reported as near-optimal [-]."""
+    simulate_measured_drive: bool = True
+    """Simulate every candidate on the measured drive too, not only on the cycle set."""
     time_step_s: float = 0.5
     """Integration step of the candidates' simulations [s]."""
     mass_sigmas: float = 2.0

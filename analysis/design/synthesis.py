@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserError
-from ..simulate.cycle import SimCycle
+from ..simulate.cycle import SimCycle, time_cycle
 from ..simulate.model import DriverSettings, simulate_cycle
 from ..vehicle import Vehicle
 from . import components as C
@@ -71,6 +71,16 @@ def check_options(options: DesignOptions) -> None:
 MEASURED = "measured drive"
 
 
+def with_measured_drive(cycles: list[SimCycle], measured: pd.DataFrame | None, options: DesignOptions) -> list[SimCycle]:
+    """The cycles, and the measured drive as a time-based cycle (``simulate_measured_drive``): a
+    generated cycle is a random walk through the drive's statistics and may or may not hold its
+    longest climbs, so a concept that only drives the cycle follows whichever the walk happened
+    to hold; the drive itself is the application's real demand."""
+    if measured is None or not options.simulate_measured_drive or any(c.name == MEASURED for c in cycles):
+        return cycles
+    return [*cycles, time_cycle(measured, float(measured["mass_kg"].mean()), MEASURED)]
+
+
 def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOptions,
                     measured: pd.DataFrame | None = None, mass_sigma_kg: float = 0.0,
                     loads_summary: dict | None = None) -> DesignResult:
@@ -85,7 +95,7 @@ def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOpt
         Road load (c_d, A, c_r, r_dyn), masses, and the reference ``[electric_powertrain]`` if any.
     options : DesignOptions
     measured : DataFrame, optional
-        The measured drive, for its requirements.
+        The measured drive, for its requirements; the candidates drive it too (`with_measured_drive`).
     mass_sigma_kg : float
         Standard deviation of the mass estimate [kg]; requirements at +-``options.mass_sigmas`` of it.
     loads_summary : dict, optional
@@ -94,6 +104,7 @@ def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOpt
     check_options(options)
     if not cycles:
         raise UserError("no cycle to design on: give a cycle file or a run with a selected cycle")
+    cycles = with_measured_drive(cycles, measured, options)
     started = time.perf_counter()
     dt = options.time_step_s
     drives = {}
