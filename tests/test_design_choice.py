@@ -95,10 +95,10 @@ def test_seeds_agree_on_the_concept():
 
 
 def hill_drive(mass_kg=15_000.0) -> pd.DataFrame:
-    """A measured drive (signals) of 10 min: 60 km/h up 6 % for 3 min between two flat stretches."""
+    """A measured drive (signals) of 10 min: 60 km/h up 7 % for 3 min between two flat stretches."""
     time_s = np.arange(0.0, 600.0, 0.5)
     speed = np.clip(np.minimum(time_s, 600.0 - time_s) / 20.0, 0.0, 1.0) * 60 / 3.6
-    gradient = np.where((time_s > 200.0) & (time_s < 380.0), 6.0, 0.0)
+    gradient = np.where((time_s > 200.0) & (time_s < 380.0), 7.0, 0.0)
     return pd.DataFrame({"time_s": time_s, "speed_mps": speed, "accel_mps2": np.gradient(speed, time_s),
                          "gradient_pct": gradient, "mass_kg": mass_kg})
 
@@ -115,7 +115,7 @@ def test_the_measured_drive_joins_the_simulated_set_unless_switched_off():
 
 
 def test_a_climb_only_the_measured_drive_holds_sizes_the_concept():
-    """The flat cycle alone asks little; the drive's 6 % climb at 60 km/h asks more. Designed with
+    """The flat cycle alone asks little; the drive's 7 % climb at 60 km/h asks more. Designed with
     the drive, the concept follows it within the 2 % of distance the constraint allows; designed on
     the cycle alone, it falls further behind."""
     from dataclasses import replace
@@ -126,7 +126,7 @@ def test_a_climb_only_the_measured_drive_holds_sizes_the_concept():
     from haulprofile.analysis.simulate.model import DriverSettings, simulate_cycle
 
     rigid = load_vehicle("rigid-18t")
-    flat = distance_cycle(pd.DataFrame({"distance_m": [0.0, 100.0, 2900.0, 3000.0],
+    flat = distance_cycle(pd.DataFrame({"distance_m": [0.0, 100.0, 3900.0, 4000.0],
                                         "target_speed_mps": [0.0, 60 / 3.6, 60 / 3.6, 0.0],
                                         "stop_time_s": [10.0, 0.0, 0.0, 10.0], "gradient_pct": 0.0}), 15_000.0, "flat")
     options = DesignOptions(population=16, generations=8, time_step_s=1.0, daily_distance_m=200e3,
@@ -143,3 +143,15 @@ def test_a_climb_only_the_measured_drive_holds_sizes_the_concept():
 
     assert shortfall(with_drive) <= MAX_TIME_LOSS + 1e-6
     assert shortfall(alone) > MAX_TIME_LOSS
+
+
+def test_a_drive_much_longer_than_the_cycles_is_not_simulated():
+    """Its cost is its length per candidate: beyond `MEASURED_DRIVE_MAX_RATIO` the cycles stand alone."""
+    from haulprofile.analysis.design.synthesis import MEASURED_DRIVE_MAX_RATIO, with_measured_drive
+
+    short = distance_cycle(pd.DataFrame({"distance_m": [0.0, 100.0, 200.0], "target_speed_mps": [0.0, 60 / 3.6, 0.0],
+                                         "stop_time_s": [10.0, 0.0, 10.0], "gradient_pct": 0.0}), 15_000.0, "short")
+    drive = hill_drive()  # 9.7 km, 48 times the 200 m cycle; the hill cycle is 4 km
+    assert drive["speed_mps"].mul(0.5).sum() > MEASURED_DRIVE_MAX_RATIO * 200.0
+    assert with_measured_drive([short], drive, DesignOptions()) == [short]
+    assert len(with_measured_drive([hill_cycle()], drive, DesignOptions())) == 2

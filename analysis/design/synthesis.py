@@ -69,16 +69,26 @@ def check_options(options: DesignOptions) -> None:
 
 
 MEASURED = "measured drive"
+MEASURED_DRIVE_MAX_RATIO = 3.0
+"""The measured drive joins the simulated set while it is at most this many times as long as the
+cycles (distance): it costs its length per candidate, and a day-long log would make the search
+tens of times longer than the cycle it was condensed into [choice; the demo's drive is 1.3 x]."""
 
 
 def with_measured_drive(cycles: list[SimCycle], measured: pd.DataFrame | None, options: DesignOptions) -> list[SimCycle]:
-    """The cycles, and the measured drive as a time-based cycle (``simulate_measured_drive``): a
-    generated cycle is a random walk through the drive's statistics and may or may not hold its
-    longest climbs, so a concept that only drives the cycle follows whichever the walk happened
-    to hold; the drive itself is the application's real demand."""
+    """The cycles, and the measured drive as a time-based cycle (``simulate_measured_drive``,
+    while it is at most `MEASURED_DRIVE_MAX_RATIO` times as long): a generated cycle is a random
+    walk through the drive's statistics and may or may not hold its longest climbs, so a concept
+    that only drives the cycle follows whichever the walk happened to hold; the drive itself is
+    the application's real demand."""
+    from .stage import cycle_distance_m
+
     if measured is None or not options.simulate_measured_drive or any(c.name == MEASURED for c in cycles):
         return cycles
-    return [*cycles, time_cycle(measured, float(measured["mass_kg"].mean()), MEASURED)]
+    drive = time_cycle(measured, float(measured["mass_kg"].mean()), MEASURED)
+    if cycle_distance_m(drive) > MEASURED_DRIVE_MAX_RATIO * sum(cycle_distance_m(c) for c in cycles):
+        return cycles
+    return [*cycles, drive]
 
 
 def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOptions,
