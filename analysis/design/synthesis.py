@@ -17,7 +17,7 @@ from ..vehicle import Vehicle
 from . import components as C
 from . import requirements as R
 from .choice import CHOICES, criterion
-from .evaluate import UNLIMITED, Evaluator
+from .evaluate import UNLIMITED, Evaluator, cycle_distance_m
 from .options import DesignOptions
 from .result import DesignResult
 from .search import exclusions, run_search
@@ -81,8 +81,6 @@ def with_measured_drive(cycles: list[SimCycle], measured: pd.DataFrame | None, o
     walk through the drive's statistics and may or may not hold its longest climbs, so a concept
     that only drives the cycle follows whichever the walk happened to hold; the drive itself is
     the application's real demand."""
-    from .stage import cycle_distance_m
-
     if measured is None or not options.simulate_measured_drive or any(c.name == MEASURED for c in cycles):
         return cycles
     drive = time_cycle(measured, float(measured["mass_kg"].mean()), MEASURED)
