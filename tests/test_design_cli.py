@@ -51,6 +51,8 @@ def test_concept_file_drives_in_analyze_simulate_with_the_designed_energy(design
     (["--design-grade-pct", "80"], "design_grade_pct 80"),
     (["--machine-power-kw", "400", "100"], "design space is empty"),
     (["--battery-kwh", "0", "100"], "design space is empty"),
+    (["--energy-price-eur-per-kwh", "-1"], "energy_price_eur_per_kwh -1"),
+    (["--service-life-years", "0"], "service_life_years 0"),
 ])
 def test_bad_targets_are_one_line(data_dir, tmp_path, capsys, flags, words):
     code = main(["design", str(data_dir / "vecto-cycles" / "MunicipalUtility.vdri"), "--vehicle", "rigid-18t",

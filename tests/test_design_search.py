@@ -7,7 +7,8 @@ import pytest
 
 from haulprofile.analysis.design import DesignOptions, design_concepts
 from haulprofile.analysis.design import components as C
-from haulprofile.analysis.design.search import choose, pareto_front
+from haulprofile.analysis.design.choice import choose
+from haulprofile.analysis.design.search import pareto_front
 from haulprofile.analysis.simulate import distance_cycle
 from haulprofile.analysis.vehicle import load_vehicle
 

@@ -43,8 +43,20 @@ def add_arguments(parser) -> None:
     parser.add_argument("--population", type=int, default=80, help="NSGA-II population")
     parser.add_argument("--generations", type=int, default=70, help="NSGA-II generations")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--cycle-only", action="store_true",
+                        help="simulate the candidates on the cycle alone, not on the run's measured drive too "
+                             "(faster; the concept then follows whatever the generated cycle holds)")
+    parser.add_argument("--choice", choices=["ownership", "knee"], default="ownership",
+                        help="choose the concept by the least cost of ownership (components + energy over the "
+                             "service life; default) or by the Pareto front's knee")
+    parser.add_argument("--energy-price-eur-per-kwh", type=float, default=0.30,
+                        help="price of a kWh at the battery, charging losses included (0.30)")
+    parser.add_argument("--service-life-years", type=float, default=5.0,
+                        help="years the energy is paid over in the cost of ownership (5)")
+    parser.add_argument("--operating-days", type=float, default=250.0,
+                        help="working days a year, each driving the daily distance (250)")
     parser.add_argument("--weights", nargs=2, type=float, metavar=("ENERGY", "COST"),
-                        help="choose the concept by these weights instead of the Pareto knee")
+                        help="choose the concept by these weights on the normalised objectives instead")
     parser.add_argument("--json", action="store_true", help="print the design summary as JSON")
 
 
@@ -64,7 +76,9 @@ def options_from(args):
         machine_power_range_w=(args.machine_power_kw[0] * 1000.0, args.machine_power_kw[1] * 1000.0),
         battery_energy_range_j=(args.battery_kwh[0] * 3.6e6, args.battery_kwh[1] * 3.6e6),
         population=args.population, generations=args.generations, seed=args.seed,
-        weights=tuple(args.weights) if args.weights else None)
+        weights=tuple(args.weights) if args.weights else None, choice=args.choice,
+        energy_price_eur_per_kwh=args.energy_price_eur_per_kwh, service_life_years=args.service_life_years,
+        operating_days_per_year=args.operating_days, simulate_measured_drive=not args.cycle_only)
 
 
 def inputs_of(source: Path, vehicle, payload_kg):

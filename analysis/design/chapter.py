@@ -71,13 +71,25 @@ def design_chapter(d: dict, out_dir: Path) -> Section:
             f"{d['daily_distance_km']:.0f} km, of {concept['usable_energy_kwh']:.0f} kWh usable with the reserves, "
             f"and {concept['depot_charging_power_w'] / 1000:.0f} kW at the depot. Its tightest constraint is "
             f"{concept['closest_constraint']}.")
+        own, near = d.get("ownership"), d.get("near_optimal")
+        if near and own:
+            section.paragraphs.append(
+                f"Cost of ownership: components plus the battery's energy at {own['energy_price_eur_per_kwh']:g} EUR/kWh "
+                f"over {own['service_life_years']:g} years of {own['operating_days_per_year']:g} days: "
+                f"{concept['ownership_cost_eur'] / 1000:.1f} kEUR for this concept. The {near['candidates']} feasible "
+                f"concepts within {100 * near['share']:g} % of it ({', '.join(near['topologies'])}; "
+                f"{'/'.join(map(str, near['machines']))} machine(s); {'/'.join(map(str, near['gears']))} gear(s)) span "
+                f"{near['total_peak_power_w'][0] / 1000:.0f}–{near['total_peak_power_w'][1] / 1000:.0f} kW peak and "
+                f"{near['battery_energy_kwh'][0]:.0f}–{near['battery_energy_kwh'][1]:.0f} kWh: the criterion cannot "
+                f"tell them apart closer than that.")
         ref = d.get("reference") or {}
         compare = [("peak power [kW]", concept["total_peak_power_w"] / 1000, ref.get("machine_peak_power_w", 0) / 1000),
                    ("peak torque at the machine(s) [Nm]", concept["total_peak_torque_nm"], ref.get("machine_peak_torque_nm")),
                    ("maximum speed [rpm]", concept["machine_max_speed_rpm"], ref.get("machine_max_speed_rpm")),
                    ("battery [kWh]", concept["battery_energy_kwh"], ref.get("battery_energy_kwh")),
                    ("battery energy [kWh/km]", concept["battery_kwh_per_km"], ref.get("battery_kwh_per_km")),
-                   ("component cost proxy [EUR]", concept["cost_eur"], ref.get("cost_eur"))]
+                   ("component cost proxy [EUR]", concept["cost_eur"], ref.get("cost_eur")),
+                   ("cost of ownership [EUR]", concept.get("ownership_cost_eur"), ref.get("ownership_cost_eur"))]
         section.tables.append(("The chosen concept against the vehicle file's powertrain (same cycles)",
                                [{"quantity": q, "concept": a, "vehicle file": b if ref else None} for q, a, b in compare]))
         section.tables.append(("At the machine shaft, per gear of the concept (nominal drive)",

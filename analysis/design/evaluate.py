@@ -45,6 +45,13 @@ TOP_SPEED_MARGIN = 1.02
 """Machine speed margin over the legal top speed [-]."""
 
 
+def cycle_distance_m(cycle: SimCycle) -> float:
+    """Length of a cycle [m]: its distance span, or its speed trace integrated over time."""
+    if cycle.time_based:
+        return float(np.sum(np.diff(cycle.position) * cycle.target_speed_mps[1:]))
+    return float(cycle.position[-1] - cycle.position[0])
+
+
 def constraint_names(options: DesignOptions) -> list[str]:
     return list(CONSTRAINTS) + [f"thermal {w:g} s" for w in options.thermal_windows_s]
 

@@ -52,8 +52,21 @@ class DesignOptions:
     """NSGA-II generations (population x generations candidates are simulated)."""
     seed: int = 0
     """Seed of the search."""
+    choice: str = "ownership"
+    """How the concept is chosen from the feasible candidates: ``ownership`` (the least component
+    cost plus energy cost over the service life) or ``knee`` (the Pareto front's knee)."""
     weights: tuple[float, float] | None = None
-    """User weights on (energy per km, cost) to choose the concept; default the Pareto front's knee."""
+    """User weights on (energy per km, cost), normalised by the front's spread; replace ``choice``."""
+    energy_price_eur_per_kwh: float = 0.30
+    """Price of a kWh at the battery terminals, charging losses included [EUR/kWh] (docs/design.md)."""
+    service_life_years: float = 5.0
+    """Years over which the energy is paid: the first user's period of ICCT's truck TCO studies [a]."""
+    operating_days_per_year: float = 250.0
+    """Working days a year, each driving ``daily_distance_m`` [1/a]."""
+    near_optimal_share: float = 0.01
+    """Concepts within this share of the chosen one's cost of ownership are reported as near-optimal [-]."""
+    simulate_measured_drive: bool = True
+    """Simulate every candidate on the measured drive too, not only on the cycle set."""
     time_step_s: float = 0.5
     """Integration step of the candidates' simulations [s]."""
     mass_sigmas: float = 2.0

@@ -10,6 +10,7 @@ import pandas as pd
 
 from . import components as C
 from . import requirements as R
+from .choice import Criterion, near_optimal
 from .evaluate import Evaluator
 from .options import DesignOptions
 from .search import SearchOutcome
@@ -42,6 +43,8 @@ class DesignResult:
     reference: dict | None = None
     loads: dict = field(default_factory=dict)
     search_s: float = 0.0
+    criterion: Criterion | None = None
+    """How the concept was chosen, and the lifetime energy cost per kWh/km for the cost of ownership."""
 
     @property
     def feasible(self) -> bool:
@@ -96,6 +99,7 @@ class DesignResult:
             "driveline_efficiency": float(s.driveline_efficiency[0]), "inverter_current_a": float(c.inverter_current_a[0]),
             "battery_energy_kwh": float(c.battery_energy_j[0] / 3.6e6), "battery_kwh_per_km": kwh_per_km,
             "cost_eur": float(s.cost_eur[0]), "powertrain_mass_kg": float(s.mass_kg[0]),
+            "ownership_cost_eur": float(self.criterion.ownership_eur(self.outcome.objectives[i])[0]),
             "daily_energy_kwh": daily_kwh,
             "usable_energy_kwh": float(c.battery_energy_j[0] / 3.6e6 * o.usable_soc_window * (1 - o.ageing_reserve)),
             "depot_charging_power_w": max(daily_kwh - break_kwh, 0.0) * 3.6e6 / o.depot_charging_s,
@@ -103,6 +107,27 @@ class DesignResult:
             "closest_constraint_margin": float(-g.max()),
             "shaft_requirements": shaft,
         }
+
+    def near_optimal_summary(self) -> dict | None:
+        """The feasible concepts within ``near_optimal_share`` of the chosen one's cost of ownership:
+        how many, and the range of their key figures (how sharply the criterion defines the choice)."""
+        if not self.feasible:
+            return None
+        out = self.outcome
+        index = near_optimal(self.criterion, out.objectives, out.feasible, out.chosen, self.options.near_optimal_share)
+        c = self.evaluator.decode(out.x[index])
+        s = C.size(c, self.evaluator.voltage_v, self.evaluator.resistance)
+
+        def span(values) -> list[float]:
+            return [float(np.min(values)), float(np.max(values))]
+
+        return {"share": self.options.near_optimal_share, "candidates": int(len(index)),
+                "topologies": sorted({C.TOPOLOGIES[int(t)] for t in c.topology}),
+                "machines": sorted({int(m) for m in c.machines}), "gears": sorted({int(g) for g in c.speeds}),
+                "total_peak_power_w": span(s.peak_power_w), "total_continuous_power_w": span(s.continuous_power_w),
+                "battery_energy_kwh": span(c.battery_energy_j / 3.6e6),
+                "battery_kwh_per_km": span(out.objectives[index, 0]), "cost_eur": span(out.objectives[index, 1]),
+                "ownership_cost_eur": span(self.criterion.ownership_eur(out.objectives[index]))}
 
     def ranges_at(self, case: str) -> dict:
         first = next(iter(self.per_drive))
@@ -128,8 +153,13 @@ class DesignResult:
             "pareto_size": int(len(out.pareto)),
             "search_s": self.search_s,
             "candidates_per_s": len(out.x) / self.search_s if self.search_s > 0 else None,
-            "chosen_by": "weights" if self.options.weights is not None else "knee",
+            "chosen_by": self.criterion.name,
+            "ownership": {"energy_price_eur_per_kwh": self.options.energy_price_eur_per_kwh,
+                          "service_life_years": self.options.service_life_years,
+                          "operating_days_per_year": self.options.operating_days_per_year,
+                          "energy_eur_per_kwh_per_km": self.criterion.eur_per_kwh_per_km},
             "concept": concept,
+            "near_optimal": self.near_optimal_summary(),
             "reference": self.reference,
             "excluded": self.exclusions,
             "feasible": self.feasible,

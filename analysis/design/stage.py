@@ -13,19 +13,13 @@ from ..signals import missing_for
 from ..simulate.cycle import SimCycle, default_mass_kg, read_cycle
 from ..stage import Stage
 from .chapter import TITLE, design_chapter
+from .evaluate import cycle_distance_m
 from .options import DesignOptions
 from .result import FILES, FOLDER, DesignResult, write_into
 
 NEEDED = ["time_s", "speed_mps", "accel_mps2", "gradient_pct"]
 MIN_DISTANCE_M = 100.0
 """A cycle shorter than this asks nothing of a powertrain (a truck that stood still): left out."""
-
-
-def cycle_distance_m(cycle: SimCycle) -> float:
-    """Length of a cycle [m]: its distance span, or its speed trace integrated over time."""
-    if cycle.time_based:
-        return float(np.sum(np.diff(cycle.position) * cycle.target_speed_mps[1:]))
-    return float(cycle.position[-1] - cycle.position[0])
 
 
 def mass_sigma_kg(mass_summary: dict | None) -> float:

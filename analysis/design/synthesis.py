@@ -11,12 +11,13 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserError
-from ..simulate.cycle import SimCycle
+from ..simulate.cycle import SimCycle, time_cycle
 from ..simulate.model import DriverSettings, simulate_cycle
 from ..vehicle import Vehicle
 from . import components as C
 from . import requirements as R
-from .evaluate import UNLIMITED, Evaluator
+from .choice import CHOICES, criterion
+from .evaluate import UNLIMITED, Evaluator, cycle_distance_m
 from .options import DesignOptions
 from .result import DesignResult
 from .search import exclusions, run_search
@@ -56,6 +57,36 @@ def check_options(options: DesignOptions) -> None:
         raise UserError("population must be at least 4 and generations at least 1")
     if options.daily_distance_m is not None and options.daily_distance_m <= 0:
         raise UserError(f"daily_distance_m {options.daily_distance_m:g} must be positive")
+    if options.choice not in CHOICES:
+        raise UserError(f"choice {options.choice!r}: give one of {', '.join(CHOICES)}")
+    if not 0.0 <= options.energy_price_eur_per_kwh <= 10.0:
+        raise UserError(f"energy_price_eur_per_kwh {options.energy_price_eur_per_kwh:g}: give 0..10 EUR/kWh")
+    if not 0.0 < options.service_life_years <= 50.0 or not 0.0 < options.operating_days_per_year <= 366.0:
+        raise UserError(f"service_life_years {options.service_life_years:g} and operating_days_per_year "
+                        f"{options.operating_days_per_year:g}: give 0 < years <= 50 and 0 < days <= 366")
+    if not 0.0 <= options.near_optimal_share <= 1.0:
+        raise UserError(f"near_optimal_share {options.near_optimal_share:g}: give 0..1")
+
+
+MEASURED = "measured drive"
+MEASURED_DRIVE_MAX_RATIO = 3.0
+"""The measured drive joins the simulated set while it is at most this many times as long as the
+cycles (distance): it costs its length per candidate, and a day-long log would make the search
+tens of times longer than the cycle it was condensed into [choice; the demo's drive is 1.3 x]."""
+
+
+def with_measured_drive(cycles: list[SimCycle], measured: pd.DataFrame | None, options: DesignOptions) -> list[SimCycle]:
+    """The cycles, and the measured drive as a time-based cycle (``simulate_measured_drive``,
+    while it is at most `MEASURED_DRIVE_MAX_RATIO` times as long): a generated cycle is a random
+    walk through the drive's statistics and may or may not hold its longest climbs, so a concept
+    that only drives the cycle follows whichever the walk happened to hold; the drive itself is
+    the application's real demand."""
+    if measured is None or not options.simulate_measured_drive or any(c.name == MEASURED for c in cycles):
+        return cycles
+    drive = time_cycle(measured, float(measured["mass_kg"].mean()), MEASURED)
+    if cycle_distance_m(drive) > MEASURED_DRIVE_MAX_RATIO * sum(cycle_distance_m(c) for c in cycles):
+        return cycles
+    return [*cycles, drive]
 
 
 def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOptions,
@@ -72,7 +103,7 @@ def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOpt
         Road load (c_d, A, c_r, r_dyn), masses, and the reference ``[electric_powertrain]`` if any.
     options : DesignOptions
     measured : DataFrame, optional
-        The measured drive, for its requirements.
+        The measured drive, for its requirements; the candidates drive it too (`with_measured_drive`).
     mass_sigma_kg : float
         Standard deviation of the mass estimate [kg]; requirements at +-``options.mass_sigmas`` of it.
     loads_summary : dict, optional
@@ -81,11 +112,12 @@ def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOpt
     check_options(options)
     if not cycles:
         raise UserError("no cycle to design on: give a cycle file or a run with a selected cycle")
+    cycles = with_measured_drive(cycles, measured, options)
     started = time.perf_counter()
     dt = options.time_step_s
     drives = {}
     if measured is not None:
-        drives["measured drive"] = measured
+        drives[MEASURED] = measured
     for cycle in cycles:
         if cycle.name not in drives:  # the measured drive as its own cycle is already there, as measured
             drives[cycle.name] = driven(cycle, vehicle, dt)
@@ -99,14 +131,17 @@ def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOpt
     margin = ranges["positive_wheel_kwh_per_km"]["high"] / nominal if nominal and math.isfinite(nominal) else 1.0
     daily_m = options.daily_distance_m or 1000.0 * max(ranges["distance_km"]["value"], 1e-3)
     evaluator = Evaluator(vehicle, cycles, options, targets, daily_m, max(margin, 1.0))
-    outcome = run_search(evaluator)
+    rule = criterion(options, daily_m)
+    outcome = run_search(evaluator, rule)
     search_s = time.perf_counter() - started
     reference = _reference_powertrain(vehicle, cycles, dt)
+    if reference is not None:
+        reference["ownership_cost_eur"] = float(rule.ownership_eur([[reference["battery_kwh_per_km"], reference["cost_eur"]]])[0])
     return DesignResult(options=options, vehicle=vehicle, evaluator=evaluator, outcome=outcome, ranges=ranges,
                         per_drive=per_drive, targets=targets, daily_distance_m=daily_m, energy_margin=margin,
                         mass_sigma_kg=mass_sigma_kg, drives=drives,
                         exclusions=exclusions(outcome, _regions(outcome, evaluator)), reference=reference,
-                        loads=loads_summary or {}, search_s=search_s)
+                        loads=loads_summary or {}, search_s=search_s, criterion=rule)
 
 
 def _regions(outcome, evaluator) -> list[str]:
