@@ -17,6 +17,8 @@ REPORT = "design-report.html"
 
 
 def add_arguments(parser) -> None:
+    from ..design.options import DesignOptions
+
     parser.add_argument("source", type=Path,
                         help="an 'analyze run' output folder (signals.parquet, cycle.parquet, summary.json), a VECTO "
                              ".vdri or a time-based CSV/Parquet (time_s, speed_mps[, gradient_pct, mass_kg])")
@@ -40,8 +42,8 @@ def add_arguments(parser) -> None:
                         help="peak power range of one machine [kW]")
     parser.add_argument("--battery-kwh", nargs=2, type=float, metavar=("MIN", "MAX"), default=[100.0, 1000.0],
                         help="battery energy range [kWh]")
-    parser.add_argument("--population", type=int, default=80, help="NSGA-II population")
-    parser.add_argument("--generations", type=int, default=70, help="NSGA-II generations")
+    parser.add_argument("--population", type=int, default=DesignOptions.population, help="NSGA-II population")
+    parser.add_argument("--generations", type=int, default=DesignOptions.generations, help="NSGA-II generations")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--cycle-only", action="store_true",
                         help="simulate the candidates on the cycle alone, not on the run's measured drive too "
