@@ -138,3 +138,16 @@ def test_design_stage_on_a_signals_table_and_its_skip(tmp_path):
                      signals=still, say=lambda _m: None)
     run(ctx, start="simulation", until="design")
     assert "design" not in ctx.summary and "100 m" in ctx.skipped["design"]
+
+
+def test_a_machine_capped_by_its_inverter_is_stated_with_what_it_delivers():
+    """The concept's line gives the machine's rating and, where the inverter's current caps it,
+    the power the concept has: "1 x 258 kW" alone overstated a 233 kW concept."""
+    from haulprofile.analysis.design.chapter import machines_text
+
+    capped = {"machines": 1, "machine_peak_power_w": 258_400.0, "total_peak_power_w": 233_500.0}
+    assert machines_text(capped) == "1 x 258 kW (234 kW with its inverter)"
+    two = {"machines": 2, "machine_peak_power_w": 300_000.0, "total_peak_power_w": 540_000.0}
+    assert machines_text(two) == "2 x 300 kW (540 kW with their inverters)"
+    assert machines_text({"machines": 2, "machine_peak_power_w": 300_000.0, "total_peak_power_w": 600_000.0}) == \
+        "2 x 300 kW"

@@ -114,7 +114,7 @@ def inputs_of(source: Path, vehicle, payload_kg):
 
 def run(args) -> int:
     from ..design import design_concepts, write_design
-    from ..design.chapter import design_chapter
+    from ..design.chapter import design_chapter, machines_text
     from ..report.html import render
 
     if args.payload_kg is not None:
@@ -154,7 +154,7 @@ def run(args) -> int:
               f"{also} ({summary['candidates']} candidates); see {out / SUMMARY}")
         return 3
     if not args.json:
-        print(f"{concept['topology']}, {concept['machines']} x {concept['machine_peak_power_w'] / 1000:.0f} kW peak "
+        print(f"{concept['topology']}, {machines_text(concept)} peak "
               f"({concept['total_peak_torque_nm']:.0f} Nm in all), {concept['gears']} gear(s) "
               f"{', '.join(f'{r:.2f}' for r in concept['total_ratios'])}, {concept['battery_energy_kwh']:.0f} kWh: "
               f"{concept['battery_kwh_per_km']:.3f} kWh/km, {concept['cost_eur'] / 1000:.0f} k EUR; "

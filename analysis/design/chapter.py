@@ -8,6 +8,18 @@ from pathlib import Path
 from ..report.html import Section
 
 TITLE = "What this application needs"
+
+
+def machines_text(concept: dict) -> str:
+    """``2 x 300 kW``, or ``1 x 258 kW (233 kW with its inverter)`` where the inverter's current
+    caps the machines' peak power: the machine's rating alone would overstate what the concept has."""
+    machines, each_kw = concept["machines"], concept["machine_peak_power_w"] / 1000
+    total_kw = concept.get("total_peak_power_w", machines * concept["machine_peak_power_w"]) / 1000
+    text = f"{machines} x {each_kw:.0f} kW"
+    if total_kw < machines * each_kw - 0.5:
+        text += f" ({total_kw:.0f} kW with {'its inverter' if machines == 1 else 'their inverters'})"
+    return text
+
 ROWS = [
     ("peak_wheel_torque_nm", "peak wheel torque", "kNm", 1e-3),
     ("peak_wheel_power_w", "peak wheel power", "kW", 1e-3),
@@ -60,8 +72,7 @@ def design_chapter(d: dict, out_dir: Path) -> Section:
         section.notes.append(f"No feasible concept in the design space: the binding constraint is "
                              f"{d['binding_constraint']}.")
     else:
-        section.kpis += [("concept", f"{concept['topology']}, {concept['machines']}×{concept['machine_peak_power_w'] / 1000:.0f} kW, "
-                                     f"{concept['gears']} gear(s)"),
+        section.kpis += [("concept", f"{concept['topology']}, {machines_text(concept)}, {concept['gears']} gear(s)"),
                          ("battery", f"{concept['battery_energy_kwh']:.0f} kWh"),
                          ("energy", f"{concept['battery_kwh_per_km']:.3f} kWh/km")]
         section.paragraphs.append(

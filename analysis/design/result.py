@@ -10,6 +10,7 @@ import pandas as pd
 
 from . import components as C
 from . import requirements as R
+from .chapter import machines_text
 from .choice import Criterion, near_optimal
 from .evaluate import Evaluator
 from .options import DesignOptions
@@ -185,8 +186,8 @@ def concept_toml(result: DesignResult, map_csv: str) -> str:
         data["engine"] = table(vehicle.engine)
     data["electric_powertrain"] = table(vehicle.electric_powertrain)
     s = result.concept_summary()
-    head = (f"# Concept by `analyze design`: {s['topology']}, {s['machines']} machine(s) of "
-            f"{s['machine_peak_power_w'] / 1000:.0f} kW peak, {s['gears']} gear(s), {s['battery_energy_kwh']:.0f} kWh.\n"
+    head = (f"# Concept by `analyze design`: {s['topology']}, {machines_text(s)} peak, {s['gears']} gear(s), "
+            f"{s['battery_energy_kwh']:.0f} kWh.\n"
             "# Two machines appear as one of their summed torque and power (they share the torque equally).\n"
             "# driveline_efficiency is the concept's gearbox and axle efficiency.\n\n")
     return head + tomli_w.dumps(data)

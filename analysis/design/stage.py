@@ -12,7 +12,7 @@ from ..errors import UserError
 from ..signals import missing_for
 from ..simulate.cycle import SimCycle, default_mass_kg, read_cycle
 from ..stage import Stage
-from .chapter import TITLE, design_chapter
+from .chapter import TITLE, design_chapter, machines_text
 from .evaluate import cycle_distance_m
 from .options import DesignOptions
 from .result import FILES, FOLDER, DesignResult, write_into
@@ -98,7 +98,7 @@ def design_stage(ctx) -> DesignResult | None:
     if c is None:
         ctx.say(f"design: no feasible concept; binding constraint: {summary['binding_constraint']}")
     else:
-        ctx.say(f"design: {c['topology']}, {c['machines']} x {c['machine_peak_power_w'] / 1000:.0f} kW, "
+        ctx.say(f"design: {c['topology']}, {machines_text(c)}, "
                 f"{c['gears']} gear(s), {c['battery_energy_kwh']:.0f} kWh, {c['battery_kwh_per_km']:.3f} kWh/km "
                 f"({summary['candidates']} candidates in {result.search_s:.0f} s)")
     return result
