@@ -151,3 +151,26 @@ def test_a_machine_capped_by_its_inverter_is_stated_with_what_it_delivers():
     assert machines_text(two) == "2 x 300 kW (540 kW with their inverters)"
     assert machines_text({"machines": 2, "machine_peak_power_w": 300_000.0, "total_peak_power_w": 600_000.0}) == \
         "2 x 300 kW"
+
+
+@pytest.mark.parametrize("command", ["demo", "run"])
+def test_run_and_demo_take_the_cost_of_ownership_figures_and_refuse_bad_ones_in_one_line(command, tmp_path, capsys):
+    """`analyze run` and `analyze demo` end in the design stage: the energy price, service life and
+    operating days of its choice are theirs to set, and a bad one stops them before any work."""
+    import argparse
+
+    from haulprofile.analysis.cli import main
+    from haulprofile.analysis.commands.arguments import add_design_search, design_options
+
+    parser = argparse.ArgumentParser()
+    add_design_search(parser)
+    options = design_options(parser.parse_args(["--energy-price-eur-per-kwh", "0.45", "--service-life-years", "8",
+                                                "--operating-days", "300"]))
+    assert (options.energy_price_eur_per_kwh, options.service_life_years, options.operating_days_per_year) == \
+        (0.45, 8.0, 300.0)
+    args = [command] + (["--out", str(tmp_path / "out")] if command == "demo" else
+                        [str(tmp_path), "--vehicle", "rigid-18t", "--out", str(tmp_path / "out")])
+    assert main(args + ["--energy-price-eur-per-kwh", "40"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "energy_price_eur_per_kwh" in err[0]
+    assert not (tmp_path / "out").exists()

@@ -100,16 +100,30 @@ def add_design_search(parser) -> None:
     parser.add_argument("--design-generations", type=int, default=defaults.generations,
                         help=f"NSGA-II generations of the concept search ({defaults.generations}; population x "
                              f"generations candidates are simulated)")
+    parser.add_argument("--energy-price-eur-per-kwh", type=float, default=defaults.energy_price_eur_per_kwh,
+                        help=f"price of a kWh at the battery in the concept's cost of ownership "
+                             f"({defaults.energy_price_eur_per_kwh:g})")
+    parser.add_argument("--service-life-years", type=float, default=defaults.service_life_years,
+                        help=f"years the energy is paid over in the cost of ownership ({defaults.service_life_years:g})")
+    parser.add_argument("--operating-days", type=float, default=defaults.operating_days_per_year,
+                        help=f"working days a year, each driving the daily distance ({defaults.operating_days_per_year:g})")
 
 
 def design_options(args):
-    """`DesignOptions` of ``--design-population`` and ``--design-generations``; UserError if too small."""
+    """`DesignOptions` of the design arguments (`add_design_search`); UserError, one line, for a
+    search too small or a cost-of-ownership figure out of range."""
     from ..design.options import DesignOptions
+    from ..design.synthesis import check_options
 
     if args.design_population < 4 or args.design_generations < 1:
         raise UserError(f"--design-population must be at least 4 and --design-generations at least 1, got "
                         f"{args.design_population} and {args.design_generations}")
-    return DesignOptions(population=args.design_population, generations=args.design_generations)
+    options = DesignOptions(population=args.design_population, generations=args.design_generations,
+                            energy_price_eur_per_kwh=args.energy_price_eur_per_kwh,
+                            service_life_years=args.service_life_years,
+                            operating_days_per_year=args.operating_days)
+    check_options(options)
+    return options
 
 
 def parse_known_masses(items: list[str] | None) -> dict[int, float]:
