@@ -9,17 +9,6 @@ from ..report.html import Section
 
 TITLE = "What this application needs"
 
-
-def machines_text(concept: dict) -> str:
-    """``2 x 300 kW``, or ``1 x 258 kW (233 kW with its inverter)`` where the inverter's current
-    caps the machines' peak power: the machine's rating alone would overstate what the concept has."""
-    machines, each_kw = concept["machines"], concept["machine_peak_power_w"] / 1000
-    total_kw = concept.get("total_peak_power_w", machines * concept["machine_peak_power_w"]) / 1000
-    text = f"{machines} x {each_kw:.0f} kW"
-    if total_kw < machines * each_kw - 0.5:
-        text += f" ({total_kw:.0f} kW with {'its inverter' if machines == 1 else 'their inverters'})"
-    return text
-
 ROWS = [
     ("peak_wheel_torque_nm", "peak wheel torque", "kNm", 1e-3),
     ("peak_wheel_power_w", "peak wheel power", "kW", 1e-3),
@@ -39,6 +28,17 @@ ROWS = [
     ("accel_0_50_kmh_s", "0-50 km/h as driven (fastest)", "s", 1.0),
     ("accel_0_80_kmh_s", "0-80 km/h as driven (fastest)", "s", 1.0),
 ]
+
+
+def machines_text(concept: dict) -> str:
+    """``2 x 300 kW``, or ``1 x 258 kW (233 kW with its inverter)`` where the inverter's current
+    caps the machines' peak power: the machine's rating alone would overstate what the concept has."""
+    machines, each_kw = concept["machines"], concept["machine_peak_power_w"] / 1000
+    total_kw = concept.get("total_peak_power_w", machines * concept["machine_peak_power_w"]) / 1000
+    text = f"{machines} x {each_kw:.0f} kW"
+    if total_kw < machines * each_kw - 0.5:
+        text += f" ({total_kw:.0f} kW with {'its inverter' if machines == 1 else 'their inverters'})"
+    return text
 
 
 def _fmt(value, scale) -> str:
