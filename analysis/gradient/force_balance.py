@@ -32,7 +32,8 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserError
-from ..road_load import G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_torque_from_engine_nm
+from ..mass.joint import JointSettings
+from ..road_load import AIR_DENSITY_KGPM3, G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_torque_from_engine_nm
 from .estimate import GradientResult, GradientSettings, estimate_gradient
 
 
@@ -95,7 +96,8 @@ def segment_masses_kg(frame: pd.DataFrame, vehicle) -> tuple[np.ndarray, np.ndar
     mass, sigma = np.full(len(frame), np.nan), np.full(len(frame), np.nan)
     number = np.full(len(frame), -1.0)
     for k, segment in enumerate(result.segments):
-        number[(time_s >= segment["start_s"]) & (time_s <= segment["end_s"])] = k
+        inside = (time_s >= segment["start_s"]) & (time_s <= segment["end_s"])
+        number[inside] = k
         value, std = segment.get("mass_kg"), segment.get("mass_uncertainty_kg")
         if value is None and segment.get("status") in ("ok", "uncertain") and segment.get("mass_ls_kg") is not None and \
                 "force balance does not hold" not in segment.get("mass_joint_reason", ""):
@@ -112,7 +114,6 @@ def segment_masses_kg(frame: pd.DataFrame, vehicle) -> tuple[np.ndarray, np.ndar
             regressor = segment.get("mass_regressor", "gradient")
             value, std = segment.get(f"mass_{regressor}_kg"), segment.get(f"mass_{regressor}_uncertainty_kg")
         if value is not None and np.isfinite(value):
-            inside = (time_s >= segment["start_s"]) & (time_s <= segment["end_s"])
             mass[inside] = value
             sigma[inside] = std if std is not None else np.nan
     return mass, sigma, number
@@ -206,9 +207,6 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
     if no_height_source:
         _add_road_load_uncertainty(result, frame, virtual, vehicle, mass, settings.spacing_m)
-    else:
-        _height_sources_sigma_in_gaps(result, frame, measured, first_grid_std, settings.spacing_m)
-    if no_height_source:
         # the gaps are where the truck does not pull: a coasting sample's force is a small sum of
         # drags (engine, air, rolling) whose errors, the torque report's offset (2-6 times c_r's
         # share in acceleration on the matrix) and the wind, the given mass's bias prior (c_r
@@ -216,6 +214,8 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         # had 50 % inside ±2σ, 60 % before
         pulling = virtual_accelerometer_mps2(first, vehicle, mass, coasting=False)
         _widen_in_gaps(result, frame, pulling, settings.spacing_m)
+    else:
+        _height_sources_sigma_in_gaps(result, frame, measured, first_grid_std, settings.spacing_m)
     if mass_kg is None:
         result.samples["gradient_mass_pct"] = np.asarray(gradient, dtype=float)
         result.samples["gradient_mass_std_pct"] = np.asarray(gradient_std, dtype=float)
@@ -249,6 +249,8 @@ def _report_scale(result: GradientResult, frame, mass):
         return
     distance = frame["distance_m"].to_numpy(dtype=float)
     segment = frame["accel_x_scale_segment"].to_numpy(dtype=float)
+    time_s = frame["time_s"].to_numpy(dtype=float)
+    mass = np.asarray(mass, dtype=float)
     s_grid = grid["distance_m"].to_numpy()
     rows = []
     for number in np.unique(segment[segment >= 0]):
@@ -258,9 +260,8 @@ def _report_scale(result: GradientResult, frame, mass):
         at = int(np.clip(np.searchsorted(s_grid, np.median(distance[inside])), 0, len(s_grid) - 1))
         log_scale = float(grid["force_balance_log_scale"].iloc[at])
         k, std = float(np.expm1(log_scale)), float(np.exp(log_scale) * grid["force_balance_log_scale_std"].iloc[at])
-        used = float(np.nanmedian(np.asarray(mass, dtype=float)[inside]))
-        time_s = frame["time_s"].to_numpy(dtype=float)[inside]
-        rows.append({"segment": int(number), "start_s": float(time_s.min()), "end_s": float(time_s.max()),
+        used = float(np.nanmedian(mass[inside]))
+        rows.append({"segment": int(number), "start_s": float(time_s[inside].min()), "end_s": float(time_s[inside].max()),
                      "scale": k, "scale_std": std, "mass_kg": used,
                      "mass_implied_kg": used * (1 + k)})
     result.smoother["force_balance_scale"] = rows
@@ -356,8 +357,15 @@ BRAKE_HELD_S = 1.0
 """The braking bound takes a sample only where the brake is on this long [s] before and after it:
 the acceleration from wheel speed is smoothed and lags the brake's onset (measured: -0.2 m/s² read
 for a true -0.6 in the first half second)."""
-WIND_PRIOR_MPS = 5.0
-"""Head-wind 1-sigma [m/s] in the braking bound's margin (`mass.joint.JointSettings.wind_sigma_mps`)."""
+WIND_PRIOR_MPS = JointSettings.wind_sigma_mps
+"""Head-wind 1-sigma [m/s] in the braking bound's margin and the given mass's road load: the
+mass fit's wind prior."""
+
+
+def head_wind_sigma_mps2(speed_mps, vehicle, mass_kg):
+    """1-sigma [m/s²] of a head wind's share in the air drag per unit mass: its linear term
+    rho c_d A v w / m at the `WIND_PRIOR_MPS` prior w."""
+    return AIR_DENSITY_KGPM3 * vehicle.drag_coefficient * vehicle.frontal_area_m2 * speed_mps * WIND_PRIOR_MPS / mass_kg
 
 
 def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, relative, spacing_m):
@@ -374,7 +382,6 @@ def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, rela
     from scipy.ndimage import binary_erosion
 
     from . import grid as distance_grid
-    from ..road_load import AIR_DENSITY_KGPM3
     from .estimate import _integrate, _sample_rate_hz
     if not {"brake_switch", "engine_torque_nm", "accel_mps2", "distance_m"} <= set(frame.columns):
         return
@@ -386,7 +393,7 @@ def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, rela
     mass = np.asarray(mass, dtype=float)
     with np.errstate(invalid="ignore", divide="ignore"):
         aero = aero_force_n(speed, vehicle.drag_coefficient, vehicle.frontal_area_m2) / mass
-        wind = AIR_DENSITY_KGPM3 * vehicle.drag_coefficient * vehicle.frontal_area_m2 * speed * WIND_PRIOR_MPS / mass
+        wind = head_wind_sigma_mps2(speed, vehicle, mass)
         rolling = G_MPS2 * vehicle.rolling_resistance_coefficient
         margin = 2 * np.sqrt(wind ** 2 + (rolling * ROLLING_RESISTANCE_UNCERTAINTY) ** 2
                              + (aero * np.nan_to_num(relative)) ** 2)
@@ -480,9 +487,8 @@ def _widen_where_measured(result: GradientResult, frame, specific_mps2, spacing_
     _set_grid(result, frame, gradient_smooth_std_pct=std)
 
 
-TORQUE_OFFSET_UNCERTAINTY = 0.02
-"""1-sigma of the torque report's offset as a share of the reference torque (as
-`mass.joint.JointSettings.torque_offset_uncertainty`)."""
+TORQUE_OFFSET_UNCERTAINTY = JointSettings.torque_offset_uncertainty
+"""1-sigma of the torque report's offset as a share of the reference torque: the mass fit's prior."""
 
 
 def road_load_sigma_mps2(frame, vehicle, mass_kg) -> np.ndarray:
@@ -491,11 +497,10 @@ def road_load_sigma_mps2(frame, vehicle, mass_kg) -> np.ndarray:
     (`TORQUE_OFFSET_UNCERTAINTY` of the reference torque, through the driveline's ratio), in quadrature.
     The rolling resistance's 15 % is in the bias prior; a constant bias is all the given mass's
     prior holds, while the wind's and the offset's share change with speed and gear."""
-    from ..road_load import AIR_DENSITY_KGPM3
     speed = frame["speed_mps"].to_numpy(dtype=float)
     mass = np.asarray(mass_kg, dtype=float)
     with np.errstate(invalid="ignore", divide="ignore"):
-        wind = AIR_DENSITY_KGPM3 * vehicle.drag_coefficient * vehicle.frontal_area_m2 * speed * WIND_PRIOR_MPS / mass
+        wind = head_wind_sigma_mps2(speed, vehicle, mass)
         offset = np.zeros(len(frame))
         reference = (frame["engine_reference_torque_nm"].to_numpy(dtype=float) if "engine_reference_torque_nm" in frame
                      else np.full(len(frame), getattr(vehicle, "engine_reference_torque_nm", None) or np.nan))

@@ -9,7 +9,7 @@ a valley, a tunnel under a mountain, a deep cutting, a canopy patch.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from scipy.ndimage import median_filter, uniform_filter1d
@@ -127,6 +127,11 @@ class Measurements:
     imu_scale_reset_var: np.ndarray | None = None
     """(n_bins,) the scale state's prior variance [-] where a new mass segment starts (its first
     grid point; the first bin holds the first segment's), 0 elsewhere."""
+
+    def part(self, grid_points: slice) -> "Measurements":
+        """The same measurements over ``grid_points`` alone: every per-bin array cut."""
+        return replace(self, **{f.name: getattr(self, f.name)[grid_points] for f in fields(self)
+                                if isinstance(getattr(self, f.name), np.ndarray)})
 
 
 @dataclass
@@ -531,11 +536,7 @@ class GradientSmoother:
     def _run_on(self, part: slice, r):
         """The map-free smoother over the grid points ``part`` alone (``r`` its variances there), with
         this drive's noise levels: the cost of a block, not of the drive."""
-        m = self.m
-        block = GradientSmoother(Measurements(
-            z=m.z[part], count=m.count[part], h_acc_m=m.h_acc_m[part], v_acc_m=m.v_acc_m[part], dt_s=m.dt_s[part],
-            spacing_m=m.spacing_m, stopped=None if m.stopped is None else m.stopped[part],
-            imu_scale_var=None if m.imu_scale_var is None else m.imu_scale_var[part]), self.s)
+        block = GradientSmoother(self.m.part(part), self.s)
         block.curvature_psd, block.bias_psd = self.curvature_psd, self.bias_psd
         block.dem_sigma_m, block.dem_correlation_m = self.dem_sigma_m, self.dem_correlation_m
         x, p, _, _ = block.run(r, use=(True, False, True, True))
