@@ -100,9 +100,17 @@ def add_design_search(parser) -> None:
     parser.add_argument("--design-generations", type=int, default=defaults.generations,
                         help=f"NSGA-II generations of the concept search ({defaults.generations}; population x "
                              f"generations candidates are simulated)")
+    add_ownership(parser)
+
+
+def add_ownership(parser) -> None:
+    """The cost-of-ownership figures the design stage chooses its concept by, its defaults."""
+    from ..design.options import DesignOptions
+
+    defaults = DesignOptions()
     parser.add_argument("--energy-price-eur-per-kwh", type=float, default=defaults.energy_price_eur_per_kwh,
-                        help=f"price of a kWh at the battery in the concept's cost of ownership "
-                             f"({defaults.energy_price_eur_per_kwh:g})")
+                        help=f"price of a kWh at the battery, charging losses included, in the concept's cost of "
+                             f"ownership ({defaults.energy_price_eur_per_kwh:g})")
     parser.add_argument("--service-life-years", type=float, default=defaults.service_life_years,
                         help=f"years the energy is paid over in the cost of ownership ({defaults.service_life_years:g})")
     parser.add_argument("--operating-days", type=float, default=defaults.operating_days_per_year,

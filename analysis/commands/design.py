@@ -11,6 +11,7 @@ from pathlib import Path
 from .. import checks, jsonable
 from ..errors import UserError
 from ..vehicle import load_vehicle
+from .arguments import add_ownership
 
 SUMMARY = "design-summary.json"
 REPORT = "design-report.html"
@@ -51,12 +52,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--choice", choices=["ownership", "knee"], default="ownership",
                         help="choose the concept by the least cost of ownership (components + energy over the "
                              "service life; default) or by the Pareto front's knee")
-    parser.add_argument("--energy-price-eur-per-kwh", type=float, default=0.30,
-                        help="price of a kWh at the battery, charging losses included (0.30)")
-    parser.add_argument("--service-life-years", type=float, default=5.0,
-                        help="years the energy is paid over in the cost of ownership (5)")
-    parser.add_argument("--operating-days", type=float, default=250.0,
-                        help="working days a year, each driving the daily distance (250)")
+    add_ownership(parser)
     parser.add_argument("--weights", nargs=2, type=float, metavar=("ENERGY", "COST"),
                         help="choose the concept by these weights on the normalised objectives instead")
     parser.add_argument("--json", action="store_true", help="print the design summary as JSON")
