@@ -11,7 +11,7 @@ import pandas as pd
 from . import components as C
 from . import requirements as R
 from .chapter import machines_text
-from .choice import Criterion, near_optimal
+from .choice import Criterion, criterion, near_optimal
 from .evaluate import Evaluator
 from .options import DesignOptions
 from .search import SearchOutcome
@@ -44,8 +44,10 @@ class DesignResult:
     reference: dict | None = None
     loads: dict = field(default_factory=dict)
     search_s: float = 0.0
-    criterion: Criterion | None = None
-    """How the concept was chosen, and the lifetime energy cost per kWh/km for the cost of ownership."""
+    @property
+    def criterion(self) -> Criterion:
+        """How the concept was chosen, and the lifetime energy cost per kWh/km for the cost of ownership."""
+        return criterion(self.options, self.daily_distance_m)
 
     @property
     def feasible(self) -> bool:

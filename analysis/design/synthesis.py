@@ -141,7 +141,7 @@ def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOpt
                         per_drive=per_drive, targets=targets, daily_distance_m=daily_m, energy_margin=margin,
                         mass_sigma_kg=mass_sigma_kg, drives=drives,
                         exclusions=exclusions(outcome, _regions(outcome, evaluator)), reference=reference,
-                        loads=loads_summary or {}, search_s=search_s, criterion=rule)
+                        loads=loads_summary or {}, search_s=search_s)
 
 
 def _regions(outcome, evaluator) -> list[str]:
