@@ -340,7 +340,7 @@ class _Channels:
         self.channels: dict[int, Channel] = {}
         self.pending: dict[int, list[_Part]] = {}
         self.known = np.zeros(1 << 16, dtype=bool)
-        self.known_ids: set[int] = set()
+        """By channel id, whether it is defined (the ids of `channels`, for lookups by array)."""
 
     def add_schema(self, parsed) -> None:
         schema_id, name, encoding, data = parsed
@@ -354,14 +354,13 @@ class _Channels:
             name, schema_encoding, data = self.schemas.get(schema_id, ("", "", b""))
             self.channels[channel_id] = Channel(channel_id, topic, encoding, name, schema_encoding, data, metadata)
             self.known[channel_id] = True
-            self.known_ids.add(channel_id)
         return channel_id
 
     def batch(self, records: _Records, report: ReadReport) -> list[_Part]:
         """The messages of ``records`` whose channel is known, in order, with earlier messages
         of a channel defined here placed where its definition is; the others wait."""
         parts: list[_Part] = []
-        if not records.definitions and self.known_ids.issuperset(records.channel_set):
+        if not records.definitions and self.channels.keys() >= records.channel_set:
             count = len(records.all_rows)  # most chunks: messages of known channels only
             report.messages += count
             return [_Part(records, records.all_rows)] if count else []
