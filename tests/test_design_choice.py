@@ -145,13 +145,74 @@ def test_a_climb_only_the_measured_drive_holds_sizes_the_concept():
     assert shortfall(alone) > MAX_TIME_LOSS
 
 
-def test_a_drive_much_longer_than_the_cycles_is_not_simulated():
-    """Its cost is its length per candidate: beyond `MEASURED_DRIVE_MAX_RATIO` the cycles stand alone."""
-    from haulprofile.analysis.design.synthesis import MEASURED_DRIVE_MAX_RATIO, with_measured_drive
+def test_a_drive_much_longer_than_the_cycles_joins_as_its_hardest_stretch():
+    """Its cost is its length per candidate: beyond `MEASURED_DRIVE_MAX_RATIO` the drive's hardest
+    stretch of that length joins instead (given the vehicle that judges it; without one, none)."""
+    from haulprofile.analysis.design.evaluate import cycle_distance_m
+    from haulprofile.analysis.design.synthesis import HARDEST, MEASURED_DRIVE_MAX_RATIO, with_measured_drive
 
     short = distance_cycle(pd.DataFrame({"distance_m": [0.0, 100.0, 200.0], "target_speed_mps": [0.0, 60 / 3.6, 0.0],
                                          "stop_time_s": [10.0, 0.0, 10.0], "gradient_pct": 0.0}), 15_000.0, "short")
     drive = hill_drive()  # 9.7 km, 48 times the 200 m cycle; the hill cycle is 4 km
     assert drive["speed_mps"].mul(0.5).sum() > MEASURED_DRIVE_MAX_RATIO * 200.0
     assert with_measured_drive([short], drive, DesignOptions()) == [short]
+    both = with_measured_drive([short], drive, DesignOptions(), load_vehicle("rigid-18t"))
+    assert [c.name for c in both] == ["short", HARDEST] and both[1].time_based
+    assert cycle_distance_m(both[1]) == pytest.approx(MEASURED_DRIVE_MAX_RATIO * 200.0, abs=10.0)
     assert len(with_measured_drive([hill_cycle()], drive, DesignOptions())) == 2
+
+
+def stop_and_go_drive(climb_at_m: float, mass_kg=15_000.0) -> pd.DataFrame:
+    """60 km/h legs of 2 km between 30 s stops, 24 km in all; a 6 % grade over 1 km from ``climb_at_m``."""
+    legs = []
+    for leg in range(12):
+        t = np.arange(0.0, 150.0, 0.5)
+        speed = np.clip(np.minimum(t, 140.0 - t) / 15.0, 0.0, 1.0) * 60 / 3.6
+        legs.append(np.concatenate([speed, np.zeros(60)]))
+    speed = np.concatenate(legs)
+    time_s = np.arange(len(speed)) * 0.5
+    distance = np.cumsum(speed * 0.5)
+    gradient = np.where((distance > climb_at_m) & (distance < climb_at_m + 1000.0), 6.0, 0.0)
+    return pd.DataFrame({"time_s": time_s, "speed_mps": speed, "accel_mps2": np.gradient(speed, time_s),
+                         "gradient_pct": gradient, "mass_kg": mass_kg})
+
+
+@pytest.mark.parametrize("climb_at_m", [1500.0, 12_000.0, 21_000.0])
+def test_the_hardest_stretch_holds_the_climb_and_starts_at_rest(climb_at_m):
+    from haulprofile.analysis.design.synthesis import hardest_stretch
+
+    drive = stop_and_go_drive(climb_at_m)
+    stretch = hardest_stretch(drive, load_vehicle("rigid-18t"), 5000.0)
+    distance = np.cumsum(drive["speed_mps"] * 0.5)
+    covered = distance.loc[stretch.index]
+    assert covered.iloc[0] <= climb_at_m and covered.iloc[-1] >= climb_at_m + 1000.0
+    assert stretch["speed_mps"].iloc[0] < 0.5 and stretch["time_s"].iloc[0] == 0.0
+    assert (stretch["speed_mps"] * 0.5).sum() == pytest.approx(5000.0, rel=0.01)
+
+
+def test_a_sizing_only_cycle_judges_the_constraints_but_not_the_energy_per_km():
+    """The hardest stretch would overstate the energy per km: it sizes, the cycles give the energy."""
+    from haulprofile.analysis.design.evaluate import Evaluator, constraint_names
+    from haulprofile.analysis.simulate.cycle import time_cycle
+
+    rigid = load_vehicle("rigid-18t")
+    options = DesignOptions(time_step_s=1.0, thermal_windows_s=(10.0, 60.0))
+    targets = {"design_grade_force_n": 1.0, "startability_force_n": 1.0, "top_speed_force_n": 1.0}
+    flat = distance_cycle(pd.DataFrame({"distance_m": [0.0, 100.0, 3900.0, 4000.0],
+                                        "target_speed_mps": [0.0, 60 / 3.6, 60 / 3.6, 0.0],
+                                        "stop_time_s": [10.0, 0.0, 0.0, 10.0], "gradient_pct": 0.0}), 15_000.0, "flat")
+    climb = time_cycle(hill_drive(), 15_000.0, "climb")
+    alone = Evaluator(rigid, [flat], options, targets, 100e3)
+    with_climb = Evaluator(rigid, [flat, climb], options, targets, 100e3, sizing_only=frozenset({"climb"}))
+    counted = Evaluator(rigid, [flat, climb], options, targets, 100e3)
+    x = np.random.default_rng(0).random((6, 9))  # six candidates of the nine design variables
+    a, b, c = alone.evaluate(x), with_climb.evaluate(x), counted.evaluate(x)
+    assert np.array_equal(a.objectives[:, 0], b.objectives[:, 0])
+    assert np.all(c.objectives[:, 0] > b.objectives[:, 0])
+    names = constraint_names(options)
+    energy = names.index("range with reserve")
+    assert np.array_equal(a.constraints[:, energy], b.constraints[:, energy])
+    others = [k for k in range(len(names)) if k != energy]
+    assert np.array_equal(b.constraints[:, others], c.constraints[:, others])
+    assert not np.array_equal(a.constraints[:, names.index("follows the cycle")],
+                              b.constraints[:, names.index("follows the cycle")])

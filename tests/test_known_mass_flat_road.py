@@ -90,6 +90,8 @@ def test_a_vecto_cycle_is_a_drive_for_info_and_run(data_dir, tmp_path, capsys):
     assert code in (0, 3), err
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert {"cycle", "loads", "simulation"} <= set(summary)
+    from haulprofile.analysis.design.synthesis import HARDEST
+    assert summary["design"]["cycles"] == ["generated cycle", HARDEST], "124 km of drive: its hardest stretch sizes"
 
 
 def test_a_fleet_of_can_only_logs_with_a_known_mass_gets_its_cycle(canedge_drive, tmp_path, capsys):

@@ -139,7 +139,7 @@ class Evaluation:
     candidates: C.Candidates
     sizing: C.Sizing
     objectives: np.ndarray
-    """(n, 2): battery kWh/km over the cycle set, component cost [EUR]."""
+    """(n, 2): battery kWh/km over the cycle set (not its sizing-only cycles), component cost [EUR]."""
     constraints: np.ndarray
     """(n, len(constraint_names)), feasible where every entry <= 0."""
     metrics: np.ndarray
@@ -150,7 +150,9 @@ class Evaluator:
     """Everything fixed over one search: vehicle, options, packed cycles, targets."""
 
     def __init__(self, vehicle: Vehicle, cycles: list[SimCycle], options: DesignOptions, targets: dict,
-                 daily_distance_m: float, energy_margin: float = 1.0):
+                 daily_distance_m: float, energy_margin: float = 1.0, sizing_only: frozenset[str] = frozenset()):
+        """``sizing_only``: names of cycles that judge the constraints (speed held, thermal windows,
+        peaks) but not the energy per km: a stretch chosen for being the hardest would overstate it."""
         self.vehicle, self.options, self.targets = vehicle, options, targets
         ep = vehicle.electric_powertrain
         self.voltage_v = ep.battery_voltage_v if ep else 750.0
@@ -171,6 +173,7 @@ class Evaluator:
         self.free_duration_s = np.array([f["duration_s"] for f in free])
         self.free_distance_m = np.array([f["distance_km"] * 1000.0 for f in free])
         self.time_based = np.array([c.time_based for c in cycles])
+        self.in_consumption = np.array([c.name not in sizing_only for c in cycles])
         self.evaluated = 0
 
     def decode(self, x) -> C.Candidates:
@@ -233,8 +236,8 @@ class Evaluator:
         o, t, r = self.options, self.targets, self.vehicle.wheel_radius_m
         stalled = np.any(m[:, :, DK.M_STALLED] > 0, axis=1)
         m = np.nan_to_num(m)
-        energy = np.nansum(m[:, :, DK.M_ENERGY_J], axis=1)
-        distance = np.nansum(m[:, :, DK.M_DISTANCE_M], axis=1)
+        energy = np.nansum(m[:, self.in_consumption, DK.M_ENERGY_J], axis=1)
+        distance = np.nansum(m[:, self.in_consumption, DK.M_DISTANCE_M], axis=1)
         kwh_per_km = np.where(distance > 0, energy / 3.6e6 / np.maximum(distance / 1000.0, 1e-9), np.inf)
         kwh_per_km = np.where(stalled, np.inf, kwh_per_km)
         g = np.zeros((len(c), len(constraint_names(o))))

@@ -72,21 +72,53 @@ MEASURED = "measured drive"
 MEASURED_DRIVE_MAX_RATIO = 3.0
 """The measured drive joins the simulated set while it is at most this many times as long as the
 cycles (distance): it costs its length per candidate, and a day-long log would make the search
-tens of times longer than the cycle it was condensed into [choice; the demo's drive is 1.3 x]."""
+tens of times longer than the cycle it was condensed into [choice; the demo's drive is 1.3 x].
+A longer drive is represented by its hardest stretch of that length (`hardest_stretch`)."""
+HARDEST = "hardest stretch of the measured drive"
 
 
-def with_measured_drive(cycles: list[SimCycle], measured: pd.DataFrame | None, options: DesignOptions) -> list[SimCycle]:
-    """The cycles, and the measured drive as a time-based cycle (``simulate_measured_drive``,
-    while it is at most `MEASURED_DRIVE_MAX_RATIO` times as long): a generated cycle is a random
-    walk through the drive's statistics and may or may not hold its longest climbs, so a concept
-    that only drives the cycle follows whichever the walk happened to hold; the drive itself is
-    the application's real demand."""
-    if measured is None or not options.simulate_measured_drive or any(c.name == MEASURED for c in cycles):
+def with_measured_drive(cycles: list[SimCycle], measured: pd.DataFrame | None, options: DesignOptions,
+                        vehicle: Vehicle | None = None) -> list[SimCycle]:
+    """The cycles, and the measured drive as a time-based cycle (``simulate_measured_drive``): a
+    generated cycle is a random walk through the drive's statistics and may or may not hold its
+    longest climbs, so a concept that only drives the cycle follows whichever the walk happened to
+    hold; the drive itself is the application's real demand. A drive longer than
+    `MEASURED_DRIVE_MAX_RATIO` times the cycles joins as its hardest stretch of that length (given
+    the ``vehicle`` whose road load judges it), which sizes but does not count in the energy per km."""
+    if measured is None or not options.simulate_measured_drive or any(c.name in (MEASURED, HARDEST) for c in cycles):
         return cycles
     drive = time_cycle(measured, float(measured["mass_kg"].mean()), MEASURED)
-    if cycle_distance_m(drive) > MEASURED_DRIVE_MAX_RATIO * sum(cycle_distance_m(c) for c in cycles):
+    longest_m = MEASURED_DRIVE_MAX_RATIO * sum(cycle_distance_m(c) for c in cycles)
+    if cycle_distance_m(drive) <= longest_m:
+        return [*cycles, drive]
+    if vehicle is None:
         return cycles
-    return [*cycles, drive]
+    stretch = hardest_stretch(measured, vehicle, longest_m)
+    return [*cycles, time_cycle(stretch, float(stretch["mass_kg"].mean()), HARDEST)]
+
+
+def hardest_stretch(measured: pd.DataFrame, vehicle: Vehicle, length_m: float) -> pd.DataFrame:
+    """The stretch of ``length_m`` of the measured drive that asks the most positive energy at the
+    wheel (its longest climbs and hardest accelerations at their mass), starting from a standstill
+    where one allows a whole stretch (a cycle starts at rest), its time from 0."""
+    from ..road_load import wheel_force_n
+
+    time_s = measured["time_s"].to_numpy(float)
+    speed = np.clip(measured["speed_mps"].to_numpy(float), 0.0, None)
+    step_s = np.diff(time_s, prepend=time_s[0])
+    distance_m = np.cumsum(speed * step_s)
+    force = wheel_force_n(speed, measured["accel_mps2"].to_numpy(float), measured["gradient_pct"].to_numpy(float),
+                          measured["mass_kg"].to_numpy(float), vehicle)
+    energy_j = np.cumsum(np.clip(force * speed, 0.0, None) * step_s)
+    starts = np.flatnonzero(distance_m + length_m <= distance_m[-1])
+    if not len(starts):
+        return measured.assign(time_s=time_s - time_s[0])
+    at_rest = starts[speed[starts] < 0.5]
+    starts = at_rest if len(at_rest) else starts
+    ends = np.minimum(np.searchsorted(distance_m, distance_m[starts] + length_m), len(distance_m) - 1)
+    best = int(np.argmax(energy_j[ends] - energy_j[starts]))
+    stretch = measured.iloc[starts[best]:ends[best] + 1]
+    return stretch.assign(time_s=stretch["time_s"] - stretch["time_s"].iloc[0])
 
 
 def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOptions,
@@ -112,14 +144,15 @@ def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOpt
     check_options(options)
     if not cycles:
         raise UserError("no cycle to design on: give a cycle file or a run with a selected cycle")
-    cycles = with_measured_drive(cycles, measured, options)
+    cycles = with_measured_drive(cycles, measured, options, vehicle)
+    sizing_only = frozenset(c.name for c in cycles if c.name == HARDEST)
     started = time.perf_counter()
     dt = options.time_step_s
     drives = {}
     if measured is not None:
         drives[MEASURED] = measured
     for cycle in cycles:
-        if cycle.name not in drives:  # the measured drive as its own cycle is already there, as measured
+        if cycle.name not in drives and cycle.name not in sizing_only:  # the measured drive is there, as measured
             drives[cycle.name] = driven(cycle, vehicle, dt)
     rotating = vehicle.electric_powertrain.rotating_mass_kg if vehicle.electric_powertrain else 0.0
     ranges, per_drive = R.requirement_ranges(drives, vehicle, options, mass_sigma_kg, rotating)
@@ -130,11 +163,11 @@ def design_concepts(cycles: list[SimCycle], vehicle: Vehicle, options: DesignOpt
     nominal = per_drive[first]["estimate"]["positive_wheel_kwh_per_km"]
     margin = ranges["positive_wheel_kwh_per_km"]["high"] / nominal if nominal and math.isfinite(nominal) else 1.0
     daily_m = options.daily_distance_m or 1000.0 * max(ranges["distance_km"]["value"], 1e-3)
-    evaluator = Evaluator(vehicle, cycles, options, targets, daily_m, max(margin, 1.0))
+    evaluator = Evaluator(vehicle, cycles, options, targets, daily_m, max(margin, 1.0), sizing_only)
     rule = criterion(options, daily_m)
     outcome = run_search(evaluator, rule)
     search_s = time.perf_counter() - started
-    reference = _reference_powertrain(vehicle, cycles, dt)
+    reference = _reference_powertrain(vehicle, cycles, dt, sizing_only)
     if reference is not None:
         reference["ownership_cost_eur"] = float(rule.ownership_eur([[reference["battery_kwh_per_km"], reference["cost_eur"]]])[0])
     return DesignResult(options=options, vehicle=vehicle, evaluator=evaluator, outcome=outcome, ranges=ranges,
@@ -149,16 +182,19 @@ def _regions(outcome, evaluator) -> list[str]:
     return [f"{C.TOPOLOGIES[t]}, {m} machine(s), {s} gear(s)" for t, m, s in zip(c.topology, c.machines, c.speeds)]
 
 
-def _reference_powertrain(vehicle: Vehicle, cycles: list[SimCycle], dt: float) -> dict | None:
-    """The vehicle file's own powertrain on the same cycles (energy per km, time below target)."""
+def _reference_powertrain(vehicle: Vehicle, cycles: list[SimCycle], dt: float,
+                          sizing_only: frozenset[str] = frozenset()) -> dict | None:
+    """The vehicle file's own powertrain on the same cycles (energy per km without the
+    ``sizing_only`` ones, time below target on all)."""
     ep = vehicle.electric_powertrain
     if ep is None:
         return None
     energy = distance = missed = 0.0
     for cycle in cycles:
         s = simulate_cycle(cycle, vehicle, settings=DriverSettings(time_step_s=dt)).numbers
-        energy += s["battery_terminal_energy_kwh"]
-        distance += s["distance_km"]
+        if cycle.name not in sizing_only:
+            energy += s["battery_terminal_energy_kwh"]
+            distance += s["distance_km"]
         missed += s["missed_target_s"]
     kw = ep.machine_max_power_w / 1000.0
     kwh = ep.battery_capacity_kwh
