@@ -5,6 +5,8 @@ REQUIRED = {"time_s": "time since the start of the log [s]", "speed_mps": "vehic
 OPTIONAL = {
     "engine_speed_rpm": "engine speed [rpm]",
     "engine_torque_nm": "actual engine torque [Nm]",
+    "engine_friction_torque_nm": "the engine's nominal friction torque, J1939 SPN 514 [Nm]",
+    "engine_parasitic_torque_nm": "the engine's estimate of the torque its accessories take, J1939 SPN 2978 [Nm]",
     "latitude_deg": "GPS latitude [deg]",
     "longitude_deg": "GPS longitude [deg]",
     "gps_altitude_m": "GPS altitude [m]",

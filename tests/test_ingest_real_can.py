@@ -169,3 +169,20 @@ def test_analyze_info_warns_once_on_a_cut_mf4(data_dir, tmp_path, capsys):
     out, err = capsys.readouterr()
     lines = [line for line in (out + err).splitlines() if "cut short" in line]
     assert len(lines) == 1 and lines[0].startswith("warning: cut.MF4: MF4 file cut short")
+
+
+def test_eec3_friction_and_parasitic_losses_from_real_engines(data_dir):
+    """EEC3 (PGN 65247) of both recordings' engines (SA 0): the idling one sends byte 1 = 130 and
+    byte 5 = 125 (5 % nominal friction, 0 % parasitic losses of a 2386 Nm reference); the other
+    sends byte 1 = 125 (0 %) and byte 5 = 0xFF, not available, which gives no parasitic column."""
+    idle = read_logs([data_dir / "real-can" / "css-j1939-idle-127s.MF4"])
+    assert np.allclose(idle["engine_friction_torque_nm"], 0.05 * 2386.0)
+    assert np.all(idle["engine_parasitic_torque_nm"] == 0.0)
+    assert idle.attrs["ingest"]["sources"]["engine_parasitic_torque_nm"]["key"] == "parasitic_loss_torque_pct@0"
+    other = read_logs([data_dir / "real-can" / "css-j1939-tp-186s.MF4"])
+    assert "engine_parasitic_torque_nm" not in other.columns
+    friction = other["engine_friction_torque_nm"].dropna()
+    assert len(friction) > 100 and np.all(friction == 0.0)
+    frames, _ = foreign.read_can_log(data_dir / "real-can" / "css-j1939-tp-186s.MF4")
+    eec3 = j1939_decode.decode_block(frames)[j1939.PGN_EEC3]
+    assert np.all(np.isnan(eec3.values["parasitic_loss_torque_pct"]))

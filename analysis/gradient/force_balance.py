@@ -31,6 +31,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
+from ..engine_torque import driveline_torque_nm
 from ..errors import UserError
 from ..mass.joint import JointSettings
 from ..road_load import AIR_DENSITY_KGPM3, G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_torque_from_engine_nm
@@ -300,8 +301,9 @@ def _braking_bound(result, frame, virtual, vehicle, mass):
     Returns the force balance with those samples added, or None where none breaks it."""
     if not {"brake_switch", "engine_torque_nm", "accel_mps2", "engine_speed_rpm"} <= set(frame.columns):
         return None
-    brake, torque, accel, rpm, speed = (frame[c].to_numpy(dtype=float) for c in (
-        "brake_switch", "engine_torque_nm", "accel_mps2", "engine_speed_rpm", "speed_mps"))
+    brake, accel, rpm, speed = (frame[c].to_numpy(dtype=float) for c in (
+        "brake_switch", "accel_mps2", "engine_speed_rpm", "speed_mps"))
+    torque = driveline_torque_nm(frame)
     braking = (np.nan_to_num(brake) > 0.5) & (speed > 3.0) & ~np.isfinite(virtual)
     with np.errstate(invalid="ignore", divide="ignore"):
         pushing = wheel_force_from_torque_n(wheel_torque_from_engine_nm(
@@ -385,8 +387,9 @@ def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, rela
     from .estimate import _integrate, _sample_rate_hz
     if not {"brake_switch", "engine_torque_nm", "accel_mps2", "distance_m"} <= set(frame.columns):
         return
-    brake, torque, accel, speed, distance, time_s = (frame[c].to_numpy(dtype=float) for c in (
-        "brake_switch", "engine_torque_nm", "accel_mps2", "speed_mps", "distance_m", "time_s"))
+    brake, accel, speed, distance, time_s = (frame[c].to_numpy(dtype=float) for c in (
+        "brake_switch", "accel_mps2", "speed_mps", "distance_m", "time_s"))
+    torque = driveline_torque_nm(frame)
     braking = (np.nan_to_num(brake) > 0.5) & (np.nan_to_num(torque, nan=1.0) <= 0) & (speed > 3.0)
     held = max(1, int(round(BRAKE_HELD_S * _sample_rate_hz(time_s))))
     braking = binary_erosion(braking, structure=np.ones(2 * held + 1, bool))

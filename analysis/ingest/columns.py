@@ -116,6 +116,11 @@ def build_table(ingest) -> tuple[pd.DataFrame, dict]:
         columns["engine_reference_torque_nm"] = np.where(c.recorded, reference, np.nan)
         if torque_pct is not None:
             columns["engine_torque_nm"] = torque_pct / 100.0 * reference
+        for column, spn_name in (("engine_friction_torque_nm", "nominal_friction_torque_pct"),
+                                 ("engine_parasitic_torque_nm", "parasitic_loss_torque_pct")):
+            pct = c.pick(column, spn_name)
+            if pct is not None:
+                columns[column] = pct / 100.0 * reference
     mass = c.pick("reported_mass_kg", "gross_combination_weight_kg", max_hold_s=align.QUASI_STATIC_HOLD_S)
     columns["reported_mass_kg"] = mass if mass is not None else c.axle_sum()
     for column, key in (("latitude_deg", "gps:latitude"), ("longitude_deg", "gps:longitude"),

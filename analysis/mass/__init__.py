@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ..engine_torque import SUBTRACTED, driveline_torque_nm, torque_used
 from ..road_load import G_MPS2
 from . import calibration
 from .joint import JointFit, JointSettings, aux_power_regressor, fit_joint, offset_regressor, wind_regressors
@@ -42,11 +43,15 @@ class MassResult:
     """The drive's time_s [s] (and the truck's own reported_mass_kg), for the figure."""
     true_mass_kg: tuple[float, ...] | None = None
     """A weighed total mass [kg], one or one per segment, for the figure."""
+    engine_torque: str = ""
+    """Which engine torque the force came from (`engine_torque.torque_used`)."""
 
     def summary(self) -> dict:
-        """The segments, samples used, the joint road-load fit, why samples were left out, notes."""
+        """The segments, samples used, the joint road-load fit, why samples were left out, the
+        engine torque used, notes."""
         return {"segments": self.segments, "samples_used": int(self.regression.usable.sum()),
-                "road_load": self.road_load, "rejected_by": self.regression.rejected, "notes": self.notes}
+                "road_load": self.road_load, "rejected_by": self.regression.rejected,
+                "engine_torque": self.engine_torque, "notes": self.notes}
 
     def problem(self) -> str | None:
         if self.segments and not any("ok" in (s["status"], s.get("mass_joint_status")) for s in self.segments):
@@ -106,11 +111,14 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     aux = _aux_regressor(frame, regression) if joint_settings.aux_power_sigma_w > 0 else None
     if wind is not None:
         notes.append("the drive's wind fitted with the masses from the heading along the GPS track")
+    engine_torque = torque_used(frame)
+    if engine_torque == SUBTRACTED:
+        notes.append(f"engine torque: {SUBTRACTED} (SPN 2978, what the engine says its fan and compressor take)")
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
                               columns, max_mass, notes, segment_settings, wind,
                               offset, aux)
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
-                      joint=joint)
+                      joint=joint, engine_torque=engine_torque)
 
 
 def _with_gradient_std(frame: pd.DataFrame) -> pd.DataFrame:
@@ -177,8 +185,9 @@ def _aux_regressor(frame, regression):
 
 
 def _smoothed_torque(frame):
-    """Engine torque [Nm] over the force's 1 s window, so that F_wheel / T_engine is the driveline's ratio."""
-    torque = frame["engine_torque_nm"].to_numpy(dtype=float)
+    """The driveline's engine torque [Nm] (the force's) over the force's 1 s window, so that
+    F_wheel / T_engine is the driveline's ratio."""
+    torque = driveline_torque_nm(frame)
     window = max(1, int(round(1.0 / np.median(np.diff(frame["time_s"].to_numpy(dtype=float))))))
     return np.convolve(np.nan_to_num(torque), np.ones(window) / window, "same")
 

@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from .. import road_load
+from ..engine_torque import driveline_torque_nm
 from ..errors import UserError
 
 
@@ -85,7 +86,9 @@ def _column(frame, name):
 
 def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = FilterSettings()) -> Regression:
     """Regression (10) per sample and the data filter; needs speed_mps, accel_mps2, gradient_pct,
-    engine_speed_rpm, engine_torque_nm (UserError naming what is missing)."""
+    engine_speed_rpm, engine_torque_nm (UserError naming what is missing). The force is the
+    driveline's torque (`engine_torque.driveline_torque_nm`: the accessories' torque off where the
+    log reports it)."""
     needed = ["speed_mps", "accel_mps2", "gradient_pct", "engine_speed_rpm", "engine_torque_nm"]
     missing = [c for c in needed if c not in frame.columns or frame[c].isna().all()]
     if missing:
@@ -93,7 +96,7 @@ def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = Fi
     time_s = frame["time_s"].to_numpy(dtype=float)
     speed, accel = _column(frame, "speed_mps"), _column(frame, "accel_mps2")
     gradient = _column(frame, "gradient_pct")
-    engine_rpm, engine_torque = _column(frame, "engine_speed_rpm"), _column(frame, "engine_torque_nm")
+    engine_rpm, engine_torque = _column(frame, "engine_speed_rpm"), driveline_torque_nm(frame)
     steps = np.diff(time_s)
     dt = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 0.1
     window = max(1, int(round(settings.smoothing_window_s / dt)))

@@ -87,6 +87,7 @@ def engine_loads(states: pd.DataFrame, vehicle, level: Realism, rng: np.random.G
                 pto[middle] = level.aux_pto_kw * 1000.0
     aux = (compressor + fan + pto) / omega
     columns = {"engine_torque_nm": driveline + aux, "wheel_engine_torque_nm": torque, "aux_torque_nm": aux,
+               "aux_compressor_torque_nm": compressor / omega, "aux_fan_torque_nm": fan / omega,
                "driveline_efficiency": eta_gear}
     sizes = {"aux_compressor_on_share": float(np.mean(compressor > 0)), "aux_fan_on_share": float(np.mean(fan > 0)),
              "aux_pto_on_s": float(np.sum(pto > 0) * (time_s[1] - time_s[0])),

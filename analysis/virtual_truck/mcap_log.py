@@ -1,7 +1,7 @@
 """A virtual drive's sensor streams as an MCAP log in the data contract (`haulprofile.contract`).
 
-What the logger would have written in the truck: raw J1939 frames (EEC1, EEC2, ETC2, CCVS1, LFE,
-CVW broadcasts; EC1 as a BAM transport session every 5 s) batched into ``/can/frames``, raw IMU
+What the logger would have written in the truck: raw J1939 frames (EEC1, EEC2, EEC3, ETC2, CCVS1,
+LFE, CVW broadcasts; EC1 as a BAM transport session every 5 s) batched into ``/can/frames``, raw IMU
 counts batched per 0.1 s, LPS25HB and HTS221 readings with their raw counts, GPS fixes as
 ``foxglove.LocationFix`` and ``/time/sync`` once per second. Monotonic time is the simulated time
 plus a boot offset; wall-clock time is the scenario's start plus the simulated time.
@@ -42,6 +42,9 @@ _CAN_BROADCASTS = (
      {"driver_demand_torque_pct": "driver_demand_torque_pct", "actual_engine_torque_pct": "actual_engine_torque_pct",
       "engine_speed_rpm": "engine_speed_rpm"}),
     ("pedals", j1939.PGN_EEC2, ENGINE_ADDRESS, 3, {"accelerator_pedal_pct": "accelerator_pedal_pct"}),
+    ("engine_losses", j1939.PGN_EEC3, ENGINE_ADDRESS, 6,
+     {"nominal_friction_torque_pct": "nominal_friction_torque_pct",
+      "parasitic_loss_torque_pct": "parasitic_loss_torque_pct"}),
     ("transmission", j1939.PGN_ETC2, TRANSMISSION_ADDRESS, 6,
      {"current_gear": "current_gear", "selected_gear": "current_gear"}),
     ("wheel_speed", j1939.PGN_CCVS1, ENGINE_ADDRESS, 6,
@@ -66,7 +69,7 @@ def can_frames(drive) -> np.ndarray:
         for values in zip(*columns):
             key = tuple(float(v) for v in values)
             if key not in cache:
-                cache[key] = j1939.encode_pgn(pgn, dict(zip(spns, key)))
+                cache[key] = j1939.encode_pgn(pgn, {name: None if v != v else v for name, v in zip(spns, key)})
             data.append(cache[key])
         times.append(frame["time_s"].to_numpy())
         ids.append(np.full(len(frame), j1939.make_id(pgn, source, priority)))

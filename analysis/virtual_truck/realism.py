@@ -50,6 +50,11 @@ class Realism:
     aux_compressor_kw: float = 0.0
     aux_fan_kw: float = 0.0
     aux_pto_kw: float = 0.0
+    parasitic_estimate_error_pct: float = 0.0
+    """Per-drive error of the engine controller's estimate of what the compressor and the fan take
+    (EEC3 SPN 2978), uniform within ± this, drawn for each of the two."""
+    parasitic_report: str = "estimate"
+    """What the engine sends as SPN 2978: ``estimate``, ``zero`` (a constant 0 %) or ``not available``."""
     # environment and load
     wind_mps: float = 0.0
     wind_gust_mps: float = 0.0
@@ -70,7 +75,7 @@ TYPICAL = Realism(
     baro_front_pa=120.0, baro_cab_transient_pa=30.0,
     wheel_scale_pct=1.5, gps_urban_factor=2.5, gps_outages_per_h=1.0,
     torque_gain_pct=3.0, torque_offset_pct=1.0, driveline_gear_spread=0.01, driveline_spin_loss_pct=0.5,
-    aux_compressor_kw=6.0, aux_fan_kw=8.0, aux_pto_kw=10.0,
+    aux_compressor_kw=6.0, aux_fan_kw=8.0, aux_pto_kw=10.0, parasitic_estimate_error_pct=15.0,
     wind_mps=4.0, wind_gust_mps=1.5, trailer_change=True)
 
 HARSH = Realism(
@@ -81,15 +86,16 @@ HARSH = Realism(
     baro_front_pa=200.0, baro_cab_transient_pa=80.0,
     wheel_scale_pct=3.0, gps_urban_factor=5.0, gps_outages_per_h=3.0,
     torque_gain_pct=6.0, torque_offset_pct=3.0, driveline_gear_spread=0.02, driveline_spin_loss_pct=1.0,
-    aux_compressor_kw=10.0, aux_fan_kw=20.0, aux_pto_kw=20.0,
+    aux_compressor_kw=10.0, aux_fan_kw=20.0, aux_pto_kw=20.0, parasitic_estimate_error_pct=30.0,
     wind_mps=8.0, wind_gust_mps=3.0, trailer_change=True)
 
 PRESETS = {"ideal": IDEAL, "typical": TYPICAL, "harsh": HARSH}
+PARASITIC_REPORTS = ("estimate", "zero", "not available")
 
 SIZE_FIELDS = tuple(f.name for f in fields(Realism) if f.type in ("float", float))
 _UPPER = {"dem_shift_cells": 3.0, "dem_void_fraction": 0.5, "imu_mount_pitch_deg": 10.0,
           "wheel_scale_pct": 20.0, "torque_gain_pct": 30.0, "torque_offset_pct": 30.0,
-          "driveline_gear_spread": 0.2, "driveline_spin_loss_pct": 10.0}
+          "driveline_gear_spread": 0.2, "driveline_spin_loss_pct": 10.0, "parasitic_estimate_error_pct": 100.0}
 
 
 def realism_level(level: str | Realism = "ideal", **sizes) -> Realism:
@@ -102,9 +108,13 @@ def realism_level(level: str | Realism = "ideal", **sizes) -> Realism:
     else:
         raise UserError(f"unknown realism level {level!r} (known: {', '.join(LEVELS)})")
     for name, value in sizes.items():
-        if name not in SIZE_FIELDS and name not in ("terrain_first", "trailer_change"):
+        if name not in SIZE_FIELDS and name not in ("terrain_first", "trailer_change", "parasitic_report"):
             raise UserError(f"realism: unknown error size {name!r} (known: {', '.join(SIZE_FIELDS)})")
-        if name in SIZE_FIELDS:
+        if name == "parasitic_report":
+            if value not in PARASITIC_REPORTS:
+                raise UserError(f"realism.parasitic_report: expected one of {', '.join(PARASITIC_REPORTS)}, "
+                                f"got {value!r}")
+        elif name in SIZE_FIELDS:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value:
                 raise UserError(f"realism.{name}: expected a number, got {value!r}")
             if value < 0:

@@ -12,7 +12,8 @@ from haulprofile.contract import j1939
 
 from .realism import Realism
 from .road import Road
-from .sensors import (ACCEL_SCALE_MPS2_PER_LSB, BARO_PA_PER_LSB, _gauss_markov, _held, _quantise, _sample)
+from .sensors import (ACCEL_SCALE_MPS2_PER_LSB, BARO_PA_PER_LSB, _gauss_markov, _held, _quantise, _sample,
+                      parasitic_torque_nm)
 
 IMU_WARM_UP_K = 15.0
 IMU_WARM_UP_S = 1800.0
@@ -41,6 +42,22 @@ def engine_torque(stream: pd.DataFrame, states, reference_nm: float, level: Real
            + rng.normal(0, sensors.engine_torque_noise_pct, t.size))
     stream["actual_engine_torque_pct"] = np.clip(np.round(pct), -125, 125)
     return {"torque_report_gain": gain, "torque_report_offset_pct": offset}
+
+
+def parasitic_estimate(stream: pd.DataFrame, states, reference_nm: float, level: Realism, rng) -> dict:
+    """SPN 2978 with the engine controller's own error: per drive, its model of what the compressor
+    and the fan take is off by a factor each (it knows when they run, not exactly what they take);
+    or a constant 0 % or not available (NaN), as some engines send it."""
+    gains = 1.0 + rng.uniform(-1.0, 1.0, 2) * level.parasitic_estimate_error_pct / 100.0
+    t = stream["time_s"].to_numpy()
+    pct = np.clip(np.round(parasitic_torque_nm(states, t, *gains) / reference_nm * 100), -125, 125)
+    if level.parasitic_report == "zero":
+        pct = np.zeros(t.size)
+    elif level.parasitic_report == "not available":
+        pct = np.full(t.size, np.nan)
+    stream["parasitic_loss_torque_pct"] = pct
+    return {"parasitic_compressor_gain": float(gains[0]), "parasitic_fan_gain": float(gains[1]),
+            "parasitic_report": level.parasitic_report}
 
 
 def imu_temperature_c(time_s: np.ndarray, start_c: float) -> np.ndarray:
@@ -139,4 +156,5 @@ def apply_sensor_errors(streams: dict, states, road: Road, sensors, level: Reali
     injected |= imu(streams["imu"], level, rng)
     injected |= barometer(streams["barometer"], states, level, rng)
     injected |= gps(streams["gps"], road, states, level, rng)
+    injected |= parasitic_estimate(streams["engine_losses"], states, streams["engine_reference_torque_nm"], level, rng)
     return injected

@@ -14,6 +14,7 @@ import pandas as pd
 from haulprofile.contract import j1939
 
 from ..road_load import G_MPS2
+from .driver import drag_torque_nm
 
 STANDARD_GRAVITY_MPS2 = 9.80665
 ACCEL_FULL_SCALE_G = 4
@@ -71,6 +72,30 @@ def _gauss_markov(rng, n: int, time_constant_steps: float) -> np.ndarray:
     return out
 
 
+def parasitic_torque_nm(states, times: np.ndarray, compressor_gain: float = 1.0, fan_gain: float = 1.0) -> np.ndarray:
+    """What the engine controller takes its accessories' torque to be [Nm]: it switches the
+    compressor and the fan itself, and scales what each takes by its own model (``*_gain``, 1 =
+    exact). The PTO is the body builder's and not in it."""
+    if "aux_compressor_torque_nm" not in states:
+        return np.zeros(times.shape)
+    return (compressor_gain * _held(states, "aux_compressor_torque_nm", times)
+            + fan_gain * _held(states, "aux_fan_torque_nm", times))
+
+
+def engine_losses(states, vehicle, times: np.ndarray) -> pd.DataFrame:
+    """EEC3 (4 Hz): the nominal friction (SPN 514), the engine's motoring torque at its speed, the
+    one the simulation drags the truck with, so that the torque report (SPN 513, net of it) and the
+    friction add up to the indicated torque; and the accessories' torque (SPN 2978) as the engine
+    controller estimates it; both in 1 % of the reference torque."""
+    engine, ref = vehicle.engine, vehicle.engine_reference_torque_nm
+    rpm = _held(states, "engine_speed_rpm", times)
+    friction = -np.array([drag_torque_nm(r, ref, engine.idle_speed_rpm, engine.max_speed_rpm) for r in rpm])
+    return pd.DataFrame({"time_s": times,
+                         "nominal_friction_torque_pct": np.clip(np.round(friction / ref * 100), -125, 125),
+                         "parasitic_loss_torque_pct": np.clip(np.round(parasitic_torque_nm(states, times) / ref * 100),
+                                                              -125, 125)})
+
+
 def can_streams(states, vehicle, sensors, rng) -> dict:
     duration = float(states["time_s"].iloc[-1])
     ref = vehicle.engine_reference_torque_nm
@@ -91,6 +116,7 @@ def can_streams(states, vehicle, sensors, rng) -> dict:
         "engine_speed_rpm": _quantise(np.clip(rpm, 0, 8031), spn["engine_speed_rpm"].resolution),
         "actual_engine_torque_pct": np.clip(np.round(torque_pct), -125, 125),
         "driver_demand_torque_pct": np.clip(np.round(demand_pct), -125, 125)})
+    out["engine_losses"] = engine_losses(states, vehicle, _times(duration, 4.0, 0.012))
     t = _times(duration, 10.0, 0.006)
     out["transmission"] = pd.DataFrame({"time_s": t, "current_gear": _held(states, "gear", t).astype(np.int16)})
     t = _times(duration, 20.0, 0.008)

@@ -24,6 +24,7 @@ GLOBAL_ADDRESS = 0xFF
 
 PGN_EEC1 = 61444   # Electronic Engine Controller 1
 PGN_EEC2 = 61443   # Electronic Engine Controller 2
+PGN_EEC3 = 65247   # Electronic Engine Controller 3
 PGN_ETC2 = 61445   # Electronic Transmission Controller 2
 PGN_EBC1 = 61441   # Electronic Brake Controller 1
 PGN_CCVS1 = 65265  # Cruise Control/Vehicle Speed 1
@@ -33,7 +34,7 @@ PGN_VW = 65258     # Vehicle Weight
 PGN_CVW = 65136    # Combination Vehicle Weight
 
 PGN_NAMES = {
-    PGN_EEC1: "EEC1", PGN_EEC2: "EEC2", PGN_ETC2: "ETC2", PGN_EBC1: "EBC1", PGN_CCVS1: "CCVS1",
+    PGN_EEC1: "EEC1", PGN_EEC2: "EEC2", PGN_EEC3: "EEC3", PGN_ETC2: "ETC2", PGN_EBC1: "EBC1", PGN_CCVS1: "CCVS1",
     PGN_LFE: "LFE", PGN_EC1: "EC1", PGN_VW: "VW", PGN_CVW: "CVW", PGN_REQUEST: "RQST",
     PGN_TP_CM: "TP.CM", PGN_TP_DT: "TP.DT",
 }
@@ -96,6 +97,8 @@ SPNS: dict[str, Spn] = {s.name: s for s in (
     Spn(512, "driver_demand_torque_pct", PGN_EEC1, 2, 1, 8, 1.0, -125.0, "%"),
     Spn(513, "actual_engine_torque_pct", PGN_EEC1, 3, 1, 8, 1.0, -125.0, "%"),
     Spn(190, "engine_speed_rpm", PGN_EEC1, 4, 1, 16, 0.125, 0.0, "rpm"),
+    Spn(514, "nominal_friction_torque_pct", PGN_EEC3, 1, 1, 8, 1.0, -125.0, "%"),
+    Spn(2978, "parasitic_loss_torque_pct", PGN_EEC3, 5, 1, 8, 1.0, -125.0, "%"),
     Spn(91, "accelerator_pedal_pct", PGN_EEC2, 2, 1, 8, 0.4, 0.0, "%"),
     Spn(92, "engine_load_pct", PGN_EEC2, 3, 1, 8, 1.0, 0.0, "%"),
     Spn(524, "selected_gear", PGN_ETC2, 1, 1, 8, 1.0, -125.0, ""),
