@@ -27,7 +27,7 @@ def _random_problem(n=400, seed=0):
     z[rng.random((n, 4)) < 0.2] = np.nan
     r = np.column_stack([np.full(n, 0.01), np.full(n, 9.0), np.full(n, 0.0025), np.full(n, 25.0)])
     dt = rng.uniform(0.4, 2.0, n)
-    params = np.array([10.0, 1e-7, 1e-8, 1e-8, 5.0, 300.0, 9.81])
+    params = np.array([10.0, 1e-7, 1e-8, 1e-8, 5.0, 300.0, 9.81, 0.0])
     x0 = np.array([z[np.isfinite(z[:, 1]), 1][0], 0, 0, 0, 0, 0])
     p0 = np.diag([1e4, 0.01, 1e4, 1e-4, 0.25, 25.0])
     step = np.zeros((n, kalman.N_STATES))
@@ -51,9 +51,9 @@ def test_kernel_equals_reference_and_recovers_the_gradient():
 
 
 def test_kernel_with_the_scale_state_equals_reference_and_finds_each_segments_scale():
-    """The optional 7th state k scales the IMU channel: z = e^k (g sin γ + u) - u + b, u the
+    """The optional 8th state k scales the IMU channel: z = e^k (g sin γ + u) - u + b, u the
     regressor (dv/dt + g c_r), and restarts at a new segment: two segments with e^k = 1.10 and
-    0.95 are found to 0.02, each independent of the other."""
+    0.95 are found to 0.02, each independent of the other. The bias rate beside it is pinned."""
     (z, r, dt, step, params, x0, p0), gamma = _random_problem()
     n = len(dt)
     rng = np.random.default_rng(1)
@@ -62,20 +62,73 @@ def test_kernel_with_the_scale_state_equals_reference_and_finds_each_segments_sc
     factor = np.where(np.arange(n) < n // 2, 1.10, 0.95)
     z = z.copy()
     z[:, kalman.IMU] += (factor - 1) * (9.81 * gamma / np.sqrt(1 + gamma ** 2) + np.nan_to_num(regressor))
-    step7 = np.zeros((n, kalman.N_STATES_WITH_SCALE))
-    step7[:, :kalman.N_STATES] = step
-    step7[n // 2, kalman.SCALE] = 0.2 ** 2
-    x07, p07 = np.append(x0, 0.0), np.zeros((kalman.N_STATES_WITH_SCALE,) * 2)
-    p07[:kalman.N_STATES, :kalman.N_STATES] = p0
-    p07[kalman.SCALE, kalman.SCALE] = 0.2 ** 2
-    fast = kalman.smooth(z, r, dt, step7, params, x07, p07, True, regressor)
-    slow = kalman.smooth_reference(z, r, dt, step7, params, x07, p07, regressor)
+    step8 = np.zeros((n, kalman.N_STATES_WITH_SCALE))
+    step8[:, :kalman.N_STATES] = step
+    step8[n // 2, kalman.SCALE] = 0.2 ** 2
+    x08, p08 = np.append(x0, [0.0, 0.0]), np.zeros((kalman.N_STATES_WITH_SCALE,) * 2)
+    p08[:kalman.N_STATES, :kalman.N_STATES] = p0
+    p08[kalman.SCALE, kalman.SCALE] = 0.2 ** 2
+    fast = kalman.smooth(z, r, dt, step8, params, x08, p08, True, regressor)
+    slow = kalman.smooth_reference(z, r, dt, step8, params, x08, p08, regressor)
     for a, b in zip(fast, slow):
         np.testing.assert_allclose(a, b, rtol=1e-7, atol=1e-9)
     found = np.exp(fast[0][:, kalman.SCALE])
     assert np.allclose(found[:n // 2], found[0]) and np.allclose(found[n // 2:], found[-1])
     assert abs(found[0] - 1.10) < 0.02 and abs(found[-1] - 0.95) < 0.02
     assert np.sqrt(np.mean((fast[0][:, kalman.GAMMA] - gamma) ** 2)) < 0.002
+
+
+def _with_bias_rate(x0, p0, sigma_mps3):
+    """The 6-state prior with the bias rate appended (prior 0, sigma ``sigma_mps3``)."""
+    x07, p07 = np.append(x0, 0.0), np.zeros((kalman.N_STATES_WITH_BIAS_RATE,) * 2)
+    p07[:kalman.N_STATES, :kalman.N_STATES] = p0
+    p07[kalman.BIAS_RATE, kalman.BIAS_RATE] = sigma_mps3 ** 2
+    return x07, p07
+
+
+def test_kernel_with_the_bias_rate_equals_reference_and_follows_a_warm_up():
+    """The optional 7th state ḃ: b' = b + Δt ḃ over the clock time Δt, ḃ an integrated random
+    walk. The IMU's bias rises by 0.25 m/s² along an exponential warm-up that goes on through
+    two standstills (clock time beyond the driving time); the smoothed bias follows it to 0.02
+    m/s², closer than the bias's random walk alone, and kernel and reference agree."""
+    (z, r, dt, step, params, x0, p0), gamma = _random_problem(n=1500)
+    n = len(dt)
+    clock = dt.copy()
+    clock[[500, 1000]] += 600.0
+    warm_up = 0.25 * (1 - np.exp(-np.cumsum(clock) / 1800.0))
+    z = z.copy()
+    z[:, kalman.IMU] += warm_up
+    params = params.copy()
+    params[kalman.PARAMETERS.index("bias_rate_psd")] = 1e-13
+    x07, p07 = _with_bias_rate(x0, p0, 1.2e-4)
+    step7 = np.zeros((n, kalman.N_STATES_WITH_BIAS_RATE))
+    step7[:, :kalman.N_STATES] = step
+    fast = kalman.smooth(z, r, dt, step7, params, x07, p07, True, None, clock)
+    slow = kalman.smooth_reference(z, r, dt, step7, params, x07, p07, None, clock)
+    for a, b in zip(fast, slow):
+        np.testing.assert_allclose(a, b, rtol=1e-7, atol=1e-9)
+    x, steady = fast[0], kalman.smooth(z, r, dt, step, params, x0, p0)[0]
+    error = {name: np.max(np.abs(states[:, kalman.BIAS] - 0.2 - warm_up)) for name, states in
+             (("rate", x), ("walk", steady))}
+    assert error["rate"] < 0.02 and error["rate"] < 0.5 * error["walk"], error
+    assert np.sqrt(np.mean((x[:, kalman.GAMMA] - gamma) ** 2)) < 0.002
+
+
+def test_a_pinned_bias_rate_leaves_the_six_state_estimate_as_it_is():
+    """A bias rate with zero prior variance and no random walk (the slot beside the scale state)
+    is pinned at 0: every other state's estimate, covariance and innovation is the 6-state one."""
+    (z, r, dt, step, params, x0, p0), _ = _random_problem()
+    n = len(dt)
+    x07, p07 = _with_bias_rate(x0, p0, 0.0)
+    step7 = np.zeros((n, kalman.N_STATES_WITH_BIAS_RATE))
+    step7[:, :kalman.N_STATES] = step
+    six = kalman.smooth(z, r, dt, step, params, x0, p0)
+    for smooth in (kalman.smooth, kalman.smooth_reference):
+        seven = smooth(z, r, dt, step7, params, x07, p07)
+        np.testing.assert_allclose(seven[0][:, :kalman.N_STATES], six[0], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(seven[1][:, :kalman.N_STATES, :kalman.N_STATES], six[1], rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(seven[2], six[2], rtol=1e-9, atol=1e-12)
+        assert np.all(seven[0][:, kalman.BIAS_RATE] == 0) and np.all(seven[1][:, kalman.BIAS_RATE] == 0)
 
 
 @pytest.fixture(scope="module")

@@ -245,7 +245,7 @@ class GradientSmoother:
 
     def _params(self):
         return np.array([self.m.spacing_m, self.curvature_psd, self.s.drift_rate_psd, self.bias_psd,
-                         self.dem_sigma_m, self.dem_correlation_m, G_MPS2])
+                         self.dem_sigma_m, self.dem_correlation_m, G_MPS2, 0.0])
 
     def _prior(self, z):
         def first(column):
@@ -259,6 +259,8 @@ class GradientSmoother:
         x0[kalman.DRIFT] = baro - height if np.isfinite(baro) else 0.0
         variances = [100.0 ** 2, 0.1 ** 2, 100.0 ** 2, 0.01 ** 2, self.s.imu_bias_prior_sigma_mps2 ** 2,
                      self.dem_sigma_m ** 2]
+        if self.n_states > kalman.BIAS_RATE:
+            variances.append(0.0)
         if self.scaled:
             variances.append(max(float(self.m.imu_scale_reset_var[0]), 1e-12))
         return x0, np.diag(variances)
