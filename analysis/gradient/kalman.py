@@ -1,7 +1,8 @@
 """Road height and gradient as a state-space smoother over distance: forward (extended) Kalman
 filter and backward Rauch-Tung-Striebel pass on the distance grid.
 
-State per grid point i (spacing Δ [m], time dt_i [s] spent since the previous point):
+State per grid point i (spacing Δ [m], driving time dt_i [s] since the previous point, and clock
+time Δt_i [s], standstills included, for the bias rate):
 
     x = [h, γ, d, r, b, e(, ḃ(, k))]
     h  road height [m]                 h' = h + Δ γ
@@ -10,12 +11,11 @@ State per grid point i (spacing Δ [m], time dt_i [s] spent since the previous p
     r  its rate [m/s]                  r' = r + w_r        (drift rate random walk, PSD q_r)
     b  IMU bias [m/s²]                 b' = b + Δt ḃ + w_b (mounting pitch g·sin δ plus accelerometer bias)
     e  DEM error at the fixes [m]      e' = φ e + w_e      (Gauss-Markov, φ = exp(-Δ/L), var σ_e²)
-    ḃ  the bias's rate [m/s³]          ḃ' = ḃ + w_ḃ        (optional 7th state, PSD q_ḃ over Δt, the clock
-                                                          time since the previous point, standstills
-                                                          included: an IMU warming up with the cab
-                                                          moves its bias along a smooth ramp, which a
-                                                          random walk on b follows only by trading
-                                                          with the gradient)
+    ḃ  the bias's rate [m/s³]          ḃ' = ḃ + w_ḃ        (optional 7th state, integrated random walk,
+                                                          PSD q_ḃ over Δt: an IMU warming up with the
+                                                          cab moves its bias along a smooth ramp,
+                                                          which a random walk on b follows only by
+                                                          trading with the gradient)
     k  log scale of the IMU channel    k' = k, or a fresh  (optional 8th state: the force balance's
        [-] (mass or torque gain)       draw at a reset     log(m_true/m), constant per mass segment)
 
