@@ -13,7 +13,8 @@ from ..errors import UserError
 from ..geodesy import local_east_north_m
 from . import grid as distance_grid
 from . import kalman, sources
-from .smoother import KNOWN_BIAS_MPS2, GradientSmoother, Measurements, SmootherSettings, bin_times, standstill_bins
+from .smoother import (KNOWN_BIAS_MPS2, GradientSmoother, Measurements, SmootherSettings, bin_times, clock_times,
+                       standstill_bins)
 
 METHODS = ("smoother", "paper")
 
@@ -265,9 +266,10 @@ def _measurements(frame, index, n_bins, time_s, bin_baro, map_bins, map_accuracy
         notes.append(f"no GPS altitude on {100 * missing_gps:.0f} % of the distance (outages): "
                      f"barometer and IMU carry the profile there")
     speed = frame["speed_mps"].to_numpy(dtype=float)
-    return Measurements(z=z, count=count, h_acc_m=h_acc, v_acc_m=v_acc,
-                        dt_s=bin_times(index, speed, n_bins, settings.spacing_m), spacing_m=settings.spacing_m,
-                        stopped=standstill_bins(index, speed, n_bins), imu_scale_var=imu_scale_var,
+    dt = bin_times(index, speed, n_bins, settings.spacing_m)
+    return Measurements(z=z, count=count, h_acc_m=h_acc, v_acc_m=v_acc, dt_s=dt, spacing_m=settings.spacing_m,
+                        stopped=standstill_bins(index, speed, n_bins), clock_s=clock_times(index, time_s, dt),
+                        imu_scale_var=imu_scale_var,
                         imu_scale_regressor=scale_regressor, imu_scale_reset_var=scale_reset_var)
 
 

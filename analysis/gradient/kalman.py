@@ -1,17 +1,27 @@
 """Road height and gradient as a state-space smoother over distance: forward (extended) Kalman
 filter and backward Rauch-Tung-Striebel pass on the distance grid.
 
-State per grid point i (spacing Δ [m], time dt_i [s] spent since the previous point):
+State per grid point i (spacing Δ [m], driving time dt_i [s] since the previous point, and clock
+time Δt_i [s], standstills included, for the bias rate):
 
-    x = [h, γ, d, r, b, e(, k)]
+    x = [h, γ, d, r, b, e(, ḃ(, k))]
     h  road height [m]                 h' = h + Δ γ
     γ  gradient dh/ds [-]              γ' = γ + w_γ        (integrated random walk, curvature PSD q_c)
     d  barometric offset [m]           d' = d + dt r       (weather drift and the sensor's own height)
     r  its rate [m/s]                  r' = r + w_r        (drift rate random walk, PSD q_r)
-    b  IMU bias [m/s²]                 b' = b + w_b        (mounting pitch g·sin δ plus accelerometer bias)
+    b  IMU bias [m/s²]                 b' = b + Δt ḃ + w_b (mounting pitch g·sin δ plus accelerometer bias)
     e  DEM error at the fixes [m]      e' = φ e + w_e      (Gauss-Markov, φ = exp(-Δ/L), var σ_e²)
-    k  log scale of the IMU channel    k' = k, or a fresh  (optional 7th state: the force balance's
+    ḃ  the bias's rate [m/s³]          ḃ' = ḃ + w_ḃ        (optional 7th state, integrated random walk,
+                                                          PSD q_ḃ over Δt: an IMU warming up with the
+                                                          cab moves its bias along a smooth ramp,
+                                                          which a random walk on b follows only by
+                                                          trading with the gradient)
+    k  log scale of the IMU channel    k' = k, or a fresh  (optional 8th state: the force balance's
        [-] (mass or torque gain)       draw at a reset     log(m_true/m), constant per mass segment)
+
+With 6 states b is a random walk alone. The scale state comes with the rate's slot: without a
+bias rate that is pinned (zero prior variance and q_ḃ = 0), which leaves every other state's
+estimate as it is; the RTS pass gives a pinned state no correction.
 
 Measurements (columns of ``z``; NaN = none in that bin):
 
@@ -39,43 +49,55 @@ import numpy as np
 from ..small_linalg import cholesky, cholesky_solve
 
 N_STATES = 6
-"""States without the optional scale state; with it, ``x0`` has `N_STATES_WITH_SCALE`."""
-N_STATES_WITH_SCALE = 7
+"""States without the optional ones; with the bias rate ``x0`` has `N_STATES_WITH_BIAS_RATE`, with
+the scale state `N_STATES_WITH_SCALE`."""
+N_STATES_WITH_BIAS_RATE = 7
+N_STATES_WITH_SCALE = 8
 N_MEASUREMENTS = 4
-H, GAMMA, DRIFT, RATE, BIAS, DEM_ERROR, SCALE = range(N_STATES_WITH_SCALE)
+H, GAMMA, DRIFT, RATE, BIAS, DEM_ERROR, BIAS_RATE, SCALE = range(N_STATES_WITH_SCALE)
 BARO, DEM, IMU, GPS = range(N_MEASUREMENTS)
-PARAMETERS = ("spacing_m", "curvature_psd", "drift_rate_psd", "bias_psd", "dem_sigma_m", "dem_correlation_m", "g")
+PARAMETERS = ("spacing_m", "curvature_psd", "drift_rate_psd", "bias_psd", "dem_sigma_m", "dem_correlation_m", "g",
+              "bias_rate_psd")
 
 
-def _transition(spacing, dt, phi, ns=N_STATES, reset=False):
+def _transition(spacing, dt, phi, ns=N_STATES, reset=False, clock=0.0):
     f = np.eye(ns)
     f[H, GAMMA] = spacing
     f[DRIFT, RATE] = dt
     f[DEM_ERROR, DEM_ERROR] = phi
+    if ns > BIAS_RATE:
+        f[BIAS, BIAS_RATE] = clock
     if ns > SCALE and reset:
         f[SCALE, SCALE] = 0.0
     return f
 
 
-def _process_noise(spacing, dt, q_c, q_r, q_b, dem_var, phi, ns=N_STATES):
+def _process_noise(spacing, dt, q_c, q_r, q_b, dem_var, phi, ns=N_STATES, q_bdot=0.0, clock=0.0):
     q = np.zeros((ns, ns))
     q[H, H], q[H, GAMMA], q[GAMMA, GAMMA] = q_c * spacing ** 3 / 3, q_c * spacing ** 2 / 2, q_c * spacing
     q[GAMMA, H] = q[H, GAMMA]
     q[DRIFT, DRIFT], q[DRIFT, RATE], q[RATE, RATE] = q_r * dt ** 3 / 3, q_r * dt ** 2 / 2, q_r * dt
     q[RATE, DRIFT] = q[DRIFT, RATE]
     q[BIAS, BIAS] = q_b * dt
+    if ns > BIAS_RATE:
+        q[BIAS, BIAS] += q_bdot * clock ** 3 / 3
+        q[BIAS, BIAS_RATE] = q[BIAS_RATE, BIAS] = q_bdot * clock ** 2 / 2
+        q[BIAS_RATE, BIAS_RATE] = q_bdot * clock
     q[DEM_ERROR, DEM_ERROR] = dem_var * (1 - phi * phi)
     return q
 
 
-def smooth_reference(z, r, dt, step, params, x0, p0, regressor=None):
+def smooth_reference(z, r, dt, step, params, x0, p0, regressor=None, clock=None):
     """Forward EKF + RTS smoother, matrix form. ``z``, ``r``: (n, 4) measurements and their
-    variances; ``dt``: (n,) seconds between grid points; ``step``: (n, ns) extra process variance
-    added to the diagonal on the way into each point (for the scale state: its reset variance);
-    ``params`` as `PARAMETERS`; ``x0``, ``p0``: prior of the first point, ns = 6 states, or 7 with
-    the scale state, whose ``regressor`` u (n,) is then needed (NaN: 0). Returns (smoothed
+    variances; ``dt``: (n,) seconds of driving between grid points; ``step``: (n, ns) extra process
+    variance added to the diagonal on the way into each point (for the scale state: its reset
+    variance); ``params`` as `PARAMETERS`; ``x0``, ``p0``: prior of the first point, ns = 6 states,
+    7 with the bias rate, or 8 with the scale state, whose ``regressor`` u (n,) is then needed
+    (NaN: 0); a state with zero prior variance and no process noise (the bias rate beside the scale
+    state) stays pinned at its prior; ``clock``: (n,) seconds of clock time between the grid
+    points, standstills included, over which the bias rate acts (None: ``dt``). Returns (smoothed
     states (n, ns), smoothed covariances (n, ns, ns), innovations (n, 4), innovation variances (n, 4))."""
-    spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g = params
+    spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g, q_bdot = params
     n = len(dt)
     ns = len(x0)
     phi = np.exp(-spacing / dem_corr)
@@ -84,12 +106,14 @@ def smooth_reference(z, r, dt, step, params, x0, p0, regressor=None):
     innovation, innovation_var = np.full((n, N_MEASUREMENTS), np.nan), np.full((n, N_MEASUREMENTS), np.nan)
     x, p = np.array(x0, dtype=float), np.array(p0, dtype=float)
     u = np.zeros(n) if regressor is None else np.nan_to_num(np.asarray(regressor, dtype=float))
+    clock = dt if clock is None else clock
     resets = np.zeros(n, bool) if ns <= SCALE else step[:, SCALE] > 0
     for i in range(n):
         if i > 0:
-            f = _transition(spacing, dt[i], phi, ns, resets[i])
+            f = _transition(spacing, dt[i], phi, ns, resets[i], clock[i])
             x = f @ x
-            p = f @ p @ f.T + _process_noise(spacing, dt[i], q_c, q_r, q_b, dem_sigma ** 2, phi, ns) + np.diag(step[i])
+            p = (f @ p @ f.T + _process_noise(spacing, dt[i], q_c, q_r, q_b, dem_sigma ** 2, phi, ns, q_bdot, clock[i])
+                 + np.diag(step[i]))
         x_pred[i], p_pred[i] = x, p
         gamma = x[GAMMA]
         rows = np.zeros((N_MEASUREMENTS, ns))
@@ -119,27 +143,37 @@ def smooth_reference(z, r, dt, step, params, x0, p0, regressor=None):
         x_filt[i], p_filt[i] = x, p
     x_s, p_s = x_filt.copy(), p_filt.copy()
     for i in range(n - 2, -1, -1):
-        f = _transition(spacing, dt[i + 1], phi, ns, resets[i + 1])
-        c = np.linalg.solve(p_pred[i + 1], f @ p_filt[i]).T
+        f = _transition(spacing, dt[i + 1], phi, ns, resets[i + 1], clock[i + 1])
+        free = np.ix_(np.diag(p_pred[i + 1]) > 0, np.diag(p_pred[i + 1]) > 0)
+        c = np.zeros((ns, ns))
+        c[free] = np.linalg.solve(p_pred[i + 1][free], (f @ p_filt[i])[free]).T
         x_s[i] = x_filt[i] + c @ (x_s[i + 1] - x_pred[i + 1])
         p_s[i] = p_filt[i] + c @ (p_s[i + 1] - p_pred[i + 1]) @ c.T
     return x_s, p_s, innovation, innovation_var
 
 
 @numba.njit(cache=True)
-def _predict(x, p, spacing, dt, phi, q_c, q_r, q_b, dem_var):
-    """x, p <- F x, F p F^T + Q in place, using F's sparsity (three off-identity entries)."""
+def _predict(x, p, spacing, dt, clock, phi, q_c, q_r, q_b, q_bdot, dem_var):
+    """x, p <- F x, F p F^T + Q in place, using F's sparsity (three off-identity entries, four with
+    the bias rate)."""
+    rated = p.shape[0] > BIAS_RATE
     x[H] += spacing * x[GAMMA]
     x[DRIFT] += dt * x[RATE]
     x[DEM_ERROR] *= phi
+    if rated:
+        x[BIAS] += clock * x[BIAS_RATE]
     for j in range(p.shape[0]):  # rows: P <- F P
         p[H, j] += spacing * p[GAMMA, j]
         p[DRIFT, j] += dt * p[RATE, j]
         p[DEM_ERROR, j] *= phi
+        if rated:
+            p[BIAS, j] += clock * p[BIAS_RATE, j]
     for i in range(p.shape[0]):  # columns: (F P) F^T
         p[i, H] += spacing * p[i, GAMMA]
         p[i, DRIFT] += dt * p[i, RATE]
         p[i, DEM_ERROR] *= phi
+        if rated:
+            p[i, BIAS] += clock * p[i, BIAS_RATE]
     p[H, H] += q_c * spacing ** 3 / 3
     p[H, GAMMA] += q_c * spacing ** 2 / 2
     p[GAMMA, H] += q_c * spacing ** 2 / 2
@@ -149,6 +183,11 @@ def _predict(x, p, spacing, dt, phi, q_c, q_r, q_b, dem_var):
     p[RATE, DRIFT] += q_r * dt ** 2 / 2
     p[RATE, RATE] += q_r * dt
     p[BIAS, BIAS] += q_b * dt
+    if rated:
+        p[BIAS, BIAS] += q_bdot * clock ** 3 / 3
+        p[BIAS, BIAS_RATE] += q_bdot * clock ** 2 / 2
+        p[BIAS_RATE, BIAS] += q_bdot * clock ** 2 / 2
+        p[BIAS_RATE, BIAS_RATE] += q_bdot * clock
     p[DEM_ERROR, DEM_ERROR] += dem_var * (1 - phi * phi)
 
 
@@ -163,18 +202,23 @@ def _reset_scale(x, p, variance):
 
 
 @numba.njit(cache=True)
-def smooth(z, r, dt, step, params, x0, p0, backward=True, regressor=None):
+def smooth(z, r, dt, step, params, x0, p0, backward=True, regressor=None, clock=None):
     """`smooth_reference` as a numba kernel (same arguments and results); ``backward=False``
     stops after the forward filter (filtered states; innovations for a likelihood)."""
-    spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g = (params[0], params[1], params[2], params[3], params[4],
-                                                      params[5], params[6])
+    spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g, q_bdot = (params[0], params[1], params[2], params[3],
+                                                              params[4], params[5], params[6], params[7])
     n = len(dt)
     ns = x0.shape[0]
+    rated = ns > BIAS_RATE
     scaled = ns > SCALE
     u = np.zeros(n)
     if regressor is not None:
         for i in range(n):
             u[i] = regressor[i] if np.isfinite(regressor[i]) else 0.0
+    elapsed = dt.copy()
+    if clock is not None:
+        for i in range(n):
+            elapsed[i] = clock[i]
     phi = np.exp(-spacing / dem_corr)
     dem_var = dem_sigma * dem_sigma
     x_pred, p_pred = np.empty((n, ns)), np.empty((n, ns, ns))
@@ -186,7 +230,7 @@ def smooth(z, r, dt, step, params, x0, p0, backward=True, regressor=None):
     pr = np.zeros(ns)
     for i in range(n):
         if i > 0:
-            _predict(x, p, spacing, dt[i], phi, q_c, q_r, q_b, dem_var)
+            _predict(x, p, spacing, dt[i], elapsed[i], phi, q_c, q_r, q_b, q_bdot, dem_var)
             for a in range(N_STATES):
                 p[a, a] += step[i, a]
             if scaled and step[i, SCALE] > 0:
@@ -255,9 +299,12 @@ def smooth(z, r, dt, step, params, x0, p0, backward=True, regressor=None):
             fp[H, j] += spacing * fp[GAMMA, j]
             fp[DRIFT, j] += dti * fp[RATE, j]
             fp[DEM_ERROR, j] *= phi
+            if rated:
+                fp[BIAS, j] += elapsed[i + 1] * fp[BIAS_RATE, j]
             if scaled and step[i + 1, SCALE] > 0:
                 fp[SCALE, j] = 0.0
-        # C^T = P_pred^-1 F P_filt by Cholesky (P_pred is symmetric positive definite)
+        # C^T = P_pred^-1 F P_filt by Cholesky (P_pred is symmetric positive definite; a pinned
+        # state's zero row and column give its pivot the floor and its rows of C^T zero)
         cholesky(p_pred[i + 1], chol)
         cholesky_solve(chol, fp, c)
         for a in range(ns):

@@ -22,7 +22,7 @@ CHI2_MEDIAN_1DOF = 0.454936
 KNOWN_BIAS_MPS2 = 0.05
 """An accelerometer bias known to this [m/s²] (0.3 %-pt of gradient) needs no height source."""
 SOURCE_NAMES = ("baro", "map", "imu", "gps")
-IMU_LED_AXES = ()
+IMU_LED_AXES = ("bias_rate_psd",)
 """What the likelihood still chooses after the IMU-led EM (`GradientSmoother._imu_led_noise`) has
 chosen the curvature and the IMU noise."""
 
@@ -48,6 +48,19 @@ class SmootherSettings:
     bias_psd_candidates: tuple[float, ...] = (1e-8, 1e-7, 1e-6, 1e-5)
     """The warm-up of a cab-mounted IMU (0.5-1.5 mg/K over 15 K in half an hour) walks by
     ~1e-6 (m/s²)²/s; 1e-5 is a bias that changes by a few cm/s² within minutes."""
+    bias_rate_prior_sigma_mps3: float = 1.2e-4
+    """Prior sigma of the IMU bias's rate [m/s³] (`kalman.BIAS_RATE`): a MEMS accelerometer's
+    offset moves by up to 1.5 mg/K with temperature, and a cab warms its IMU by ~15 K with a
+    half-hour time constant, 0.5 K/min at the start: 1.5e-3 g × 8.3 mK/s. 0: no rate state."""
+    bias_rate_psd_candidates: tuple[float | None, ...] = (None, 0.0, 1e-13)
+    """Random walk of the bias's rate [(m/s³)²/s], chosen by likelihood. None: no rate state (a
+    steady bias); 0: a constant rate, a linear ramp (a warm-up over a drive shorter than the cab's
+    half hour); 1e-13: the rate changes by 1.9e-5 m/s³ in an hour, the warm-up's decay over a long
+    drive (on a 70-minute synthetic warm-up 96 % of the bins inside ±2σ with 0, 99 % with 1e-13).
+    1e-12 and faster let the rate trade with the gradient within minutes (``docs/estimation.md``)."""
+    bias_rate_probability: float = 1e-3
+    """False-alarm probability of the likelihood-ratio test (chi-square, 1 dof) a bias-rate
+    candidate must pass against the simpler one before it (the map gate's 1e-3)."""
     offset_psd: float | None = None
     """Random walk of the barometric offset d while driving [m²/s] (the cab's overpressure follows
     the ventilation's level and the airflow; a weather front is the drift rate). None: chosen per
@@ -117,6 +130,9 @@ class Measurements:
     spacing_m: float
     stopped: np.ndarray | None = None
     """(n_bins,) True where the truck stood still in the bin (None: never)."""
+    clock_s: np.ndarray | None = None
+    """(n_bins,) seconds of clock time from the previous grid point, standstills included: what an
+    IMU's temperature, and so its bias's rate (`kalman.BIAS_RATE`), runs on; None: ``dt_s``."""
     imu_scale_var: np.ndarray | None = None
     """(n_bins,) variance [m²/s⁴] the accelerometer channel's scale error adds to each bin (the
     force balance's mass or torque gain, `force_balance.scale_variance_m2ps4`), on top of its noise;
@@ -163,6 +179,25 @@ def bin_times(index: np.ndarray, speed_mps: np.ndarray, n_bins: int, spacing_m: 
         mean = np.where(count > 0, total / count, np.nan)
     typical = np.nanmedian(mean) if np.isfinite(mean).any() else 15.0
     return np.clip(spacing_m / np.where(np.isfinite(mean), mean, typical), 0.05, 60.0)
+
+
+def clock_times(index: np.ndarray, time_s: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+    """Seconds of clock time from each grid point to the next, standstills included: between the
+    first samples of neighbouring bins (interpolated over bins without samples), never less than
+    the driving time ``dt_s``."""
+    n = len(dt_s)
+    ok = (index >= 0) & (index < n) & np.isfinite(time_s)
+    first = np.full(n, np.inf)
+    np.minimum.at(first, index[ok], time_s[ok])
+    have = np.isfinite(first)
+    if have.sum() < 2:
+        return np.asarray(dt_s, dtype=float).copy()
+    grid = np.arange(n)
+    first = np.interp(grid, grid[have], first[have])
+    clock = np.empty(n)
+    clock[0] = dt_s[0]
+    clock[1:] = np.diff(first)
+    return np.fmax(clock, dt_s)
 
 
 def standstill_bins(index: np.ndarray, speed_mps: np.ndarray, n_bins: int, stop_speed_mps: float = 0.3) -> np.ndarray:
@@ -241,11 +276,28 @@ class GradientSmoother:
         self.imu_scale_var = (np.nan_to_num(measurements.imu_scale_var) if measurements.imu_scale_var is not None
                               else np.zeros(n))
         self.scaled = measurements.imu_scale_regressor is not None
-        self.n_states = kalman.N_STATES_WITH_SCALE if self.scaled else kalman.N_STATES
+        have = np.isfinite(measurements.z).any(axis=0)
+        # the bias's rate is a candidate state where an IMU carries the gradient without a barometer;
+        # with one, the barometer ties the bias down (on the matrix the likelihood took the rate on
+        # one drive of 36, its RMSE moved by 0.0003 %-pt)
+        self.rate_possible = (not settings.force_balance and settings.bias_rate_prior_sigma_mps3 > 0
+                              and have[kalman.IMU] and not have[kalman.BARO])
+        self.bias_rate_psd: float | None = None
+
+    @property
+    def rated(self) -> bool:
+        """Whether the IMU bias's rate is a state (`bias_rate_psd` chosen among
+        `SmootherSettings.bias_rate_psd_candidates`, None: not)."""
+        return self.bias_rate_psd is not None
+
+    @property
+    def n_states(self) -> int:
+        return (kalman.N_STATES_WITH_SCALE if self.scaled else
+                kalman.N_STATES_WITH_BIAS_RATE if self.rated else kalman.N_STATES)
 
     def _params(self):
         return np.array([self.m.spacing_m, self.curvature_psd, self.s.drift_rate_psd, self.bias_psd,
-                         self.dem_sigma_m, self.dem_correlation_m, G_MPS2])
+                         self.dem_sigma_m, self.dem_correlation_m, G_MPS2, self.bias_rate_psd or 0.0])
 
     def _prior(self, z):
         def first(column):
@@ -259,6 +311,8 @@ class GradientSmoother:
         x0[kalman.DRIFT] = baro - height if np.isfinite(baro) else 0.0
         variances = [100.0 ** 2, 0.1 ** 2, 100.0 ** 2, 0.01 ** 2, self.s.imu_bias_prior_sigma_mps2 ** 2,
                      self.dem_sigma_m ** 2]
+        if self.n_states > kalman.BIAS_RATE:
+            variances.append(self.s.bias_rate_prior_sigma_mps3 ** 2 if self.rated else 0.0)
         if self.scaled:
             variances.append(max(float(self.m.imu_scale_reset_var[0]), 1e-12))
         return x0, np.diag(variances)
@@ -269,10 +323,9 @@ class GradientSmoother:
             if not on:
                 z[:, column] = np.nan
         x0, p0 = self._prior(z)
-        if self.scaled:
-            return kalman.smooth(z, r, self.m.dt_s, self._steps(), self._params(), x0, p0, backward,
-                                 self.m.imu_scale_regressor)
-        return kalman.smooth(z, r, self.m.dt_s, self._steps(), self._params(), x0, p0, backward)
+        clock = self.m.clock_s if self.rated else None
+        return kalman.smooth(z, r, self.m.dt_s, self._steps(), self._params(), x0, p0, backward,
+                             self.m.imu_scale_regressor, clock)
 
     def _steps(self):
         """Extra process variance per grid point: the barometric offset's random walk while
@@ -349,6 +402,11 @@ class GradientSmoother:
             h_acc = np.nan_to_num(m.h_acc_m, nan=10.0)
             r[:, kalman.DEM] = np.where(self.gated, np.nan, white ** 2 + (s.terrain_cross_slope * h_acc) ** 2)
         x, p, _, _ = self.run(r)
+        if self.rated:
+            moved = x[-1, kalman.BIAS] - x[0, kalman.BIAS]
+            self.notes.append(f"no barometer: the IMU's bias follows a drift (warm-up) as a rate state, by "
+                              f"{moved:+.3f} m/s² over the drive (rate {60e3 * x[0, kalman.BIAS_RATE]:+.2f} mm/s² "
+                              f"per minute at the start, {60e3 * x[-1, kalman.BIAS_RATE]:+.2f} at the end)")
         weights = self._weights(r, p, have)
         # the bias's drift that the near-constant bias state does not follow, in the share of the
         # gradient the accelerometer carries
@@ -486,16 +544,20 @@ class GradientSmoother:
                           f"per bin, estimated with the profile), its bias and mounting pitch {tied}")
 
     def _bias_drift_between_blocks(self, r, bias_mps2) -> float:
-        """How far [m/s², 1-sigma] the accelerometer's bias moves away from the near-constant bias
-        the IMU-led smoother keeps (its walk stays at the floor: without a barometer the likelihood
-        cannot choose it, and a walk fitted to follow a cab's warm-up, 0.1-0.2 m/s² in half an hour,
-        let the bias trade with the gradient: the matrix's no-baro typical p95 0.108 -> 0.169 %-pt).
+        """How far [m/s², 1-sigma] the accelerometer's bias moves away from the bias the IMU-led
+        smoother keeps: near-constant (its walk stays at the floor: without a barometer the
+        likelihood cannot choose it, and a walk fitted to follow a cab's warm-up, 0.1-0.2 m/s² in
+        half an hour, let the bias trade with the gradient: the matrix's no-baro typical p95 0.108
+        -> 0.169 %-pt), or a ramp where the likelihood took the bias's rate as a state. The blocks
+        run with the same model, so with the rate they tell only the drift beyond its ramp (on the
+        matrix one drive of 24 at typical and harsh, 0.009 m/s²: nothing counted twice).
         The bias is estimated in each block of ``bias_block_s`` of driving on its own (the IMU only
-        there, GPS altitude there and over a block's length on either side); the mean square of its differences from the whole drive's
-        bias, less the blocks' own error, is the drift's variance (zero if negative). The blocks' own
-        error is the smoother's variance or, if larger, what the two halves of each block disagree
-        by: GPS altitude's errors are correlated over a block, which its variance does not see (on
-        three of the matrix's harsh drives 0.011-0.023 m/s² against a stated 0.003-0.006)."""
+        there, GPS altitude there and over a block's length on either side); the mean square of its
+        differences from the whole drive's bias, less the blocks' own error, is the drift's variance
+        (zero if negative). The blocks' own error is the smoother's variance or, if larger, what
+        the two halves of each block disagree by: GPS altitude's errors are correlated over a
+        block, which its variance does not see (on three of the matrix's harsh drives 0.011-0.023
+        m/s² against a stated 0.003-0.006)."""
         elapsed = np.cumsum(self.m.dt_s)
         halves = np.floor(2 * elapsed / self.s.bias_block_s).astype(int)
         z = self.m.z
@@ -537,7 +599,7 @@ class GradientSmoother:
         """The map-free smoother over the grid points ``part`` alone (``r`` its variances there), with
         this drive's noise levels: the cost of a block, not of the drive."""
         block = GradientSmoother(self.m.part(part), self.s)
-        block.curvature_psd, block.bias_psd = self.curvature_psd, self.bias_psd
+        block.curvature_psd, block.bias_psd, block.bias_rate_psd = self.curvature_psd, self.bias_psd, self.bias_rate_psd
         block.dem_sigma_m, block.dem_correlation_m = self.dem_sigma_m, self.dem_correlation_m
         x, p, _, _ = block.run(r, use=(True, False, True, True))
         return x, p
@@ -555,8 +617,10 @@ class GradientSmoother:
         IMU's prediction error, IMU noise from its residual, the walks fixed at 0 and 1e-8); the
         three interact: an unmodelled cab-pressure change while driving went into the height, made
         the IMU look noisy against it and the road stiffer than it is, and the stated sigma was
-        several times too small (harsh: 72 % of the bins inside ±2σ). Returns whether anything
-        changed."""
+        several times too small (harsh: 72 % of the bins inside ±2σ). The IMU bias's rate
+        (`kalman.BIAS_RATE`), where it may be a state, is one more axis, whose candidates are
+        nested models in the order given: a later one is taken only where it passes a likelihood
+        ratio test (`SmootherSettings.bias_rate_probability`). Returns whether anything changed."""
         axes = []
         if self.s.curvature_psd is None:
             axes.append(("curvature_psd", self.s.curvature_candidates))
@@ -566,6 +630,8 @@ class GradientSmoother:
             axes.append(("bias_psd", tuple(c for c in self.s.bias_psd_candidates if c >= self.s.bias_psd)))
             axes.append(("imu_noise_factor", self.s.force_balance_noise_factors if self.s.force_balance
                           else self.s.imu_noise_factors))
+        if self.rate_possible:
+            axes.append(("bias_rate_psd", self.s.bias_rate_psd_candidates))
         axes = [(name, candidates) for name, candidates in axes if name in names]
         if not axes:
             return False
@@ -578,6 +644,7 @@ class GradientSmoother:
             _, _, nu, var = self.run(r, use=use, backward=False)
             return float(-0.5 * np.nansum(np.log(var) + nu ** 2 / var))
 
+        rate_gain = chi2.ppf(1 - self.s.bias_rate_probability, 1) / 2
         start = {name: getattr(self, name) for name, _ in axes}
         best_ll = likelihood()
         for _ in range(self.s.likelihood_rounds):
@@ -589,7 +656,9 @@ class GradientSmoother:
                     kept = getattr(self, name)
                     setattr(self, name, candidate)
                     ll = likelihood()
-                    if ll > best_ll + 1e-6:
+                    nested = name == "bias_rate_psd" and candidates.index(candidate) > candidates.index(kept)
+                    gain = rate_gain if nested else 1e-6
+                    if ll > best_ll + gain:
                         best_ll, moved = ll, True
                     else:
                         setattr(self, name, kept)
