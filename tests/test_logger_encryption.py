@@ -174,25 +174,33 @@ def test_repair_survives_a_cut_anywhere(encrypted_run, fleet_key, tmp_path):
                 assert "haulprofile.logger" in names
 
 
-def test_redact_reads_encrypted_logs_and_writes_plain_copies(encrypted_run, fleet_key, tmp_path, capsys):
-    """The drive starts from standstill at 48.137 N 11.575 E: a 1 m zone there takes out its first fixes."""
+def _fixes(path) -> list[dict]:
     import json
+    with open(path, "rb") as stream:
+        return [json.loads(m.data) for _, c, m in make_reader(stream).iter_messages() if c.topic == "/gps/fix"]
+
+
+def test_redact_reads_encrypted_logs_and_writes_plain_copies(encrypted_run, fleet_key, tmp_path, capsys):
+    """The drive starts from standstill and speeds up: a zone around its first logged fix, reaching
+    half way to its last, takes out the first fixes (where the first fix falls depends on how soon
+    the GPS task ran on this machine, so the zone is placed from the log)."""
+    from haulprofile.contract.privacy import distance_m
     out, _ = encrypted_run
     identity, _, key_file = fleet_key
+    original = tmp_path / "original.mcap"
+    original.write_bytes(decrypt(next(out.glob("*.mcap.age")), identity))
+    logged = _fixes(original)
+    first, last = logged[0], logged[-1]
+    radius_m = 0.5 * distance_m(first["latitude"], first["longitude"], last["latitude"], last["longitude"])
+    assert radius_m > 0.1, "the truck moved while it was logged"
     zones = tmp_path / "zones.toml"
-    zones.write_text("[[zones]]\nname = \"depot\"\nlat = 48.137\nlon = 11.575\nradius_m = 1.0\n")
+    zones.write_text(f"[[zones]]\nname = \"depot\"\nlat = {first['latitude']!r}\nlon = {first['longitude']!r}\n"
+                     f"radius_m = {radius_m!r}\n")
     redacted = tmp_path / "redacted"
     assert main(["--identity", str(key_file), "redact", str(out), "--zones", str(zones), "--out", str(redacted)]) == 0
     (copy,) = [p for p in redacted.iterdir() if not p.name.startswith(".")]  # not the manifest
     assert copy.name.endswith(".mcap") and not copy.name.endswith(".age")
-    original = tmp_path / "original.mcap"
-    original.write_bytes(decrypt(next(out.glob("*.mcap.age")), identity))
-    fixes = {}
-    for path in (original, copy):
-        with open(path, "rb") as stream:
-            fixes[path] = [json.loads(m.data) for _, c, m in make_reader(stream).iter_messages() if c.topic == "/gps/fix"]
-    from haulprofile.contract.privacy import distance_m
-    first_outside = next(i for i, f in enumerate(fixes[original])
-                         if distance_m(48.137, 11.575, f["latitude"], f["longitude"]) > 1.0)
-    assert 0 < first_outside and fixes[copy] == fixes[original][first_outside:]
+    first_outside = next(i for i, f in enumerate(logged)
+                         if distance_m(first["latitude"], first["longitude"], f["latitude"], f["longitude"]) > radius_m)
+    assert 0 < first_outside < len(logged) and _fixes(copy) == logged[first_outside:]
     assert "1 stretch(es) in zones" in capsys.readouterr().out
