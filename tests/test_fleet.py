@@ -64,6 +64,21 @@ def test_log_statistics_hold_the_loads_reference_values():
     assert stats.totals["distance_km"] == pytest.approx(distance_km, rel=2e-3)
 
 
+def test_a_fleet_target_counts_the_stops_the_mass_stage_left_without_a_mass():
+    """A log whose mass is missing at its stops (as the mass stage leaves it) has the run's load
+    target, stops included: the walks of its chain stand there."""
+    signals = drive_signals(2, 2400.0)
+    standing = signals["speed_mps"] < 0.1
+    assert standing.mean() > 0.05
+    signals["mass_kg"] = signals["mass_kg"].where(~standing)
+    stats = log_statistics("a", signals, {}, VEHICLE)
+    assert stats.totals["loads_s"] == pytest.approx(len(signals), abs=2)
+    chain = build_chain(stats.counts)
+    fleet, run = load_target_of(stats, VEHICLE, chain), load_target(signals, VEHICLE, chain)
+    exact = [i for i, name in enumerate(LOAD_NAMES) if "power_exceeded" not in name]
+    np.testing.assert_allclose(fleet.measured[exact], run.measured[exact], rtol=1e-6)
+
+
 def test_load_target_of_a_one_log_fleet_is_the_runs_load_target():
     """The refined selection's load target from the additive statistics alone equals the one the
     run's cycle stage takes from the drive's signals: exactly where a sum carries it, within a bin of

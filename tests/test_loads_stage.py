@@ -84,3 +84,19 @@ def test_drives_at_different_rates_are_counted_on_the_coarser_rate(rigid):
     assert ratio == pytest.approx(1.0, abs=0.15)
     alone = collectives_of({"measured": fast_10hz}, rigid)["measured"]
     assert alone.duration_s == pytest.approx(1199.4)
+
+
+def test_a_stop_without_a_mass_counts_with_the_mass_the_truck_arrived_with(tmp_path, rigid):
+    """The mass stage leaves stops without a mass; the measured drive keeps them, as the generated
+    cycle, which stands at its stops, does."""
+    known = drive(1200, 1)
+    stop = (known["time_s"] >= 300) & (known["time_s"] < 480)
+    known.loc[stop, ["speed_mps", "accel_mps2"]] = 0.0
+    estimated = known.assign(mass_kg=known["mass_kg"].where(~stop))
+    summaries = []
+    for signals in (known, estimated):
+        ctx = RunContext(inputs=[], out_dir=tmp_path, vehicle=rigid, signals=signals, say=lambda _: None)
+        run(ctx, start="loads", until="loads")
+        summaries.append(ctx.summary["loads"]["measured"])
+    assert summaries[1]["duration_s"] == pytest.approx(1199.5)
+    assert summaries[1] == summaries[0]

@@ -20,7 +20,7 @@ from ..loads.bins import WIDTHS
 from ..loads.collectives import (EQUIVALENT_FREQUENCY_HZ, QUANTITIES, WOEHLER_EXPONENTS, level_crossings,
                                  rainflow_cycles, sample_durations_s)
 from ..markov import ClassWidths, TransitionCounts, count_transitions
-from ..markov.counting import CountingError
+from ..markov.counting import CountingError, with_mass_at_stops
 from ..jsonable import jsonable
 from ..vehicle import Vehicle
 from .histograms import SparseHistogram
@@ -126,10 +126,13 @@ def sum_statistics(parts: list[FleetStatistics]) -> FleetStatistics:
 
 def load_histograms(signals: pd.DataFrame, vehicle: Vehicle, bins: LoadBins) -> tuple[dict, np.ndarray, dict]:
     """Wheel-load histograms [s or cycles], damage sums per Wöhler exponent and load totals of one
-    log, on ``bins.period_s`` means (rows without mass or other inputs are left out)."""
+    log, on ``bins.period_s`` means (rows without mass or other inputs are left out; the mass
+    missing at stops is filled as the chain counts it, `with_mass_at_stops`, so the group's cycle
+    target stands at the stops its walks stand at)."""
     frame = signals[[c for c in (*LOAD_COLUMNS, "valid") if c in signals.columns]]
     if set(LOAD_COLUMNS) - set(frame.columns):
         frame = frame.iloc[:0].reindex(columns=[*LOAD_COLUMNS, "valid"])
+    frame = with_mass_at_stops(frame)
     loads = loads_of(resample_mean(frame, bins.period_s) if len(frame) else frame, vehicle)
     durations = loads["duration_s"].to_numpy()
     histograms = {f"time_at_level_{q}": SparseHistogram.of({q: loads[q]}, {q: getattr(bins, q)}, durations)

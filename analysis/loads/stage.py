@@ -12,6 +12,7 @@ import pandas as pd
 
 from ..errors import UserError
 from ..kinematics import acceleration_mps2
+from ..markov.counting import with_mass_at_stops
 from ..signals import CYCLE_SUFFIXES, missing_for, read_signals
 from ..stage import Stage
 from . import NEEDED, collectives_of
@@ -72,7 +73,7 @@ def loads_stage(ctx) -> LoadsResult | None:
     if ctx.vehicle is None:
         ctx.skip("loads", "no vehicle file")
         return None
-    drives = {"measured": ctx.signals}
+    drives = {"measured": with_mass_at_stops(ctx.signals)}
     if options.generated_file is not None:
         generated = read_signals(options.generated_file)
         if is_cycle_path(options.generated_file):

@@ -57,6 +57,16 @@ def mass_at_stops(time_s: np.ndarray, speed_mps: np.ndarray, mass_kg: np.ndarray
     return mass
 
 
+def with_mass_at_stops(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with the mass missing at its stops filled (`mass_at_stops`): the drive as the chain
+    counts it, so loads compared with a generated cycle, which stands at its stops, count the
+    measured stops too (docs/cycles.md, "Stops in the load target")."""
+    if "mass_kg" not in frame.columns or not len(frame):
+        return frame
+    return frame.assign(mass_kg=mass_at_stops(frame["time_s"].to_numpy(float), frame["speed_mps"].to_numpy(float),
+                                              frame["mass_kg"].to_numpy(float)))
+
+
 def resample_1hz(signals: pd.DataFrame, gap_s: float = GAP_S) -> pd.DataFrame:
     """Signals at whole seconds: speed and gradient linear, mass held (it changes in steps).
 

@@ -30,6 +30,7 @@ from ..loads import loads_of, median_step_s, resample_mean
 from ..loads.summary import compute, shared_edges
 from ..vehicle import Vehicle
 from .chain import Chain
+from .counting import with_mass_at_stops
 
 EXPONENTS = tuple(range(3, 9))
 POWER_SHARES = (0.05, 0.5, 0.95)
@@ -73,8 +74,12 @@ class LoadTarget:
 
 def measured_loads(signals: pd.DataFrame, vehicle: Vehicle) -> pd.DataFrame:
     """Wheel loads of the measured drive on a 1 s time base (window means, as `loads.collectives_of`
-    compares a drive with a 1 Hz cycle); acceleration from the speed where the signals have none."""
-    frame = signals
+    compares a drive with a 1 Hz cycle); acceleration from the speed where the signals have none.
+
+    The mass missing at stops is filled as the chain's counting fills it (`counting.with_mass_at_stops`):
+    a mass estimator has no estimate at standstill, and without one a stop's seconds would be left
+    out of the measured loads while the chain, and so every walk, stands there."""
+    frame = with_mass_at_stops(signals)
     if "accel_mps2" not in frame.columns or not np.isfinite(frame["accel_mps2"].to_numpy(float)).any():
         time = frame["time_s"].to_numpy(float)
         frame = frame.assign(accel_mps2=np.gradient(frame["speed_mps"].to_numpy(float), time)
