@@ -16,6 +16,7 @@ import pynmea2
 import pytest
 
 from haulprofile import contract
+from haulprofile.contract import j1939
 from haulprofile.logger.config import Config
 from haulprofile.logger.emulators.rig import record_drive
 from haulprofile.logger.emulators.signals import from_streams
@@ -73,6 +74,20 @@ def test_every_can_frame_bit_exact(logged):
     can_source = next(s for s in daemon.sources if s.name == "can")
     assert len(transmitted) == can_source.guard.sent
     assert set(transmitted["arbitration_id"].tolist()) <= can_source.guard.allowed
+
+
+def test_the_engine_reports_its_friction_and_its_accessories_torque(logged):
+    """EEC3 (PGN 65247) as the virtual truck's engine sends it, through the emulated ECU: what
+    `analyze demo` logs, so the mass there can take the accessories' torque off (SPN 2978)."""
+    arrays, _, _, columns = logged
+    received = arrays.can[(arrays.can["flags"] & contract.CAN_FLAG_TX) == 0]
+    eec3 = received[((received["arbitration_id"] >> 8) & 0x3FFFF) == j1939.PGN_EEC3]
+    assert len(eec3) >= 0.9 * DRIVE_S / 0.25
+    decoded = [j1939.decode_pgn(j1939.PGN_EEC3, bytes(d)) for d in eec3["data"]]
+    for name in ("nominal_friction_torque_pct", "parasitic_loss_torque_pct"):
+        sent = {d[name] for d in decoded}
+        assert None not in sent and sent <= set(columns[name].tolist()), name
+    assert len({d["nominal_friction_torque_pct"] for d in decoded}) > 1  # it follows the engine speed
 
 
 def test_every_imu_sample_bit_exact(logged):

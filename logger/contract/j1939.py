@@ -81,8 +81,8 @@ class Spn:
         return (1 << self.length_bits) - 1
 
     def encode_raw(self, value: float | None) -> int:
-        """Raw bits for a physical value; None is sent as "not available"."""
-        if value is None:
+        """Raw bits for a physical value; None (or NaN) is sent as "not available"."""
+        if value is None or value != value:
             return self.not_available_raw
         raw = int(round((value - self.offset) / self.resolution))
         return min(max(raw, 0), self.max_valid_raw)

@@ -18,6 +18,7 @@ from .signals import TimeSeries
 BROADCAST_PERIODS_S = {
     j1939.PGN_EEC1: 0.02,
     j1939.PGN_EEC2: 0.05,
+    j1939.PGN_EEC3: 0.25,
     j1939.PGN_CCVS1: 0.1,
     j1939.PGN_ETC2: 0.1,
     j1939.PGN_EBC1: 0.1,
