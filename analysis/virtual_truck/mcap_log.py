@@ -67,9 +67,9 @@ def can_frames(drive) -> np.ndarray:
         cache: dict[tuple, bytes] = {}
         data = []
         for values in zip(*columns):
-            key = tuple(float(v) for v in values)
+            key = tuple(None if v != v else float(v) for v in values)  # NaN: not available, and a key that matches
             if key not in cache:
-                cache[key] = j1939.encode_pgn(pgn, {name: None if v != v else v for name, v in zip(spns, key)})
+                cache[key] = j1939.encode_pgn(pgn, dict(zip(spns, key)))
             data.append(cache[key])
         times.append(frame["time_s"].to_numpy())
         ids.append(np.full(len(frame), j1939.make_id(pgn, source, priority)))
