@@ -67,6 +67,8 @@ class GpsSource(Source):
         self._raw: list[str] = []
         self._raw_t: list[int] = []
         self.last_gps_time = None
+        self._epoch_interval_ns: int | None = None
+        """Shortest UTC step seen between written fixes: the receiver's epoch interval."""
         self._reading: int | None = None
         self._last_try_ns = 0
         for key in ("lines", "fixes", "bad_checksum", "parse_errors", "skipped", "zone_epochs"):
@@ -129,6 +131,9 @@ class GpsSource(Source):
         self.emit_json(contract.GPS_FIX, fix, t_mono_ns)
         self.stats.extra["fixes"] += 1
         if fix["gps_time_utc_ns"] is not None:
+            if self.last_gps_time is not None and fix["gps_time_utc_ns"] > self.last_gps_time[1]:
+                step = fix["gps_time_utc_ns"] - self.last_gps_time[1]
+                self._epoch_interval_ns = min(step, self._epoch_interval_ns or step)
             self.last_gps_time = (t_mono_ns, fix["gps_time_utc_ns"])
 
     def _judge(self, fix: dict | None, held: list[tuple[str, int]], t_mono_ns: int | None) -> dict | None:
@@ -162,12 +167,18 @@ class GpsSource(Source):
             self._raw, self._raw_t = [], []
 
     def gps_time_now_ns(self) -> int | None:
-        """GPS UTC [ns] extrapolated to now from the last fix, if that fix is under 2 s old."""
+        """GPS UTC [ns] extrapolated to now from the last fix, if that fix is under 2 s old. With
+        privacy zones only up to the receiver's next epoch: that epoch may be waiting to be judged
+        (an epoch is judged when the next begins, later on a loaded machine) and be inside a zone,
+        whose times the file must not hold."""
         if self.last_gps_time is None:
             return None
         t_fix, utc = self.last_gps_time
         age = self.clock.monotonic_ns() - t_fix
-        return utc + age if age < 2_000_000_000 else None
+        limit = 2_000_000_000
+        if self.privacy is not None:
+            limit = min(limit, self._epoch_interval_ns or 0)
+        return utc + age if age < limit else None
 
     def _on_readable(self) -> None:
         try:
