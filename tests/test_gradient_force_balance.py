@@ -151,19 +151,19 @@ def test_coasting_in_gear_is_a_force_balance_where_the_torque_report_includes_th
     """With no brake and the clutch closed the force balance holds at any torque, the engine's
     drag included: coasting and engine braking measure the gradient too (5 of the synthetic drive's
     samples under 200 Nm were used before, 3605 now). A torque report without the drag (indicated
-    torque, 0 % in a fuel cut) keeps the mass filter's floor."""
-    from haulprofile.analysis.gradient.force_balance import reports_engine_drag
+    torque, 0 % in a fuel cut) with no friction in the log keeps the mass filter's floor."""
+    from haulprofile.analysis.engine_torque import knows_engine_drag
     vehicle = load_vehicle("rigid-18t")
     mass = drive["true_mass_kg"].to_numpy()
     torque = drive["engine_torque_nm"].to_numpy()
     virtual = virtual_accelerometer_mps2(drive.assign(gradient_pct=0.0), vehicle, mass)
     low = (torque < 200) & np.isfinite(virtual)
-    assert reports_engine_drag(drive) and low.sum() > 1000
+    assert knows_engine_drag(drive) and low.sum() > 1000
     expected = drive["accel_mps2"] + 9.81 * np.sin(np.arctan(drive["true_gradient_pct"] / 100))
     error = (virtual - expected)[low]
     assert abs(np.median(error)) < 0.02 and np.percentile(np.abs(error), 90) < 0.1
     indicated = drive.assign(engine_torque_nm=np.clip(torque, 0, None), gradient_pct=0.0)
-    assert not reports_engine_drag(indicated)
+    assert not knows_engine_drag(indicated)
     assert not np.isfinite(virtual_accelerometer_mps2(indicated, vehicle, mass)[torque < 150]).any()
 
 

@@ -31,7 +31,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from ..engine_torque import driveline_torque_nm
+from ..engine_torque import driveline_torque_nm, knows_engine_drag
 from ..errors import UserError
 from ..mass.joint import JointSettings
 from ..road_load import AIR_DENSITY_KGPM3, G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_torque_from_engine_nm
@@ -43,23 +43,6 @@ GIVEN_MASS_GAIN_UNCERTAINTY = 0.036
 (sqrt(3² + 2²) %, as `mass.joint.JointSettings`), which a weighing does not remove here."""
 ROLLING_RESISTANCE_UNCERTAINTY = 0.15
 """Relative uncertainty of a vehicle file's c_r (datasheet width, as the joint mass's prior)."""
-
-
-ENGINE_DRAG_SHARE = 0.01
-"""Share of the moving samples with a negative engine torque from which the torque report is taken
-to include the engine's drag (`reports_engine_drag`)."""
-
-
-def reports_engine_drag(frame: pd.DataFrame) -> bool:
-    """Whether the log's engine torque is the net torque, the engine's drag included: it goes below
-    zero while the wheels motor the engine (fuel cut in gear). J1939's actual torque (SPN 513) can
-    also be the indicated torque, 0 % in a fuel cut with the friction in SPN 514; then a low
-    torque is not the force at the wheel."""
-    if "engine_torque_nm" not in frame.columns:
-        return False
-    torque = frame["engine_torque_nm"].to_numpy(dtype=float)
-    moving = frame["speed_mps"].to_numpy(dtype=float) > 1.0
-    return bool(moving.any() and np.mean(torque[moving] < 0) >= ENGINE_DRAG_SHARE)
 
 
 def _force_filter(coasting: bool):
@@ -74,12 +57,12 @@ def virtual_accelerometer_mps2(frame: pd.DataFrame, vehicle, mass_kg: np.ndarray
     """a_virtual [m/s²] per sample (NaN where the data filter rejects the sample or the mass is
     unknown): what a longitudinal accelerometer would read, from the force balance, on every sample
     with no brake, no shift and the clutch closed. With ``coasting`` and a torque report that
-    includes the engine's drag (`reports_engine_drag`) that is also where the truck coasts or
+    includes the engine's drag (`engine_torque.knows_engine_drag`) that is also where the truck coasts or
     engine-brakes in gear: there the force is small, so a mass error k moves the reading by only
     k (F_wheel - F_aero)/m (on the urban drives of the matrix half the distance the truck moves
     without braking had a torque under the mass filter's 200 Nm)."""
     from ..mass.regression import build_regression
-    regression = build_regression(frame, vehicle, _force_filter(coasting and reports_engine_drag(frame)))
+    regression = build_regression(frame, vehicle, _force_filter(coasting and knows_engine_drag(frame)))
     rolling = G_MPS2 * vehicle.rolling_resistance_coefficient * regression.cos_angle
     with np.errstate(invalid="ignore", divide="ignore"):
         value = regression.y / np.asarray(mass_kg, dtype=float) - rolling

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..engine_torque import SUBTRACTED, driveline_torque_nm, torque_used
+from ..engine_torque import REPORTED, driveline_torque_nm, torque_used
 from ..road_load import G_MPS2
 from . import calibration
 from .joint import JointFit, JointSettings, aux_power_regressor, fit_joint, offset_regressor, wind_regressors
@@ -112,8 +112,8 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     if wind is not None:
         notes.append("the drive's wind fitted with the masses from the heading along the GPS track")
     engine_torque = torque_used(frame)
-    if engine_torque == SUBTRACTED:
-        notes.append(f"engine torque: {SUBTRACTED} (SPN 2978, what the engine says its fan and compressor take)")
+    if engine_torque != REPORTED:
+        notes.append(f"engine torque: {engine_torque}")
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
                               columns, max_mass, notes, segment_settings, wind,
                               offset, aux)

@@ -55,6 +55,9 @@ class Realism:
     (EEC3 SPN 2978), uniform within ± this, drawn for each of the two."""
     parasitic_report: str = "estimate"
     """What the engine sends as SPN 2978: ``estimate``, ``zero`` (a constant 0 %) or ``not available``."""
+    torque_report: str = "net"
+    """The form of the engine's torque report (SPN 513): ``net`` of its friction (negative in a fuel
+    cut), or ``indicated`` as J1939-71 defines it (friction included, 0 % in a fuel cut)."""
     # environment and load
     wind_mps: float = 0.0
     wind_gust_mps: float = 0.0
@@ -91,6 +94,9 @@ HARSH = Realism(
 
 PRESETS = {"ideal": IDEAL, "typical": TYPICAL, "harsh": HARSH}
 PARASITIC_REPORTS = ("estimate", "zero", "not available")
+TORQUE_REPORTS = ("net", "indicated")
+CHOICES = {"parasitic_report": PARASITIC_REPORTS, "torque_report": TORQUE_REPORTS}
+"""The fields that name one of a few forms, with their choices."""
 
 SIZE_FIELDS = tuple(f.name for f in fields(Realism) if f.type in ("float", float))
 _UPPER = {"dem_shift_cells": 3.0, "dem_void_fraction": 0.5, "imu_mount_pitch_deg": 10.0,
@@ -108,12 +114,11 @@ def realism_level(level: str | Realism = "ideal", **sizes) -> Realism:
     else:
         raise UserError(f"unknown realism level {level!r} (known: {', '.join(LEVELS)})")
     for name, value in sizes.items():
-        if name not in SIZE_FIELDS and name not in ("terrain_first", "trailer_change", "parasitic_report"):
+        if name not in SIZE_FIELDS and name not in ("terrain_first", "trailer_change") and name not in CHOICES:
             raise UserError(f"realism: unknown error size {name!r} (known: {', '.join(SIZE_FIELDS)})")
-        if name == "parasitic_report":
-            if value not in PARASITIC_REPORTS:
-                raise UserError(f"realism.parasitic_report: expected one of {', '.join(PARASITIC_REPORTS)}, "
-                                f"got {value!r}")
+        if name in CHOICES:
+            if value not in CHOICES[name]:
+                raise UserError(f"realism.{name}: expected one of {', '.join(CHOICES[name])}, got {value!r}")
         elif name in SIZE_FIELDS:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value:
                 raise UserError(f"realism.{name}: expected a number, got {value!r}")

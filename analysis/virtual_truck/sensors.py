@@ -82,14 +82,34 @@ def parasitic_torque_nm(states, times: np.ndarray, compressor_gain: float = 1.0,
             + fan_gain * _held(states, "aux_fan_torque_nm", times))
 
 
+def friction_torque_nm(engine_speed_rpm: np.ndarray, vehicle) -> np.ndarray:
+    """The engine's friction [Nm, positive] at each speed: its motoring torque in a fuel cut."""
+    engine, ref = vehicle.engine, vehicle.engine_reference_torque_nm
+    return -np.array([drag_torque_nm(r, ref, engine.idle_speed_rpm, engine.max_speed_rpm) for r in engine_speed_rpm])
+
+
+def report_indicated_torque(engine_stream: pd.DataFrame, states, vehicle) -> dict:
+    """Turn EEC1's torque report (SPN 513) into J1939-71's own form, the indicated torque: the
+    friction EEC3 sends (SPN 514, same rounding) added, never below zero, and exactly 0 % in a fuel
+    cut (no fuel, no torque to model, whatever the report's error under load). The real idling
+    CANedge recording's engine reports so (6.6-7.4 % at idle with 5 % friction)."""
+    ref = vehicle.engine_reference_torque_nm
+    t = engine_stream["time_s"].to_numpy()
+    friction = friction_torque_nm(_held(states, "engine_speed_rpm", t), vehicle)
+    simulated = "wheel_engine_torque_nm" if "wheel_engine_torque_nm" in states else "engine_torque_nm"
+    fuel_cut = _held(states, simulated, t) <= 1.0 - friction
+    indicated = np.clip(engine_stream["actual_engine_torque_pct"] + np.round(friction / ref * 100), 0, 125)
+    engine_stream["actual_engine_torque_pct"] = np.where(fuel_cut, 0.0, indicated)
+    return {"torque_report": "indicated"}
+
+
 def engine_losses(states, vehicle, times: np.ndarray) -> pd.DataFrame:
     """EEC3 (4 Hz): the nominal friction (SPN 514), the engine's motoring torque at its speed, the
     one the simulation drags the truck with, so that the torque report (SPN 513, net of it) and the
     friction add up to the indicated torque; and the accessories' torque (SPN 2978) as the engine
     controller estimates it; both in 1 % of the reference torque."""
-    engine, ref = vehicle.engine, vehicle.engine_reference_torque_nm
-    rpm = _held(states, "engine_speed_rpm", times)
-    friction = -np.array([drag_torque_nm(r, ref, engine.idle_speed_rpm, engine.max_speed_rpm) for r in rpm])
+    ref = vehicle.engine_reference_torque_nm
+    friction = friction_torque_nm(_held(states, "engine_speed_rpm", times), vehicle)
     return pd.DataFrame({"time_s": times,
                          "nominal_friction_torque_pct": np.clip(np.round(friction / ref * 100), -125, 125),
                          "parasitic_loss_torque_pct": np.clip(np.round(parasitic_torque_nm(states, times) / ref * 100),

@@ -143,6 +143,8 @@ def drive(scenario: Scenario, vehicle: Vehicle | None = None, seed: int = 0,
     if not level.is_ideal:
         sensor_rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x5E46]))
         injected.update(apply_sensor_errors(streams, states, road, scenario.sensors, level, sensor_rng))
+    if level.torque_report == "indicated":
+        injected.update(sensor_models.report_indicated_torque(streams["engine"], states, vehicle))
     return VirtualDrive(scenario, vehicle, seed, road, states, truth, streams, level, injected)
 
 
