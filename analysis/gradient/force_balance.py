@@ -13,7 +13,8 @@ the mass's error (`SCALE_STATE`); its noise and curvature are estimated from the
 IMU without a barometer. The mass comes from a first pass (GPS altitude and DEM), or is given.
 With a first pass's masses and a log that reports the engine's friction (J1939 SPN 514) the torque
 report's offset is found on the samples where the truck brakes in gear and taken off, and the
-engine's drag tightens the braking bound (`engine_drag`).
+engine's drag tightens the braking bound (`engine_drag`); what the bias state cannot hold of the
+wind and of the offset's remaining error is in the sigma (`drag_sigma`).
 
 Identifiability: a mass error dm/m scales the whole measurement, so it reads as a gradient error
 of -(dm/m)(a + g sin(alpha) + g c_r) / g, which the bias takes up only where that sum is
@@ -38,6 +39,7 @@ from ..engine_torque import driveline_torque_nm
 from ..errors import UserError
 from ..mass.joint import JointSettings
 from ..road_load import AIR_DENSITY_KGPM3, G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_torque_from_engine_nm
+from .drag_sigma import unheld_drag_sigma_mps2
 from .engine_drag import FRICTION_MAP_UNCERTAINTY, overrun_wheel_force_n, torque_report_offset
 from .estimate import GradientResult, GradientSettings, estimate_gradient
 
@@ -229,6 +231,11 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         _widen_in_gaps(result, frame, pulling, settings.spacing_m)
     else:
         _height_sources_sigma_in_gaps(result, frame, measured, first_grid_std, settings.spacing_m)
+        if mass_kg is None:
+            offset_sigma = (TORQUE_OFFSET_UNCERTAINTY * _reference_torque_nm(frame, vehicle) if offset is None
+                            else offset.sigma_nm)
+            _widen_where_measured(result, frame, unheld_drag_sigma_mps2(frame, vehicle, mass, virtual, offset_sigma),
+                                  settings.spacing_m)
     if mass_kg is None:
         result.samples["gradient_mass_pct"] = np.asarray(gradient, dtype=float)
         result.samples["gradient_mass_std_pct"] = np.asarray(gradient_std, dtype=float)
@@ -508,6 +515,13 @@ def _widen_where_measured(result: GradientResult, frame, specific_mps2, spacing_
 
 TORQUE_OFFSET_UNCERTAINTY = JointSettings.torque_offset_uncertainty
 """1-sigma of the torque report's offset as a share of the reference torque: the mass fit's prior."""
+
+
+def _reference_torque_nm(frame, vehicle) -> float:
+    """The engine's reference torque [Nm]: the log's (EC1), else the vehicle file's, else NaN."""
+    if "engine_reference_torque_nm" in frame and frame["engine_reference_torque_nm"].notna().any():
+        return float(frame["engine_reference_torque_nm"].median())
+    return float(getattr(vehicle, "engine_reference_torque_nm", None) or np.nan)
 
 
 def road_load_sigma_mps2(frame, vehicle, mass_kg) -> np.ndarray:
