@@ -11,6 +11,10 @@ enters the smoother through the accelerometer's channel, whose bias state takes 
 error (c_r, a torque offset) and, with masses from a first pass, a scale state per mass segment
 the mass's error (`SCALE_STATE`); its noise and curvature are estimated from the data as for an
 IMU without a barometer. The mass comes from a first pass (GPS altitude and DEM), or is given.
+With a first pass's masses and a log that reports the engine's friction (J1939 SPN 514) the torque
+report's offset is found on the samples where the truck brakes in gear and taken off, and the
+engine's drag tightens the braking bound (`engine_drag`); what the bias state cannot hold of the
+wind and of the offset's remaining error is in the sigma (`drag_sigma`).
 
 Identifiability: a mass error dm/m scales the whole measurement, so it reads as a gradient error
 of -(dm/m)(a + g sin(alpha) + g c_r) / g, which the bias takes up only where that sum is
@@ -31,10 +35,12 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from ..engine_torque import driveline_torque_nm, knows_engine_drag
+from ..engine_torque import NET, driveline_torque_nm, knows_engine_drag, torque_report_form
 from ..errors import UserError
 from ..mass.joint import JointSettings
 from ..road_load import AIR_DENSITY_KGPM3, G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_torque_from_engine_nm
+from .drag_sigma import unheld_drag_sigma_mps2
+from .engine_drag import FRICTION_MAP_UNCERTAINTY, overrun_wheel_force_n, torque_report_offset
 from .estimate import GradientResult, GradientSettings, estimate_gradient
 
 
@@ -45,24 +51,36 @@ ROLLING_RESISTANCE_UNCERTAINTY = 0.15
 """Relative uncertainty of a vehicle file's c_r (datasheet width, as the joint mass's prior)."""
 
 
-def _force_filter(coasting: bool):
-    """The mass's data filter without its excitation rules (a gradient measurement needs none), and
-    without its torque floor when ``coasting``."""
+MOVING_SPEED_MPS = 1.0
+"""Speed [m/s] above which the truck moves: the floor of the force balance with a first pass's
+masses (`virtual_accelerometer_mps2`'s ``slow``)."""
+
+
+def _force_filter(coasting: bool, slow: bool = False):
+    """The mass's data filter without its excitation rules (a gradient measurement needs none),
+    without its torque floor when ``coasting``, and with ``slow`` without its speed floor but for
+    `MOVING_SPEED_MPS`."""
     from ..mass.regression import FilterSettings
     floor = -np.inf if coasting else FilterSettings.min_engine_torque_nm
-    return FilterSettings(min_accel_mps2=-np.inf, min_regressor_mps2=-np.inf, min_engine_torque_nm=floor)
+    speed = MOVING_SPEED_MPS if slow else FilterSettings.min_speed_mps
+    return FilterSettings(min_accel_mps2=-np.inf, min_regressor_mps2=-np.inf, min_engine_torque_nm=floor,
+                          min_speed_mps=speed)
 
 
-def virtual_accelerometer_mps2(frame: pd.DataFrame, vehicle, mass_kg: np.ndarray, coasting: bool = True) -> np.ndarray:
+def virtual_accelerometer_mps2(frame: pd.DataFrame, vehicle, mass_kg: np.ndarray, coasting: bool = True,
+                               slow: bool = False) -> np.ndarray:
     """a_virtual [m/s²] per sample (NaN where the data filter rejects the sample or the mass is
     unknown): what a longitudinal accelerometer would read, from the force balance, on every sample
     with no brake, no shift and the clutch closed. With ``coasting`` and a torque report that
     includes the engine's drag (`engine_torque.knows_engine_drag`) that is also where the truck coasts or
     engine-brakes in gear: there the force is small, so a mass error k moves the reading by only
     k (F_wheel - F_aero)/m (on the urban drives of the matrix half the distance the truck moves
-    without braking had a torque under the mass filter's 200 Nm)."""
+    without braking had a torque under the mass filter's 200 Nm). With ``slow`` also below the
+    mass filter's 5.5 m/s (the paper's rule for the mass regression's excitation, not a limit of
+    the force balance: the ratio rule still drops a slipping clutch); on the matrix's urban typical
+    drives its residual against the truth there was as small as above (0.00-0.05 ± 0.02 m/s²)."""
     from ..mass.regression import build_regression
-    regression = build_regression(frame, vehicle, _force_filter(coasting and knows_engine_drag(frame)))
+    regression = build_regression(frame, vehicle, _force_filter(coasting and knows_engine_drag(frame), slow))
     rolling = G_MPS2 * vehicle.rolling_resistance_coefficient * regression.cos_angle
     with np.errstate(invalid="ignore", divide="ignore"):
         value = regression.y / np.asarray(mass_kg, dtype=float) - rolling
@@ -145,7 +163,12 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
             raise
         gradient, gradient_std = np.zeros(len(frame)), np.full(len(frame), np.nan)
     first = frame.assign(gradient_pct=np.nan_to_num(gradient), gradient_std_pct=np.asarray(gradient_std, dtype=float))
-    scaled = False
+    scaled, offset, drag = False, None, None
+    if mass_kg is None and knows_engine_drag(frame):
+        # an indicated report reads 0 % in a fuel cut whatever its offset: only a net one shows it
+        offset = torque_report_offset(frame, vehicle) if torque_report_form(frame) == NET else None
+        drag = overrun_wheel_force_n(frame, vehicle)
+    forced = first if offset is None else first.assign(engine_torque_nm=first["engine_torque_nm"] - offset.offset_nm)
     if mass_kg is None:
         mass, mass_sigma, segment = segment_masses_kg(first, vehicle)
         mass, mass_sigma = _with_unknown_masses(mass, mass_sigma)
@@ -159,7 +182,7 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         bias_sigma = G_MPS2 * vehicle.rolling_resistance_coefficient * ROLLING_RESISTANCE_UNCERTAINTY
         settings = replace(settings, smoother=replace(settings.smoother, imu_bias_prior_sigma_mps2=bias_sigma))
     settings = replace(settings, smoother=replace(settings.smoother, force_balance=True))
-    virtual = virtual_accelerometer_mps2(first, vehicle, mass)
+    virtual = virtual_accelerometer_mps2(forced, vehicle, mass, slow=mass_kg is None)
     if not np.isfinite(virtual).any():
         raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
     if scaled:
@@ -185,7 +208,11 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
                                 f"gradient down on {np.sum(np.isfinite(virtual) & ~np.isfinite(measured))} samples "
                                 f"where it was above what braking allows")
     if not no_height_source:
-        _hold_under_braking_bound(result, frame, vehicle, mass, relative, settings.spacing_m)
+        _hold_under_braking_bound(result, frame, vehicle, mass, relative, settings.spacing_m, drag)
+    if offset is not None:
+        result.notes.append(f"torque report's offset {offset.offset_nm:+.0f} ± {offset.sigma_nm:.0f} Nm (what it reads above "
+                            f"minus the engine's friction, J1939 SPN 514, on {offset.samples} samples braking in gear in "
+                            f"{offset.applications} brake applications) taken off the force balance")
     if scaled:
         _report_scale(result, frame, mass)
     _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
@@ -200,6 +227,11 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         _widen_in_gaps(result, frame, pulling, settings.spacing_m)
     else:
         _height_sources_sigma_in_gaps(result, frame, measured, first_grid_std, settings.spacing_m)
+        if mass_kg is None:
+            offset_sigma = (TORQUE_OFFSET_UNCERTAINTY * _reference_torque_nm(frame, vehicle) if offset is None
+                            else offset.sigma_nm)
+            _widen_where_measured(result, frame, unheld_drag_sigma_mps2(frame, vehicle, mass, virtual, offset_sigma),
+                                  settings.spacing_m)
     if mass_kg is None:
         result.samples["gradient_mass_pct"] = np.asarray(gradient, dtype=float)
         result.samples["gradient_mass_std_pct"] = np.asarray(gradient_std, dtype=float)
@@ -353,11 +385,14 @@ def head_wind_sigma_mps2(speed_mps, vehicle, mass_kg):
     return AIR_DENSITY_KGPM3 * vehicle.drag_coefficient * vehicle.frontal_area_m2 * speed_mps * WIND_PRIOR_MPS / mass_kg
 
 
-def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, relative, spacing_m):
+def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, relative, spacing_m, drag_n=None):
     """With height sources, the gradient held under what braking allows, as a one-sided bound: where
     the truck brakes and the engine does not pull (torque <= 0) the wheels get no traction, so
     a + g sin(alpha) <= -F_aero/m - g c_r, to within a margin of two sigma of the bound's own error
-    (the head wind's drag with a 5 m/s prior, c_r's 15 %, the mass's share of F_aero/m). Per grid
+    (the head wind's drag with a 5 m/s prior, c_r's 15 %, the mass's share of F_aero/m). With
+    ``drag_n`` (`engine_drag.overrun_wheel_force_n`: the engine motored in gear, its friction from
+    SPN 514) the wheels also get the engine's drag, F_aero - F_drag in place of F_aero, and the
+    friction map's 10 % joins the margin. Per grid
     point the gradient is clipped to the mean bound of its braking samples; the heights are
     integrated again, the sigma is kept (a clip onto a bound the road satisfies only moves the
     estimate towards it). Across braking gaps the height sources (urban GPS altitude and a DEM
@@ -377,12 +412,13 @@ def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, rela
     held = max(1, int(round(BRAKE_HELD_S * _sample_rate_hz(time_s))))
     braking = binary_erosion(braking, structure=np.ones(2 * held + 1, bool))
     mass = np.asarray(mass, dtype=float)
+    engine = np.zeros(len(frame)) if drag_n is None else np.nan_to_num(np.asarray(drag_n, dtype=float))
     with np.errstate(invalid="ignore", divide="ignore"):
-        aero = aero_force_n(speed, vehicle.drag_coefficient, vehicle.frontal_area_m2) / mass
+        aero = (aero_force_n(speed, vehicle.drag_coefficient, vehicle.frontal_area_m2) - engine) / mass
         wind = head_wind_sigma_mps2(speed, vehicle, mass)
         rolling = G_MPS2 * vehicle.rolling_resistance_coefficient
         margin = 2 * np.sqrt(wind ** 2 + (rolling * ROLLING_RESISTANCE_UNCERTAINTY) ** 2
-                             + (aero * np.nan_to_num(relative)) ** 2)
+                             + (aero * np.nan_to_num(relative)) ** 2 + (FRICTION_MAP_UNCERTAINTY * engine / mass) ** 2)
         sine = (-aero - rolling + margin - accel) / G_MPS2
     grid = result.grid
     index = np.where(np.isfinite(distance), distance_grid.grid_index(distance, spacing_m), -1)
@@ -475,6 +511,13 @@ def _widen_where_measured(result: GradientResult, frame, specific_mps2, spacing_
 
 TORQUE_OFFSET_UNCERTAINTY = JointSettings.torque_offset_uncertainty
 """1-sigma of the torque report's offset as a share of the reference torque: the mass fit's prior."""
+
+
+def _reference_torque_nm(frame, vehicle) -> float:
+    """The engine's reference torque [Nm]: the log's (EC1), else the vehicle file's, else NaN."""
+    if "engine_reference_torque_nm" in frame and frame["engine_reference_torque_nm"].notna().any():
+        return float(frame["engine_reference_torque_nm"].median())
+    return float(getattr(vehicle, "engine_reference_torque_nm", None) or np.nan)
 
 
 def road_load_sigma_mps2(frame, vehicle, mass_kg) -> np.ndarray:
