@@ -635,9 +635,7 @@ class GradientSmoother:
         axes = [(name, candidates) for name, candidates in axes if name in names]
         if not axes:
             return False
-        # the factors are on the noise estimated from the residual, not on an earlier call's
-        # choice: compounded, a second call after the barometer's offset steps took 0.25 of 0.25
-        # (regional typical seed 3: the IMU's noise 0.0146 -> 0.0073 m/s², 89 % inside ±2σ)
+        # the factors are on the noise estimated from the residual, not on an earlier call's choice
         imu = (r[:, kalman.IMU] - self.imu_scale_var) / self.imu_noise_factor
         use = (True, False, True, True)
 
