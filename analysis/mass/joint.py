@@ -72,7 +72,8 @@ class JointSettings:
     neutral surface layer with z = 3 m and z0 = 0.2 m (farmland with hedges, scattered buildings):
     the gusts' share of the masses' covariance between blocks (`gusts`). 0: left out."""
     gust_length_m: float = 150.0
-    """Distance of travel over which the head wind's gusts stay correlated [m]."""
+    """Distance of travel over which the head wind's gusts stay correlated [m] (the virtual truck's;
+    the drive's residual cannot measure it, real logs have yet to confirm it)."""
     aux_power_sigma_w: float = 5000.0
     """Prior 1-sigma of each segment's auxiliary power [W] (half-normal, P >= 0): the average engine
     power a truck's compressor, cooling fan, alternator and steering pump take while driving is a
@@ -455,8 +456,8 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
                  _score_rows(m, seg, share[seg], regressor, theta, c, q, ex, aux))
         cov = _block_covariance(bread + np.diag(precision), np.flatnonzero(free), m, seg, block, weights, residual,
                                 row, theta, c, q, ex, aux, extra_meat=noise_var * np.diag(precision), gusts=gusts)
-        # whether the drive resolves an auxiliary power is the blocks' question: a gust does not
-        # look like a power taken in one gear more than in another
+        # which auxiliary powers the drive resolves stays the blocks' question, so the gusts'
+        # term moves the sigmas only, not the fit (with a held power, the masses would move)
         wide = aux_index[~(np.sqrt(np.diag(blocks_only)[aux_index])
                            < settings.max_prior_fraction * settings.aux_power_sigma_w)]
         if unidentified[wide].all():
