@@ -23,7 +23,8 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from ..road_load import G_MPS2
+from ..road_load import AIR_DENSITY_KGPM3, G_MPS2
+from .gusts import distance_from_speed, gust_covariance, gust_meat
 
 COEFFICIENTS = ("rolling_resistance_coefficient", "drag_area_m2")
 
@@ -66,6 +67,13 @@ class JointSettings:
     balance the model does not hold (an auxiliary load running most of the time, a PTO, unflagged
     braking): its mass is "not confident" (measured: 65 % rejected on a segment 37 % off)."""
     min_samples: int = 150
+    gust_intensity: float = 0.37
+    """Turbulence intensity sigma_u / U of the wind at a truck's height, 1 / ln(z / z0) of the
+    neutral surface layer with z = 3 m and z0 = 0.2 m (farmland with hedges, scattered buildings):
+    the gusts' share of the masses' covariance between blocks (`gusts`). 0: left out."""
+    gust_length_m: float = 150.0
+    """Distance of travel over which the head wind's gusts stay correlated [m] (the virtual truck's;
+    the drive's residual cannot measure it, real logs have yet to confirm it)."""
     aux_power_sigma_w: float = 5000.0
     """Prior 1-sigma of each segment's auxiliary power [W] (half-normal, P >= 0): the average engine
     power a truck's compressor, cooling fan, alternator and steering pump take while driving is a
@@ -232,30 +240,43 @@ def _informed_inverse(normal: np.ndarray) -> np.ndarray:
     return inverse
 
 
+def _score_rows(n_seg, seg, weights, instrument_row, theta, cos_angle, aero, extra, aux):
+    """Each sample's score row, weight times instrument row (the score is the row times the
+    residual) [n x parameters]."""
+    n_p = len(theta)
+    rows = np.zeros((len(seg), n_p))
+    index = np.arange(len(seg))
+    rows[index, seg] = weights * instrument_row
+    rows[:, n_seg] = weights * theta[:n_seg][seg] * G_MPS2 * cos_angle
+    rows[:, n_seg + 1] = weights * aero
+    for e in range(extra.shape[1]):
+        rows[:, n_seg + 2 + e] = weights * extra[:, e]
+    if n_p > n_seg + 2 + extra.shape[1]:
+        rows[index, n_seg + 2 + extra.shape[1] + seg] = weights * aux
+    return rows
+
+
 def _block_covariance(normal, free_idx, n_seg, seg, block, weights, residual, instrument_row, theta, cos_angle,
-                      aero, extra, aux, extra_meat=None):
+                      aero, extra, aux, extra_meat=None, gusts=None):
     """Sandwich covariance N^-1 (sum_b s_b s_b^T) N^-T with s_b the score (instrument rows times
-    residual) of residual block b: honest under correlation within blocks."""
-    d_cr = theta[:n_seg][seg] * G_MPS2 * cos_angle
+    residual) of residual block b: honest under correlation within blocks. ``gusts`` (speed, distance,
+    `gusts.GustCovariance`, the normal matrix's Jacobian rows): what the gusts add beyond the blocks'
+    share of them (`gusts.gust_meat`)."""
     n_blocks = int(block.max()) + 1
     n_p = len(theta)
+    rows = _score_rows(n_seg, seg, weights, instrument_row, theta, cos_angle, aero, extra, aux)
     scores = np.zeros((n_blocks, n_p))
-    block_segment = np.zeros(n_blocks, dtype=np.int64)
-    block_segment[block] = seg
-    scores[np.arange(n_blocks), block_segment] = np.bincount(block, weights=weights * instrument_row * residual,
-                                                             minlength=n_blocks)
-    scores[:, n_seg] = np.bincount(block, weights=weights * d_cr * residual, minlength=n_blocks)
-    scores[:, n_seg + 1] = np.bincount(block, weights=weights * aero * residual, minlength=n_blocks)
-    for e in range(extra.shape[1]):
-        scores[:, n_seg + 2 + e] = np.bincount(block, weights=weights * extra[:, e] * residual, minlength=n_blocks)
-    if n_p > n_seg + 2 + extra.shape[1]:
-        scores[np.arange(n_blocks), n_seg + 2 + extra.shape[1] + block_segment] = np.bincount(
-            block, weights=weights * aux * residual, minlength=n_blocks)
+    for a in np.flatnonzero(np.any(rows != 0, axis=0)):
+        scores[:, a] = np.bincount(block, weights=rows[:, a] * residual, minlength=n_blocks)
     scores = scores[:, free_idx]
     p = len(free_idx)
     meat = scores.T @ scores * n_blocks / max(n_blocks - p, 1)
     if extra_meat is not None:
         meat = meat + extra_meat[np.ix_(free_idx, free_idx)]
+    if gusts is not None and gusts[2] is not None:
+        speed, distance, model, jacobian = gusts
+        meat = meat + gust_meat(rows[:, free_idx], jacobian[:, free_idx], normal, speed, distance, block, model,
+                                n_blocks / max(n_blocks - p, 1))
     inverse = _informed_inverse(normal)
     informed = free_idx[np.isfinite(np.diag(inverse))]
     seen = np.isfinite(np.diag(inverse))
@@ -263,6 +284,18 @@ def _block_covariance(normal, free_idx, n_seg, seg, block, weights, residual, in
     cov[np.ix_(informed, informed)] = (inverse[np.ix_(seen, seen)] @ meat[np.ix_(seen, seen)]
                                        @ inverse[np.ix_(seen, seen)].T)
     return cov
+
+
+def _gust_model(theta, cov, n_seg, n_wind, settings):
+    """The gusts' residual covariance (`gusts.gust_covariance`) for the fitted c_d A and mean wind,
+    E|w|² its square plus its variance from ``cov``; None without wind columns (no GPS track: the
+    wind is not modelled at all)."""
+    if not n_wind:
+        return None
+    cda = theta[n_seg + 1]
+    wind = theta[n_seg + 2:n_seg + 4] / cda
+    mean_square = float(np.sum(wind ** 2) + np.sum(np.nan_to_num(np.diag(cov)[n_seg + 2:n_seg + 4])) / cda ** 2)
+    return gust_covariance(cda, mean_square, settings.gust_intensity, settings.gust_length_m)
 
 
 def _solve_positive_aux(data, theta0, free, aux_index, settings, prior, instrument, floor, held=None):
@@ -367,6 +400,8 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     aux = np.asarray(aux_regressor, dtype=float)[ok] if fit_aux else np.zeros(len(f))
     seg = remap[seg_of[ok]]
     t = time_s[ok]
+    speed_all = np.sqrt(2 * np.clip(np.nan_to_num(aero), 0, None) / AIR_DENSITY_KGPM3)
+    speed, distance = speed_all[ok], distance_from_speed(speed_all, time_s)[ok]
     block_start = np.array([t[seg == j].min() for j in range(len(kept))])
     block_local = np.floor((t - block_start[seg]) / settings.block_s).astype(np.int64)
     _, block = np.unique(seg * 1_000_000 + block_local, return_inverse=True)
@@ -415,9 +450,16 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
         share = _biweight_slope_share(residual, weights, seg, m, settings.robust_tuning)
         bread, _ = _normal_equations(x, x if z is None else z, c, q, ex, aux, seg, theta, m, weights * share[seg],
                                      residual)
+        blocks_only = _block_covariance(bread + np.diag(precision), np.flatnonzero(free), m, seg, block, weights,
+                                        residual, row, theta, c, q, ex, aux, extra_meat=noise_var * np.diag(precision))
+        gusts = (speed, distance, _gust_model(theta, blocks_only, m, n_wind, settings),
+                 _score_rows(m, seg, share[seg], regressor, theta, c, q, ex, aux))
         cov = _block_covariance(bread + np.diag(precision), np.flatnonzero(free), m, seg, block, weights, residual,
-                                row, theta, c, q, ex, aux, extra_meat=noise_var * np.diag(precision))
-        wide = aux_index[~(np.sqrt(np.diag(cov)[aux_index]) < settings.max_prior_fraction * settings.aux_power_sigma_w)]
+                                row, theta, c, q, ex, aux, extra_meat=noise_var * np.diag(precision), gusts=gusts)
+        # which auxiliary powers the drive resolves stays the blocks' question, so the gusts'
+        # term moves the sigmas only, not the fit (with a held power, the masses would move)
+        wide = aux_index[~(np.sqrt(np.diag(blocks_only)[aux_index])
+                           < settings.max_prior_fraction * settings.aux_power_sigma_w)]
         if unidentified[wide].all():
             break
         unidentified[wide] = True
@@ -428,7 +470,7 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
         seen = free & ~unidentified
         statistical = _block_covariance((bread + np.diag(precision))[np.ix_(seen, seen)], np.flatnonzero(seen), m, seg,
                                         block, weights, residual, row, theta, c, q, ex, aux,
-                                        extra_meat=noise_var * np.diag(precision))
+                                        extra_meat=noise_var * np.diag(precision), gusts=gusts)
     scale = np.sqrt(np.abs(np.diag(normal)))
     informative = scale > 0  # a segment without a single usable sample has an empty row
     condition = float(np.linalg.cond(normal[np.ix_(informative, informative)]
