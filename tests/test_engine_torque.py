@@ -13,9 +13,9 @@ from haulprofile.analysis.errors import UserError
 from haulprofile.analysis.ingest import read_logs
 from haulprofile.analysis.mass import estimate_mass
 from haulprofile.analysis.mass.regression import build_regression
-from haulprofile.analysis.virtual_truck import drive, realism_level, write_dem, write_mcap
+from haulprofile.analysis.virtual_truck import drive, realism_level, write_mcap
 from haulprofile.analysis.virtual_truck.driver import drag_torque_nm
-from haulprofile.testing.accuracy import Case, case_scenario
+from haulprofile.testing.accuracy import Case, analysed_to_gradient, case_scenario
 
 CLEAN = dict(torque_gain_pct=0.0, torque_offset_pct=0.0, driveline_gear_spread=0.0, driveline_spin_loss_pct=0.0,
              wind_mps=0.0, wind_gust_mps=0.0, aux_compressor_kw=15.0, aux_fan_kw=30.0)
@@ -35,14 +35,7 @@ def exact():
 @pytest.fixture(scope="module")
 def logged(exact, tmp_path_factory):
     """The signals table of ``exact`` with the gradient columns (the pipeline up to the gradient)."""
-    from haulprofile.analysis.pipeline import RunContext, run
-    root = tmp_path_factory.mktemp("eec3")
-    write_dem(exact, root / "dem")
-    write_mcap(exact, root / "logs" / "drive.mcap")
-    ctx = RunContext(inputs=[root / "logs"], out_dir=root / "out", vehicle=exact.vehicle, dem_dir=root / "dem",
-                     say=lambda _m: None, options={"output": {"figures": False}})
-    run(ctx, until="gradient")
-    return ctx.signals
+    return analysed_to_gradient(exact, tmp_path_factory.mktemp("eec3")).signals
 
 
 def test_eec3_sends_the_engines_friction_and_its_estimate_of_the_accessories(exact):

@@ -13,8 +13,8 @@ from haulprofile.analysis.engine_torque import (FRICTION_SUBTRACTED, INDICATED, 
                                                 driveline_torque_nm, knows_engine_drag, torque_report_form,
                                                 torque_used)
 from haulprofile.analysis.errors import UserError
-from haulprofile.analysis.virtual_truck import drive, realism_level, write_dem, write_mcap
-from haulprofile.testing.accuracy import Case, case_scenario, mass_errors
+from haulprofile.analysis.virtual_truck import drive, realism_level
+from haulprofile.testing.accuracy import Case, analysed_to_gradient, case_scenario, mass_errors
 
 CLEAN = dict(torque_gain_pct=0.0, torque_offset_pct=0.0, driveline_gear_spread=0.0, driveline_spin_loss_pct=0.0,
              wind_mps=0.0, wind_gust_mps=0.0)
@@ -82,17 +82,10 @@ def test_the_virtual_truck_sends_the_indicated_form_with_its_friction():
 @pytest.fixture(scope="module")
 def logged(tmp_path_factory):
     """Signals tables (up to the gradient) of one drive whose engine reports net and indicated."""
-    from haulprofile.analysis.pipeline import RunContext, run
     tables = {}
     for form in ("net", "indicated"):
         virtual = _urban(torque_report=form)
-        root = tmp_path_factory.mktemp(form)
-        write_dem(virtual, root / "dem")
-        write_mcap(virtual, root / "logs" / "drive.mcap")
-        ctx = RunContext(inputs=[root / "logs"], out_dir=root / "out", vehicle=virtual.vehicle, dem_dir=root / "dem",
-                         say=lambda _m: None, options={"output": {"figures": False}})
-        run(ctx, until="gradient")
-        tables[form] = (virtual, ctx.signals)
+        tables[form] = (virtual, analysed_to_gradient(virtual, tmp_path_factory.mktemp(form)).signals)
     return tables
 
 

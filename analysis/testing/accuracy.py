@@ -243,13 +243,24 @@ def score(signals, virtual, vehicles, mass: bool = True) -> dict:
     }
 
 
+def analysed_to_gradient(virtual, root: Path, dem: str = "hgt3"):
+    """The pipeline's context after the gradient stage on a virtual drive's MCAP log and DEM
+    (``dem``: ``hgt3``, ``hgt1`` or ``geotiff``), written under ``root`` (logs/, dem/, out/)."""
+    from haulprofile.analysis.pipeline import RunContext, run
+    from haulprofile.analysis.virtual_truck.dem import write_dem
+    from haulprofile.analysis.virtual_truck.mcap_log import write_mcap
+    write_dem(virtual, root / "dem", arc_seconds=1 if dem == "hgt1" else 3, fmt="geotiff" if dem == "geotiff" else "hgt")
+    write_mcap(virtual, root / "logs" / f"{virtual.scenario.name}.mcap")
+    ctx = RunContext(inputs=[root / "logs"], out_dir=root / "out", vehicle=virtual.vehicle,
+                     dem_dir=root / "dem", say=lambda _msg: None, options={"output": {"figures": False}})
+    run(ctx, until="gradient")
+    return ctx
+
+
 def run_case(case: Case, sensor_sets: tuple[str, ...] = SENSOR_SETS) -> dict:
     """Drive, log, analyse and score one case with each sensor set; a dict of plain values (for
     a process pool). The ``full`` set's figures are at the top level as before, every set's under
     ``sensor_sets``."""
-    from haulprofile.analysis.pipeline import RunContext, run
-    from haulprofile.analysis.virtual_truck.dem import write_dem
-    from haulprofile.analysis.virtual_truck.mcap_log import write_mcap
     from haulprofile.analysis.virtual_truck.truck import drive
     scenario = case_scenario(case)
     virtual = drive(scenario, seed=case.seed, realism=case.level)
@@ -258,12 +269,7 @@ def run_case(case: Case, sensor_sets: tuple[str, ...] = SENSOR_SETS) -> dict:
     scores = {}
     with tempfile.TemporaryDirectory(prefix="haulprofile-accuracy-") as tmp:
         root = Path(tmp)
-        fmt = "geotiff" if case.dem == "geotiff" else "hgt"
-        write_dem(virtual, root / "dem", arc_seconds=1 if case.dem == "hgt1" else 3, fmt=fmt)
-        write_mcap(virtual, root / "logs" / f"{scenario.name}.mcap")
-        ctx = RunContext(inputs=[root / "logs"], out_dir=root / "out", vehicle=virtual.vehicle,
-                         dem_dir=root / "dem", say=lambda _msg: None, options={"output": {"figures": False}})
-        run(ctx, until="gradient")
+        ctx = analysed_to_gradient(virtual, root, case.dem)
         base = ctx.signals.drop(columns=[c for c in ctx.results.gradient.samples if c in ctx.signals.columns])
         for set_name in sensor_sets:
             if set_name == "full":

@@ -16,9 +16,8 @@ import tempfile
 from pathlib import Path
 
 from haulprofile.analysis.engine_torque import FRICTION_COLUMN
-from haulprofile.analysis.pipeline import RunContext, run
-from haulprofile.analysis.virtual_truck import drive, realism_level, write_dem, write_mcap
-from haulprofile.testing.accuracy import Case, case_scenario, mass_errors
+from haulprofile.analysis.virtual_truck import drive, realism_level
+from haulprofile.testing.accuracy import Case, analysed_to_gradient, case_scenario, mass_errors
 
 DRIVES = (("urban-delivery", 8000.0, 0.0), ("long-haul", 15000.0, 600.0))
 
@@ -26,13 +25,7 @@ DRIVES = (("urban-delivery", 8000.0, 0.0), ("long-haul", 15000.0, 600.0))
 def signals_of(virtual):
     """The signals table of a virtual drive, up to the gradient."""
     with tempfile.TemporaryDirectory(prefix="haulprofile-torque-form-") as tmp:
-        root = Path(tmp)
-        write_dem(virtual, root / "dem")
-        write_mcap(virtual, root / "logs" / "drive.mcap")
-        ctx = RunContext(inputs=[root / "logs"], out_dir=root / "out", vehicle=virtual.vehicle, dem_dir=root / "dem",
-                         say=lambda _msg: None, options={"output": {"figures": False}})
-        run(ctx, until="gradient")
-        return ctx.signals
+        return analysed_to_gradient(virtual, Path(tmp)).signals
 
 
 def main(argv: list[str]) -> None:
