@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from .runs import true_runs
+
 PARASITIC_COLUMN = "engine_parasitic_torque_nm"
 FRICTION_COLUMN = "engine_friction_torque_nm"
 SUBTRACTED = "accessory torque from J1939 EEC3 subtracted"
@@ -56,9 +58,8 @@ def torque_report_form(frame: pd.DataFrame) -> str:
 
 def _long_runs(flags: np.ndarray, time_s: np.ndarray, min_s: float) -> np.ndarray:
     """``flags`` kept only in runs that last at least ``min_s``."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(np.int8), [0]])))
     out = np.zeros(flags.shape, dtype=bool)
-    for start, end in zip(edges[::2], edges[1::2]):
+    for start, end in true_runs(flags):
         if time_s[end - 1] - time_s[start] >= min_s:
             out[start:end] = True
     return out

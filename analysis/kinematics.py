@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .runs import true_runs
 from .stage import Stage
 
 STANDING_GAP_S = 5.0
@@ -36,8 +37,7 @@ def standing(time_s: np.ndarray, speed_mps: np.ndarray, stop_speed_mps: float,
     time = np.asarray(time_s, dtype=float)
     speed = np.asarray(speed_mps, dtype=float)
     stopped = speed < stop_speed_mps
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.isnan(speed).astype(np.int8), [0]])))
-    for a, b in zip(edges[::2], edges[1::2]):
+    for a, b in true_runs(np.isnan(speed)):
         if 0 < a and b < len(speed) and stopped[a - 1] and stopped[b] and time[b] - time[a - 1] <= max_gap_s:
             stopped[a:b] = True
     return stopped

@@ -20,6 +20,7 @@ import pandas as pd
 
 from ..engine_torque import FRICTION_COLUMN, driveline_torque_nm
 from ..road_load import wheel_force_from_torque_n, wheel_torque_from_engine_nm
+from ..runs import true_runs
 
 FRICTION_MAP_UNCERTAINTY = 0.10
 """Relative 1-sigma of the engine controller's friction map (SPN 514): its friction and pumping
@@ -87,10 +88,7 @@ def torque_report_offset(frame: pd.DataFrame, vehicle) -> TorqueOffset | None:
         return None
     residual = driveline_torque_nm(frame) + frame[FRICTION_COLUMN].to_numpy(dtype=float)
     on &= np.isfinite(residual)
-    starts = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(np.int8)])) == 1)
-    label = np.cumsum(np.isin(np.arange(len(frame)), starts))
-    applications = [residual[on & (label == k)] for k in np.unique(label[on])]
-    medians = np.array([np.median(a) for a in applications if a.size])
+    medians = np.array([np.median(residual[start:end]) for start, end in true_runs(on)])
     if on.sum() < MIN_SAMPLES or medians.size < MIN_APPLICATIONS:
         return None
     offset = float(np.median(residual[on]))

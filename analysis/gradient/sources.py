@@ -6,6 +6,7 @@ import numba
 import numpy as np
 
 from ..road_load import G_MPS2
+from ..runs import true_runs
 
 SEA_LEVEL_PRESSURE_PA = 101325.0
 WEIGHT_BARO = 0.7
@@ -85,9 +86,8 @@ def freeze_at_standstill(height_m, speed_mps, time_s, stop_speed_mps: float = 0.
     with np.errstate(invalid="ignore", divide="ignore"):
         smooth = (np.convolve(np.where(finite & ~stopped, height, 0.0), kernel, "same")
                   / np.convolve((finite & ~stopped).astype(float), kernel, "same"))
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], stopped.astype(np.int8), [0]])))
     jumps = np.zeros(len(height))
-    for start, end in zip(edges[::2], edges[1::2]):
+    for start, end in true_runs(stopped):
         if start == 0 or end >= len(height):
             continue
         before, after = smooth[start - 1], smooth[end]

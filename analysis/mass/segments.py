@@ -9,6 +9,7 @@ import numpy as np
 
 from ..kinematics import standing
 from ..road_load import G_MPS2
+from ..runs import true_runs
 from . import kernels
 
 
@@ -43,8 +44,7 @@ def segment_bounds(time_s: np.ndarray, speed_mps: np.ndarray, settings: SegmentS
     """[start, end) sample ranges between stops longer than ``min_stop_s``; stop samples belong
     to no segment. A gap in the speed counts as stopped only inside a stop (`kinematics.standing`)."""
     stopped = standing(time_s, speed_mps, settings.stop_speed_mps)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], stopped.astype(np.int8), [0]])))
-    long_stops = [(a, b) for a, b in zip(edges[::2], edges[1::2]) if time_s[b - 1] - time_s[a] >= settings.min_stop_s]
+    long_stops = [(a, b) for a, b in true_runs(stopped) if time_s[b - 1] - time_s[a] >= settings.min_stop_s]
     bounds, start = [], 0
     for a, b in long_stops:
         if a > start:
@@ -77,8 +77,7 @@ def split_at_payload_changes(bounds, time_s, speed_mps, phi, y, settings: Segmen
     same in the speed; only the force balance tells them apart."""
     from scipy.stats import norm
     stopped = standing(time_s, speed_mps, settings.stop_speed_mps)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], stopped.astype(np.int8), [0]])))
-    short = [(a, b) for a, b in zip(edges[::2], edges[1::2])
+    short = [(a, b) for a, b in true_runs(stopped)
              if settings.payload_stop_s <= time_s[b - 1] - time_s[a] < settings.min_stop_s]
     out = []
     pending = list(bounds)

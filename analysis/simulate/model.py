@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from .. import checks, road_load
+from ..runs import true_runs
 from ..vehicle import Vehicle
 from . import kernel as K
 from .cycle import SimCycle, SimulationInputError
@@ -244,12 +245,10 @@ def find_misses(trace: pd.DataFrame, tolerance_mps: float) -> pd.DataFrame:
                "max_speed_deficit_mps", "mean_speed_deficit_mps"]
     if not missed.any():
         return pd.DataFrame(columns=columns)
-    edges = np.diff(np.concatenate([[0], missed.astype(np.int8), [0]]))
-    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
     time, dist = trace["time_s"].to_numpy(), trace["distance_m"].to_numpy()
     dt = time[1] - time[0] if len(time) > 1 else 0.0
     rows = [(time[a], time[b - 1] + dt, dist[a], dist[b - 1], time[b - 1] + dt - time[a],
-             deficit[a:b].max(), deficit[a:b].mean()) for a, b in zip(starts, ends)]
+             deficit[a:b].max(), deficit[a:b].mean()) for a, b in true_runs(missed)]
     return pd.DataFrame(rows, columns=columns)
 
 

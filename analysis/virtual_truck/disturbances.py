@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ..runs import true_runs
 from .realism import Realism
 from .road import Road
 
@@ -80,8 +81,7 @@ def engine_loads(states: pd.DataFrame, vehicle, level: Realism, rng: np.random.G
     standing = states["stop"].to_numpy()
     pto = np.zeros(time_s.shape)
     if level.aux_pto_kw > 0:
-        edges = np.diff(np.concatenate([[0], standing.astype(np.int8), [0]]))
-        for start, end in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+        for start, end in true_runs(standing):
             if time_s[end - 1] - time_s[start] >= 120.0 and start > 0:
                 middle = slice(start + (end - start) // 4, start + 3 * (end - start) // 4)
                 pto[middle] = level.aux_pto_kw * 1000.0

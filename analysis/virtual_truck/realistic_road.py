@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
+from ..runs import true_runs
 from . import road_design as eng
 from .road import GRID_STEP_M, KMH_PER_MPS, Road, _path, route_grid
 from .scenario import Scenario, ScenarioFileError
@@ -22,7 +23,7 @@ def _limit_kmh(distance: np.ndarray, breaks: np.ndarray) -> np.ndarray:
 
 def _depth_in(structure_mask: np.ndarray, distance: np.ndarray) -> np.ndarray:
     depth = np.zeros(distance.shape)
-    for start, end in eng._runs(structure_mask):
+    for start, end in true_runs(structure_mask):
         d = distance[start:end]
         depth[start:end] = np.minimum(d - distance[start], distance[end - 1] - d)
     return depth

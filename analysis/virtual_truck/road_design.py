@@ -16,6 +16,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.spatial import cKDTree
 
+from ..runs import true_runs
 from .terrain import GridField
 
 MAX_CUT_M = 20.0
@@ -67,16 +68,10 @@ def design_profile(ground_m: np.ndarray, step_m: float, max_grade_pct: np.ndarra
     return gaussian_filter1d(limited, 40.0 / step_m, mode="nearest")
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(start, end) index pairs of True runs, end exclusive."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
-
-
 def _grow(core: np.ndarray, reach: np.ndarray) -> np.ndarray:
     """Extend each run of ``core`` over the adjacent run of ``reach`` it lies in."""
     out = core.copy()
-    for start, end in _runs(reach):
+    for start, end in true_runs(reach):
         if core[start:end].any():
             out[start:end] = True
     return out
@@ -85,7 +80,7 @@ def _grow(core: np.ndarray, reach: np.ndarray) -> np.ndarray:
 def classify(cover_m: np.ndarray, step_m: float, forced_tunnel: np.ndarray) -> np.ndarray:
     """Structure code per grid point from the natural cover (ground minus road) [m]."""
     tunnel = _grow(cover_m > MAX_CUT_M, cover_m > PORTAL_COVER_M)
-    for start, end in _runs(tunnel):
+    for start, end in true_runs(tunnel):
         if (end - start) * step_m < MIN_TUNNEL_M:
             tunnel[start:end] = False
     tunnel |= forced_tunnel
