@@ -23,9 +23,10 @@ logger's dropout in a long stop must not cut the stop in two."""
 
 
 def distance_m(time_s: np.ndarray, speed_mps: np.ndarray) -> np.ndarray:
-    """Driven distance [m]: trapezoidal integral of speed, NaN speeds counted as 0."""
+    """Driven distance [m]: trapezoidal integral of speed, NaN speeds counted as 0; a time step that
+    goes back (two logs of a fleet joined) adds nothing."""
     speed = np.nan_to_num(np.asarray(speed_mps, dtype=float))
-    steps = 0.5 * (speed[1:] + speed[:-1]) * np.diff(np.asarray(time_s, dtype=float))
+    steps = 0.5 * (speed[1:] + speed[:-1]) * np.clip(np.diff(np.asarray(time_s, dtype=float)), 0.0, None)
     return np.concatenate([[0.0], np.cumsum(steps)])
 
 

@@ -4,7 +4,8 @@ stated sigma against the spread of the masses over drives."""
 
 import numpy as np
 
-from haulprofile.analysis.mass.gusts import _kernel_sums, distance_from_speed
+from haulprofile.analysis.kinematics import distance_m
+from haulprofile.analysis.mass.gusts import _kernel_sums
 from haulprofile.analysis.mass.joint import JointSettings, fit_joint, wind_regressors
 from haulprofile.analysis.road_load import AIR_DENSITY_KGPM3, G_MPS2
 from haulprofile.analysis.vehicle import load_vehicle
@@ -25,7 +26,7 @@ def _gusty_drive(seed, n_per=3000, intensity=0.37, length_m=150.0):
     speed = 12 + 6 * np.sin(time_s / 40 + seed) + 2 * np.sin(time_s / 13)
     accel = np.gradient(speed, time_s)
     angle = np.arctan(0.03 * np.sin(time_s / 45 + seed) + 0.01 * np.sin(time_s / 11))
-    distance = distance_from_speed(speed, time_s)
+    distance = distance_m(time_s, speed)
     heading = distance / 700.0
     east, north = np.cumsum(speed * np.cos(heading) * 0.1), np.cumsum(speed * np.sin(heading) * 0.1)
     grid = np.arange(0.0, distance[-1] + 2.0, 1.0)
@@ -56,8 +57,8 @@ def test_kernel_sums_equal_the_dense_sum():
     np.testing.assert_allclose(_kernel_sums(rows, distance, 150.0), dense, rtol=1e-10, atol=1e-10)
 
 
-def test_distance_from_speed_ignores_a_time_step_back():
-    distance = distance_from_speed(np.array([10.0, 10.0, 10.0, 10.0]), np.array([0.0, 1.0, 0.5, 1.5]))
+def test_the_distance_ignores_a_time_step_back():
+    distance = distance_m(np.array([0.0, 1.0, 0.5, 1.5]), np.array([10.0, 10.0, 10.0, 10.0]))
     np.testing.assert_allclose(distance, [0.0, 10.0, 10.0, 20.0])
 
 

@@ -41,14 +41,6 @@ def gust_covariance(drag_area_m2: float, wind_mean_square_m2ps2: float, intensit
     return GustCovariance((AIR_DENSITY_KGPM3 * drag_area_m2 * intensity) ** 2 * wind_mean_square_m2ps2, length_m)
 
 
-def distance_from_speed(speed_mps, time_s) -> np.ndarray:
-    """Distance travelled [m] at each sample, the speed integrated over time (a time step that goes
-    back, as between two logs of a fleet, adds nothing)."""
-    speed = np.nan_to_num(np.asarray(speed_mps, dtype=float))
-    step = np.clip(np.diff(np.asarray(time_s, dtype=float)), 0.0, None)
-    return np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * step)])
-
-
 @numba.njit(cache=True)
 def _kernel_sums(rows, distance, length):
     """Per sample k, sum over all samples l of rows_l exp(-|s_k - s_l| / length) (k itself

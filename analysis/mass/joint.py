@@ -23,8 +23,9 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from ..kinematics import distance_m
 from ..road_load import AIR_DENSITY_KGPM3, G_MPS2
-from .gusts import distance_from_speed, gust_covariance, gust_meat
+from .gusts import gust_covariance, gust_meat
 
 COEFFICIENTS = ("rolling_resistance_coefficient", "drag_area_m2")
 
@@ -401,7 +402,7 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     seg = remap[seg_of[ok]]
     t = time_s[ok]
     speed_all = np.sqrt(2 * np.clip(np.nan_to_num(aero), 0, None) / AIR_DENSITY_KGPM3)
-    speed, distance = speed_all[ok], distance_from_speed(speed_all, time_s)[ok]
+    speed, distance = speed_all[ok], distance_m(time_s, speed_all)[ok]
     block_start = np.array([t[seg == j].min() for j in range(len(kept))])
     block_local = np.floor((t - block_start[seg]) / settings.block_s).astype(np.int64)
     _, block = np.unique(seg * 1_000_000 + block_local, return_inverse=True)
