@@ -19,12 +19,20 @@ import pandas as pd
 
 from ..geodesy import local_east_north_m
 from ..mass.joint import JointSettings
-from ..road_load import AIR_DENSITY_KGPM3
+from ..road_load import AIR_DENSITY_KGPM3, wheel_force_from_torque_n, wheel_torque_from_engine_nm
 
 WIND_PRIOR_MPS = JointSettings.wind_sigma_mps
-"""1-sigma [m/s] of each horizontal component of the wind: the mass fit's head-wind prior."""
+"""1-sigma [m/s] of each horizontal component of the wind (the mass fit's head-wind prior): here,
+in the braking bound's margin and in the given mass's road load."""
 HEADING_BASE_M = 20.0
 """Distance [m] over which the heading is taken from the GPS track (its position noise is metres)."""
+
+
+def head_wind_sigma_mps2(speed_mps, vehicle, mass_kg):
+    """1-sigma [m/s²] of a head wind's share in the air drag per unit mass: its linear term
+    rho c_d A v w / m at the `WIND_PRIOR_MPS` prior w (``speed_mps``: the speed, or here its part
+    the bias cannot hold)."""
+    return AIR_DENSITY_KGPM3 * vehicle.drag_coefficient * vehicle.frontal_area_m2 * speed_mps * WIND_PRIOR_MPS / mass_kg
 
 
 def heading_unit(frame: pd.DataFrame) -> np.ndarray | None:
@@ -67,12 +75,12 @@ def unheld_drag_sigma_mps2(frame: pd.DataFrame, vehicle, mass_kg, virtual, offse
         ok = measured & np.all(np.isfinite(u), axis=1)
         if ok.any():
             spread = np.linalg.norm(u - u[ok].mean(axis=0), axis=1)
-            wind = AIR_DENSITY_KGPM3 * vehicle.drag_coefficient * vehicle.frontal_area_m2 * spread * WIND_PRIOR_MPS / mass
-            variance += np.nan_to_num(wind) ** 2
+            variance += np.nan_to_num(head_wind_sigma_mps2(spread, vehicle, mass)) ** 2
     if "engine_speed_rpm" in frame and np.isfinite(offset_sigma_nm):
         with np.errstate(invalid="ignore", divide="ignore"):
-            per_nm = (2 * np.pi * frame["engine_speed_rpm"].to_numpy(dtype=float) / 60.0) * vehicle.driveline_efficiency \
-                / speed / mass
+            per_nm = wheel_force_from_torque_n(wheel_torque_from_engine_nm(
+                1.0, frame["engine_speed_rpm"].to_numpy(dtype=float), speed, vehicle.wheel_radius_m,
+                vehicle.driveline_efficiency), vehicle.wheel_radius_m) / mass
         ok = measured & np.isfinite(per_nm)
         if ok.any():
             variance[ok] += ((per_nm[ok] - per_nm[ok].mean()) * offset_sigma_nm) ** 2

@@ -38,8 +38,8 @@ import pandas as pd
 from ..engine_torque import NET, driveline_torque_nm, knows_engine_drag, torque_report_form
 from ..errors import UserError
 from ..mass.joint import JointSettings
-from ..road_load import AIR_DENSITY_KGPM3, G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_torque_from_engine_nm
-from .drag_sigma import unheld_drag_sigma_mps2
+from ..road_load import G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_torque_from_engine_nm
+from .drag_sigma import head_wind_sigma_mps2, unheld_drag_sigma_mps2
 from .engine_drag import FRICTION_MAP_UNCERTAINTY, overrun_wheel_force_n, torque_report_offset
 from .estimate import GradientResult, GradientSettings, estimate_gradient
 
@@ -374,17 +374,6 @@ BRAKE_HELD_S = 1.0
 """The braking bound takes a sample only where the brake is on this long [s] before and after it:
 the acceleration from wheel speed is smoothed and lags the brake's onset (measured: -0.2 m/s² read
 for a true -0.6 in the first half second)."""
-WIND_PRIOR_MPS = JointSettings.wind_sigma_mps
-"""Head-wind 1-sigma [m/s] in the braking bound's margin and the given mass's road load: the
-mass fit's wind prior."""
-
-
-def head_wind_sigma_mps2(speed_mps, vehicle, mass_kg):
-    """1-sigma [m/s²] of a head wind's share in the air drag per unit mass: its linear term
-    rho c_d A v w / m at the `WIND_PRIOR_MPS` prior w."""
-    return AIR_DENSITY_KGPM3 * vehicle.drag_coefficient * vehicle.frontal_area_m2 * speed_mps * WIND_PRIOR_MPS / mass_kg
-
-
 def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, relative, spacing_m, drag_n=None):
     """With height sources, the gradient held under what braking allows, as a one-sided bound: where
     the truck brakes and the engine does not pull (torque <= 0) the wheels get no traction, so
