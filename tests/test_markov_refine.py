@@ -279,3 +279,21 @@ def test_the_cycle_stage_says_how_far_the_search_is(drive, vehicle, tmp_path, mo
     assert lines[:2] == [line for line in lines if "pool walks" in line][:2]
     assert lines[0].startswith("cycle: 2 000 / 2 500 pool walks, best score ")
     assert any(line.startswith("cycle: 14 / 14 walks refined, best objective ") for line in lines)
+
+
+def test_a_gated_load_criterion_costs_from_the_margin_of_its_allowance_not_only_beyond_it():
+    """A walk whose load criterion ends a hair beyond its allowance fails the gate; the refinement
+    aims inside it, so the excess counts from `LOAD_MARGIN` of the allowance (the residence
+    distance, scored only, never)."""
+    from haulprofile.analysis.markov.score_kernels import LOAD_MARGIN, LOAD_PENALTY, LOAD_WEIGHT, load_objective
+    allowance = np.array([0.1, 0.1, 0.25])
+    measured, scale = np.array([100.0, 50.0, 0.0]), np.array([100.0, 50.0, 1.0])
+    for function in (load_objective, load_objective.py_func):
+        def cost(ratio, residence=0.0):
+            return function(np.array([100.0 * (1 + 0.1 * ratio), 50.0, residence]), measured, scale, allowance)
+        assert LOAD_MARGIN < 1.0
+        inside = cost(0.5 * LOAD_MARGIN)
+        assert inside == pytest.approx(LOAD_WEIGHT * 0.5 * LOAD_MARGIN / 3)
+        near = 0.5 * (LOAD_MARGIN + 1.0)
+        assert cost(near) == pytest.approx(LOAD_WEIGHT * near / 3 + LOAD_PENALTY * (near - LOAD_MARGIN))
+        assert cost(0.0, residence=0.5) == pytest.approx(LOAD_WEIGHT * 2.0 / 3)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ..kinematics import acceleration_mps2
 from ..vehicle import Vehicle
 from .collectives import wheel_loads
 from .bins import LoadEdges, default_edges
@@ -35,14 +36,20 @@ def median_step_s(frame: pd.DataFrame) -> float:
 
 def resample_mean(frame: pd.DataFrame, period_s: float) -> pd.DataFrame:
     """A drive as means over consecutive windows of ``period_s`` [s] (a window with any invalid
-    sample is invalid), so drives logged at different rates count cycles on the same time base."""
+    sample is invalid), its acceleration estimated from the means' speed, so drives logged at
+    different rates count cycles on the same time base."""
     columns = [c for c in NEEDED if c in frame.columns]
     window = np.floor((frame["time_s"].to_numpy(float) - float(frame["time_s"].iloc[0])) / period_s + 1e-9)
     grouped = frame[columns].groupby(window)
     out = grouped.mean()
+    out["time_s"] = float(frame["time_s"].iloc[0]) + out.index.to_numpy(float) * period_s
+    if "accel_mps2" in out.columns and len(out) > 1:
+        # the mean of a faster rate's acceleration keeps cycles shorter than the new step, which a
+        # drive logged at that rate and a generated cycle cannot have
+        out["accel_mps2"] = acceleration_mps2(out["time_s"].to_numpy(float), out["speed_mps"].to_numpy(float),
+                                              window_s=period_s)
     if "valid" in frame.columns:
         out["valid"] = frame["valid"].astype(bool).groupby(window).all()
-    out["time_s"] = float(frame["time_s"].iloc[0]) + out.index.to_numpy(float) * period_s
     return out.reset_index(drop=True)
 
 

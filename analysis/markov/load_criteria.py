@@ -73,8 +73,9 @@ class LoadTarget:
 
 
 def measured_loads(signals: pd.DataFrame, vehicle: Vehicle) -> pd.DataFrame:
-    """Wheel loads of the measured drive on a 1 s time base (window means, as `loads.collectives_of`
-    compares a drive with a 1 Hz cycle); acceleration from the speed where the signals have none.
+    """Wheel loads of the measured drive on a 1 s time base (window means, the acceleration from
+    their speed, as `loads.collectives_of` compares a drive with a 1 Hz cycle); acceleration from the
+    speed where the signals have none.
 
     The mass missing at stops is filled as the chain's counting fills it (`counting.with_mass_at_stops`):
     a mass estimator has no estimate at standstill, and without one a stop's seconds would be left

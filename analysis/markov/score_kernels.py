@@ -18,6 +18,9 @@ KINEMATIC_PENALTY = 10.0
 """Weight of a kinematic criterion's excess over its allowance: validity comes before closeness."""
 LOAD_PENALTY = 1.0
 """Weight of a load criterion's excess over its allowance."""
+LOAD_MARGIN = 0.9
+"""Share of a gated load criterion's allowance from which its excess is penalised: the refinement
+aims inside the allowance, so that its result does not end a hair beyond it."""
 LOAD_WEIGHT = 0.1
 """Weight of the mean load deviation (over allowance) beside the score (15): within their
 allowances the loads count half as much as the kinematic criteria, which define the cycle."""
@@ -284,8 +287,8 @@ def load_objective(load_values, load_measured, load_scale, load_allowance):
             d = 10.0
         r = d / load_allowance[i]
         total += r
-        if r > 1.0 and i != last:
-            excess += LOAD_PENALTY * (r - 1.0)
+        if r > LOAD_MARGIN and i != last:
+            excess += LOAD_PENALTY * (r - LOAD_MARGIN)
     return LOAD_WEIGHT * total / load_values.shape[0] + excess
 
 
