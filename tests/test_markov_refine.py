@@ -279,3 +279,28 @@ def test_the_cycle_stage_says_how_far_the_search_is(drive, vehicle, tmp_path, mo
     assert lines[:2] == [line for line in lines if "pool walks" in line][:2]
     assert lines[0].startswith("cycle: 2 000 / 2 500 pool walks, best score ")
     assert any(line.startswith("cycle: 14 / 14 walks refined, best objective ") for line in lines)
+
+
+# (seed, with loads, draw without replacement, end at a stop, cycle hashes, objectives, trace hash):
+# printed before the kernels were reshaped for a shorter first compile (issue 29). Every reshaping
+# must leave the walks drawn and kept, and the numbers, as they were.
+REFINED_GOLDEN = [
+    (7, True, False, True, ["9865aabfed8240a3", "655a4c52d4b2b022"], [0.1578841805133605, 0.49059252391118424],
+     "9082bb336c326812"),
+    (8, False, True, True, ["22590539371b1ce5", "37bf7421704c8307"], [0.0796087834443283, 0.11849505626527529],
+     "2fc265556e64acdf"),
+    (9, True, False, False, ["94113c66e852faac", "a9205718033bc1e9"], [0.17382554148958773, 0.1945070093878171],
+     "4787a4b6bbe265e8"),
+]
+
+
+@pytest.mark.parametrize("seed, loads, update, end_at_stop, keys, objectives, trace_key", REFINED_GOLDEN)
+def test_refined_selection_gives_the_golden_cycles(counts, target, vehicle, seed, loads, update, end_at_stop, keys,
+                                                   objectives, trace_key):
+    selections = select_refined(counts, 900, seed, build_chain(counts), target if loads else None,
+                                vehicle if loads else None, n_cycles=2, n_pool=3000, n_moves=600,
+                                update_counts=update, end_at_stop=end_at_stop)
+    traces = np.concatenate([s.trace for s in selections])
+    assert [_key(s.cycle) for s in selections] == keys
+    assert [s.objective for s in selections] == objectives
+    assert hashlib.sha256(traces.tobytes()).hexdigest()[:16] == trace_key
