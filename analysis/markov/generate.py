@@ -27,7 +27,7 @@ from ..errors import UserError
 from .chain import Chain, build_chain
 from .counting import TransitionCounts
 from .ending import WINDOW_S, Ending, ending_for, free_ending
-from .jit import kernel
+from .jit import inlined_kernel, kernel
 
 GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 MIX1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -107,7 +107,7 @@ def plain_index(row_ptr, free_end, cum_count, s, rng):
     return j
 
 
-@kernel
+@inlined_kernel
 def _draw(row_ptr, dest, count, cum_count, free_end, steps_to_stop, reach_max, weight, s, r_after, update,
           remaining, rng):
     """Transition out of ``s`` with ``r_after`` seconds left after it, drawn from the remaining
@@ -147,7 +147,7 @@ def _draw(row_ptr, dest, count, cum_count, free_end, steps_to_stop, reach_max, w
     return j
 
 
-@kernel
+@inlined_kernel
 def walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, index, update, remaining, touched,
           path, free_end, steps_to_stop, reach_max, weight):
     """One candidate: states ``path[0..n-1]`` from a start state, one transition per second,

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from .generate import GOLDEN, is_free, mix, path_statistics, plain_index, steered_end, steered_index, uniform
-from .jit import kernel
+from .jit import inlined_kernel, kernel
 from .score_kernels import kinematic_objective, load_objective, path_loads
 
 TAIL_SHARE = 0.2
@@ -112,7 +112,7 @@ def _rejoin(current, n, first, last, k, s, row_ptr, dest, count, cum_count, endi
     return True
 
 
-@kernel
+@inlined_kernel
 def _propose(current, n, row_ptr, dest, count, cum_count, start_state, start_cum, ending, max_window, mark, rng,
              proposal):
     """A re-drawn window, tail or head of ``current[:n]`` into ``proposal[:n]``; False if the

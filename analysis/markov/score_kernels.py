@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .jit import kernel
+from .jit import inlined_kernel, kernel
 
 EXPONENTS = np.arange(3, 9).astype(np.float64)
 """Wöhler exponents k of the damage-equivalent torque criteria (consecutive integers)."""
@@ -34,7 +34,7 @@ def _add_powers(x, weight, exponents, out):
         out[e] += p
 
 
-@kernel
+@inlined_kernel
 def rainflow_damage_sums(series, exponents, scale, out):
     """Σ count·(range/scale)^k over the rainflow cycles of ``series`` for each exponent k, into
     ``out`` (ASTM E1049 as the ``rainflow`` package counts: reversals, three-point stack, the
@@ -93,7 +93,7 @@ def rainflow_damage_sums(series, exponents, scale, out):
         _add_powers(abs(stack[j + 1] - stack[j]) / scale, 0.5, exponents, out)
 
 
-@kernel
+@inlined_kernel
 def _kth_smallest(work, k):
     """The ``k``-th smallest (0-based) of ``work``, which it reorders (Hoare's selection, O(n))."""
     lo, hi = 0, work.shape[0] - 1
@@ -118,7 +118,7 @@ def _kth_smallest(work, k):
     return work[k]
 
 
-@kernel
+@inlined_kernel
 def time_quantiles(values, n_half, half_a, half_b, shares, out):
     """Time-weighted quantiles as `time_quantiles_sorted` gives them (``shares`` ascending), found
     by selection instead of a sort: the time up to a value v, F(v) = #(values ≤ v) − ½ #(half
