@@ -2,8 +2,8 @@
 
 * ``cache``: compiled once per install, loaded from disk afterwards.
 * ``no_cfunc_wrapper``: numba compiles, beside each kernel and its Python entry, a C-callable
-  wrapper for passing it as a first-class function; no kernel is used that way, and the wrappers
-  were 7 % of the first run's compile time (issue 29).
+  wrapper for passing it as a first-class function; no kernel is used that way. Without them and
+  with the one set of options below, a first run compiles 5–7 % less (issue 29, docs/cycles.md).
 * ``nogil`` on every kernel, not only on those the threads of `converge` call: numba compiles the
   helpers behind ``np.empty``, ``min`` and ``max`` once per set of options, so one set compiles
   them once. A kernel holds no Python object, so releasing the GIL changes nothing else.
