@@ -297,3 +297,30 @@ def test_a_gated_load_criterion_costs_from_the_margin_of_its_allowance_not_only_
         near = 0.5 * (LOAD_MARGIN + 1.0)
         assert cost(near) == pytest.approx(LOAD_WEIGHT * near / 3 + LOAD_PENALTY * (near - LOAD_MARGIN))
         assert cost(0.0, residence=0.5) == pytest.approx(LOAD_WEIGHT * 2.0 / 3)
+
+
+# (seed, with loads, draw without replacement, end at a stop, cycle hashes, objectives, trace hash):
+# printed before the kernels were reshaped for a shorter first compile (issue 29), and for the two
+# with loads again after the load margin (`score_kernels.LOAD_MARGIN`) changed their objective,
+# equal on the kernels before and after the reshaping. Every reshaping must leave the walks drawn
+# and kept, and the numbers, as they were.
+REFINED_GOLDEN = [
+    (7, True, False, True, ["5f46c06ae0c2f4f9", "a7b5cc9cd79a9866"], [0.18752548921903378, 0.3400839859238596],
+     "3b170ed332275f4f"),
+    (8, False, True, True, ["22590539371b1ce5", "37bf7421704c8307"], [0.0796087834443283, 0.11849505626527529],
+     "2fc265556e64acdf"),
+    (9, True, False, False, ["872c33da4c25babc", "e97b9f6a94380b01"], [0.18275210835148947, 0.20647627294307916],
+     "80076b07d327085b"),
+]
+
+
+@pytest.mark.parametrize("seed, loads, update, end_at_stop, keys, objectives, trace_key", REFINED_GOLDEN)
+def test_refined_selection_gives_the_golden_cycles(counts, target, vehicle, seed, loads, update, end_at_stop, keys,
+                                                   objectives, trace_key):
+    selections = select_refined(counts, 900, seed, build_chain(counts), target if loads else None,
+                                vehicle if loads else None, n_cycles=2, n_pool=3000, n_moves=600,
+                                update_counts=update, end_at_stop=end_at_stop)
+    traces = np.concatenate([s.trace for s in selections])
+    assert [_key(s.cycle) for s in selections] == keys
+    assert [s.objective for s in selections] == objectives
+    assert hashlib.sha256(traces.tobytes()).hexdigest()[:16] == trace_key

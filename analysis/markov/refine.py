@@ -15,10 +15,10 @@ objective (`score_kernels.objective`, computed in two parts) falls; the kernel w
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from .generate import GOLDEN, is_free, mix, path_statistics, plain_index, steered_end, steered_index, uniform
+from .jit import inlined_kernel, kernel
 from .score_kernels import kinematic_objective, load_objective, path_loads
 
 TAIL_SHARE = 0.2
@@ -28,7 +28,7 @@ HEAD_SHARE = 0.1
 draw from there until the old walk's first window is met."""
 
 
-@numba.njit(cache=True)
+@kernel
 def _next_state(row_ptr, dest, count, cum_count, s, r_after, ending, rng):
     """The state after ``s`` with ``r_after`` seconds of the walk left after it, ending at a stop
     as ``ending`` (`ending.Ending.as_tuple`) says; ``r_after`` < 0 past the walk's end. The callers
@@ -41,14 +41,14 @@ def _next_state(row_ptr, dest, count, cum_count, s, r_after, ending, rng):
     return dest[j if j >= 0 else plain_index(row_ptr, free_end, cum_count, s, rng)]
 
 
-@numba.njit(cache=True)
+@kernel
 def _kinematic_deviation(path, speed, gradient, mass, measured, scale, q_index, s_index, stats, out):
     path_statistics(path, speed, gradient, mass, stats)
     for i in range(out.shape[0]):
         out[i] = abs(stats[q_index[i], s_index[i]] - measured[q_index[i], s_index[i]]) / scale[i]
 
 
-@numba.njit(cache=True)
+@kernel
 def _continue(current, n, k, c, row_ptr, dest, count, cum_count, ending, rng, proposal):
     """``proposal[k]`` is ``current[c]``: go on with the old walk after ``c`` while it can still
     reach a stop by the end, then with the chain, up to ``n`` states."""
@@ -75,7 +75,7 @@ def _continue(current, n, k, c, row_ptr, dest, count, cum_count, ending, rng, pr
         proposal[k] = s
 
 
-@numba.njit(cache=True)
+@kernel
 def _rejoin(current, n, first, last, k, s, row_ptr, dest, count, cum_count, ending, rng, limit, mark, proposal):
     """From state ``s`` at ``proposal[k]``, draw until a state of ``current[first..last]`` is met
     (within ``limit`` steps) and go on with the old walk from there; False if none is met."""
@@ -112,7 +112,7 @@ def _rejoin(current, n, first, last, k, s, row_ptr, dest, count, cum_count, endi
     return True
 
 
-@numba.njit(cache=True)
+@inlined_kernel
 def _propose(current, n, row_ptr, dest, count, cum_count, start_state, start_cum, ending, max_window, mark, rng,
              proposal):
     """A re-drawn window, tail or head of ``current[:n]`` into ``proposal[:n]``; False if the
@@ -141,7 +141,7 @@ def _propose(current, n, row_ptr, dest, count, cum_count, start_state, start_cum
                    ending, rng, window + window // 2, mark, proposal)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def refine_walk(path, row_ptr, dest, count, cum_count, start_state, start_cum, ending, speed, gradient, mass, measured, kin_scale, q_index, s_index,
                 kin_allowance, use_loads, resistance, radius, speed_edges, torque_edges, share, range_scale,
                 load_measured, load_scale, load_allowance, n_moves, max_window, temperature, seed, stream, trace):

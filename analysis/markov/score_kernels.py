@@ -7,8 +7,9 @@ through the loads module; tests compare them (and ``.py_func``) on the same walk
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from .jit import inlined_kernel, kernel
 
 EXPONENTS = np.arange(3, 9).astype(np.float64)
 """Wöhler exponents k of the damage-equivalent torque criteria (consecutive integers)."""
@@ -26,7 +27,7 @@ LOAD_WEIGHT = 0.1
 allowances the loads count half as much as the kinematic criteria, which define the cycle."""
 
 
-@numba.njit(cache=True)
+@kernel
 def _add_powers(x, weight, exponents, out):
     """out[e] += weight · x^k for consecutive integer exponents k (one power, then products)."""
     p = weight * x ** exponents[0]
@@ -36,7 +37,7 @@ def _add_powers(x, weight, exponents, out):
         out[e] += p
 
 
-@numba.njit(cache=True)
+@inlined_kernel
 def rainflow_damage_sums(series, exponents, scale, out):
     """Σ count·(range/scale)^k over the rainflow cycles of ``series`` for each exponent k, into
     ``out`` (ASTM E1049 as the ``rainflow`` package counts: reversals, three-point stack, the
@@ -95,7 +96,7 @@ def rainflow_damage_sums(series, exponents, scale, out):
         _add_powers(abs(stack[j + 1] - stack[j]) / scale, 0.5, exponents, out)
 
 
-@numba.njit(cache=True)
+@inlined_kernel
 def _kth_smallest(work, k):
     """The ``k``-th smallest (0-based) of ``work``, which it reorders (Hoare's selection, O(n))."""
     lo, hi = 0, work.shape[0] - 1
@@ -120,7 +121,7 @@ def _kth_smallest(work, k):
     return work[k]
 
 
-@numba.njit(cache=True)
+@inlined_kernel
 def time_quantiles(values, n_half, half_a, half_b, shares, out):
     """Time-weighted quantiles as `time_quantiles_sorted` gives them (``shares`` ascending), found
     by selection instead of a sort: the time up to a value v, F(v) = #(values ≤ v) − ½ #(half
@@ -167,7 +168,7 @@ def time_quantiles(values, n_half, half_a, half_b, shares, out):
             v = above
 
 
-@numba.njit(cache=True)
+@kernel
 def time_quantiles_sorted(values, n_half, half_a, half_b, shares, out):
     """Time-weighted quantiles as `analysis.loads.summary.time_quantile` for 1 s samples of which
     the two at ``half_a`` and ``half_b`` stand for 0.5 s (a walk's ends). The value at the first
@@ -199,7 +200,7 @@ def time_quantiles_sorted(values, n_half, half_a, half_b, shares, out):
         q += 1
 
 
-@numba.njit(cache=True)
+@kernel
 def path_loads(path, n, speed, mass, resistance, radius, speed_edges, torque_edges, share, range_scale, out,
                torque, power, residence):
     """Load criteria values (order of `load_criteria.LOAD_NAMES`) of the walk ``path[:n]`` into
@@ -256,7 +257,7 @@ def path_loads(path, n, speed, mass, resistance, radius, speed_edges, torque_edg
     out[out.shape[0] - 1] = 0.5 * tvd
 
 
-@numba.njit(cache=True)
+@kernel
 def kinematic_objective(kin_deviation, kin_allowance):
     """The score (15) plus `KINEMATIC_PENALTY` times each criterion's excess over its allowance."""
     total = 0.0
@@ -269,7 +270,7 @@ def kinematic_objective(kin_deviation, kin_allowance):
     return total / kin_deviation.shape[0] + excess
 
 
-@numba.njit(cache=True)
+@kernel
 def load_objective(load_values, load_measured, load_scale, load_allowance):
     """`LOAD_WEIGHT` times the mean load deviation over its allowance, plus `LOAD_PENALTY` times
     each excess over an allowance except the residence distance's (its own deviation): a 1800 s
@@ -292,7 +293,7 @@ def load_objective(load_values, load_measured, load_scale, load_allowance):
     return LOAD_WEIGHT * total / load_values.shape[0] + excess
 
 
-@numba.njit(cache=True)
+@kernel
 def objective(kin_deviation, kin_allowance, load_values, load_measured, load_scale, load_allowance, use_loads):
     """What the refinement minimises: `kinematic_objective` plus, with loads, `load_objective`.
     Both are ≥ 0, so a walk whose kinematic part alone is too high needs no load computation.
