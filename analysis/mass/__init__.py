@@ -148,6 +148,17 @@ def regressor_bias_kg(fit: JointFit, regressor_std, bounds) -> np.ndarray:
     return out
 
 
+def regressor_bias_covariance_kg2(fit: JointFit, shared_std, independent_std, bounds) -> np.ndarray:
+    """Covariance [kg²] between the segments' masses of a systematic regressor error
+    (`regressor_bias_kg`) whose part ``shared_std`` is one error of the whole drive (fully
+    correlated across segments, signed by each segment's sum(w phi)) and part ``independent_std``
+    each segment's own. Its diagonal is `regressor_bias_kg` of their sum."""
+    shared = regressor_bias_kg(fit, shared_std, bounds)
+    out = np.outer(shared, shared)
+    np.fill_diagonal(out, regressor_bias_kg(fit, shared_std + independent_std, bounds) ** 2)
+    return out
+
+
 def _change_regression(regression, vehicle):
     """(phi, y) for telling payload changes at short stops: the accelerometer's regressor where
     there is one (independent of the gradient estimate, whose error differs between stretches),
@@ -220,16 +231,25 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
                                  wind_regressors=wind, offset_regressor=offset, aux_regressor=aux)
     chosen = fits.get("imu", fits["gradient"])
     gradient_bias = G_MPS2 * np.sin(np.arctan(segment_settings.gradient_bias_pct / 100))
+    covariances = {}
     for name, fit in fits.items():
         if name == "imu" and regression.excess_imu_std is not None:
-            regressor_std = np.nan_to_num(regression.excess_imu_std, nan=0.0)
+            # the IMU bias calibration: one error of the whole drive
+            shared_std = np.nan_to_num(regression.excess_imu_std, nan=0.0)
+            independent_std = np.zeros(len(time_s))
         elif regression.excess_gradient_std is not None:
             # the gradient's own stated sigma, taken as fully correlated over the segment (its
-            # errors are correlated over hundreds of metres; conservative over shorter scales)
-            regressor_std = np.nan_to_num(regression.excess_gradient_std, nan=gradient_bias)
+            # errors are correlated over hundreds of metres; conservative over shorter scales) but
+            # not from one segment to the next; the bias standing in where it states none is shared
+            stated = regression.excess_gradient_std
+            shared_std = np.where(np.isfinite(stated), 0.0, gradient_bias)
+            independent_std = np.nan_to_num(stated, nan=0.0)
         else:
-            regressor_std = np.full(len(time_s), gradient_bias)
-        fit.sensitivity_kg = np.hypot(fit.sensitivity_kg, regressor_bias_kg(fit, regressor_std, bounds))
+            shared_std, independent_std = np.full(len(time_s), gradient_bias), np.zeros(len(time_s))
+        # an auxiliary power's prior the drive cannot resolve (the fit's sensitivity) is the segment's own
+        covariances[name] = (fit.mass_covariance_kg2 + np.diag(fit.sensitivity_kg ** 2)
+                             + regressor_bias_covariance_kg2(fit, shared_std, independent_std, bounds))
+        fit.sensitivity_kg = np.hypot(fit.sensitivity_kg, regressor_bias_kg(fit, shared_std + independent_std, bounds))
     gain_uncertainty = float(np.hypot(settings.torque_gain_uncertainty, settings.driveline_efficiency_uncertainty))
     results = {}
     for name, fit in fits.items():
@@ -238,7 +258,7 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         own = known if fit is chosen else {j: kg for j, kg in known.items()
                                            if j < len(fit.masses_kg) and np.isfinite(fit.masses_kg[j])}
         results[name] = calibration.calibrate(fit.masses_kg, fit.mass_std_kg, fit.sensitivity_kg, own,
-                                              gain_uncertainty)
+                                              gain_uncertainty, covariances[name])
     masses, total, gain = results[chosen.regressor]
     for j, (segment, (start, end)) in enumerate(zip(segments, bounds)):
         for name, (m, sigma, _) in results.items():
