@@ -59,7 +59,7 @@ def gain_posterior(masses_kg, covariance_kg2, weighed, weighed_kg, gain_uncertai
     in ``masses_kg``, ``weighed_kg`` their known masses): masses_kg m̂ - E[u | z], std_kg the
     posterior's 1-sigma, delta and delta_std δ's posterior. The errors' gain column m_j is taken as
     m̂_j / (1 + δ̂) (the weighed ones' own m_w), iterated to its fixed point: with m̂_j in its place
-    a pure gain error would leave (k - 1)² of every mass."""
+    a pure gain error would leave (k - 1)² of every mass. A NaN in ``covariance_kg2`` counts as 0."""
     masses = np.asarray(masses_kg, dtype=float)
     covariance = np.nan_to_num(np.asarray(covariance_kg2, dtype=float))
     covariance = 0.5 * (covariance + covariance.T)
@@ -78,8 +78,7 @@ def gain_posterior(masses_kg, covariance_kg2, weighed, weighed_kg, gain_uncertai
         delta = new_delta
         if converged:
             break
-    gain_z = solved[:, 0]
-    mean = towards @ gain_z
+    mean = towards @ solved[:, 0]
     posterior = total - towards @ solved[:, 1:1 + len(masses)]
     delta_var = prior_var - prior_var ** 2 * float(column[weighed] @ solved[:, -1])
     return {"masses_kg": masses - mean, "std_kg": np.sqrt(np.clip(np.diag(posterior), 0.0, None)),
