@@ -71,7 +71,8 @@ def test_one_weighing_calibrates_the_torque_gain_for_every_segment():
     assert np.all(raw > 0.02)
     uncalibrated, sigma, gain = calibrate(fit.masses_kg, fit.mass_std_kg, fit.sensitivity_kg, {}, 0.036)
     assert gain["calibrated_from"] is None and np.all(np.abs(uncalibrated - MASSES) < 2 * sigma)
-    corrected, sigma, gain = calibrate(fit.masses_kg, fit.mass_std_kg, fit.sensitivity_kg, {0: MASSES[0]}, 0.036)
+    corrected, sigma, gain = calibrate(fit.masses_kg, fit.mass_std_kg, fit.sensitivity_kg, {0: MASSES[0]}, 0.036,
+                                       fit.mass_covariance_kg2 + np.diag(fit.sensitivity_kg ** 2))
     assert abs(gain["gain"] - 1.03) < 0.01
     assert corrected[0] == MASSES[0] and sigma[0] == 0
     assert np.all(np.abs(corrected[1:] / np.array(MASSES[1:]) - 1) < 0.01)

@@ -181,7 +181,10 @@ def fit_truck(parts: list[SegmentMoments], vehicle, known: dict[tuple[str, int],
         std = np.sqrt(np.abs(np.diag(cov)))
         masses, mass_std = theta[:n_seg], std[:n_seg]
         bias = np.array([part.bias_fraction for part in parts]) * np.abs(masses)
-        corrected, total, gain = calibration.calibrate(masses, mass_std, bias, weighed, gain_uncertainty)
+        # each part's systematic term (its log's auxiliary power and regressor bias, one number)
+        # taken as its own: the pooled fit's covariance holds what the logs share
+        covariance = cov[:n_seg, :n_seg] + np.diag(bias ** 2)
+        corrected, total, gain = calibration.calibrate(masses, mass_std, bias, weighed, gain_uncertainty, covariance)
         gain_value = gain["gain"]
     if gain["calibrated_from"] is not None:
         gain["calibrated_from"] = [{"log": parts[j - 1].log, "segment": parts[j - 1].segment}

@@ -220,6 +220,7 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
                                  wind_regressors=wind, offset_regressor=offset, aux_regressor=aux)
     chosen = fits.get("imu", fits["gradient"])
     gradient_bias = G_MPS2 * np.sin(np.arctan(segment_settings.gradient_bias_pct / 100))
+    covariances = {}
     for name, fit in fits.items():
         if name == "imu" and regression.excess_imu_std is not None:
             regressor_std = np.nan_to_num(regression.excess_imu_std, nan=0.0)
@@ -229,7 +230,15 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
             regressor_std = np.nan_to_num(regression.excess_gradient_std, nan=gradient_bias)
         else:
             regressor_std = np.full(len(time_s), gradient_bias)
-        fit.sensitivity_kg = np.hypot(fit.sensitivity_kg, regressor_bias_kg(fit, regressor_std, bounds))
+        bias_kg = regressor_bias_kg(fit, regressor_std, bounds)
+        # for a weighing: a regressor error constant over a segment (the IMU's bias calibration,
+        # the height source's slow drift under the gradient) is one error of the drive, fully
+        # correlated across its segments (the truth of the accuracy matrix's ideal no-imu drives,
+        # where the gradient is the mass's main error: 1.6 % RMS shared by a drive's segments,
+        # 0.4 % their own); an auxiliary power's prior the drive cannot resolve (the fit's
+        # sensitivity) is the segment's own
+        covariances[name] = fit.mass_covariance_kg2 + np.diag(fit.sensitivity_kg ** 2) + np.outer(bias_kg, bias_kg)
+        fit.sensitivity_kg = np.hypot(fit.sensitivity_kg, bias_kg)
     gain_uncertainty = float(np.hypot(settings.torque_gain_uncertainty, settings.driveline_efficiency_uncertainty))
     results = {}
     for name, fit in fits.items():
@@ -238,7 +247,7 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         own = known if fit is chosen else {j: kg for j, kg in known.items()
                                            if j < len(fit.masses_kg) and np.isfinite(fit.masses_kg[j])}
         results[name] = calibration.calibrate(fit.masses_kg, fit.mass_std_kg, fit.sensitivity_kg, own,
-                                              gain_uncertainty)
+                                              gain_uncertainty, covariances[name])
     masses, total, gain = results[chosen.regressor]
     for j, (segment, (start, end)) in enumerate(zip(segments, bounds)):
         for name, (m, sigma, _) in results.items():

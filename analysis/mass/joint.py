@@ -113,6 +113,11 @@ class JointFit:
     slope_share: np.ndarray | None = None
     """Per segment, the robust weights' mean slope over their mean (`_biweight_slope_share`), which
     the covariance's normal matrix carries (NaN: not fitted)."""
+    mass_covariance_kg2: np.ndarray | None = None
+    """The masses' statistical covariance [kg²] (segments x segments; its diagonal is
+    ``mass_std_kg``²): the shared parameters' share (c_r, c_d·A, wind, torque offset, gusts) moves
+    all masses together, which a weighing corrects for the other segments (`calibration`). NaN
+    rows and columns for a segment without a mass."""
 
 
 @numba.njit(cache=True)
@@ -394,7 +399,7 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
                       reasons={c: "no segment with enough samples" for c in COEFFICIENTS},
                       sensitivity_kg=np.zeros(n_seg), weights=np.zeros(len(force)),
                       regressor_values=np.zeros(len(force)), samples=counts, outliers=0,
-                      regressor=regressor_name)
+                      regressor=regressor_name, mass_covariance_kg2=np.full((n_seg, n_seg), np.nan))
     if len(kept) == 0:
         return result
     f, x, c, q, ex = force[ok], excess[ok], cos_angle[ok], aero[ok], np.ascontiguousarray(extra_all[ok])
@@ -487,6 +492,7 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     result.condition = condition
     result.masses_kg[kept] = theta[:m]
     result.mass_std_kg[kept] = np.sqrt(np.diag(statistical)[:m])
+    result.mass_covariance_kg2[np.ix_(kept, kept)] = statistical[:m, :m]
     result.sensitivity_kg[kept] = np.sqrt(np.maximum(np.diag(cov)[:m] - np.diag(statistical)[:m], 0.0))
     result.masses_kg[~np.isfinite(result.mass_std_kg)] = np.nan
     for index, name in ((m, COEFFICIENTS[0]), (m + 1, COEFFICIENTS[1])):
