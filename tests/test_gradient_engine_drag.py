@@ -69,3 +69,21 @@ def test_the_engines_drag_at_the_wheels_is_minus_the_friction_through_the_gear()
         / vehicle.wheel_radius_m
     assert np.allclose(force[in_gear_braking], expected[in_gear_braking], rtol=1e-6)
 
+
+
+def test_the_accessories_on_overrun_are_drag_the_wheels_pay_and_not_part_of_the_reports_offset():
+    """In a fuel cut the wheels drive the compressor and fan through the crankshaft with the
+    friction: the net report stays at -friction + offset (SPN 513 holds no accessories), SPN 2978
+    says what they take. The offset is found as without them; the drag at the wheels holds both."""
+    frame, vehicle, in_gear_braking = overrun_log(offset_nm=30.0)
+    on = np.zeros(len(frame), bool)
+    on[::400] = True
+    compressor = np.where(np.convolve(on, np.ones(260), "same") > 0, 45.0, 0.0)
+    frame["engine_parasitic_torque_nm"] = compressor
+    assert (compressor[in_gear_braking] > 0).any() and (compressor[in_gear_braking] == 0).any()
+    found = engine_drag.torque_report_offset(frame, vehicle)
+    assert abs(found.offset_nm - 30.0) < 15.0
+    force = engine_drag.overrun_wheel_force_n(frame, vehicle)
+    expected = -(frame["engine_friction_torque_nm"] + compressor) * vehicle.total_ratios[6] \
+        * vehicle.driveline_efficiency / vehicle.wheel_radius_m
+    assert np.allclose(force[in_gear_braking], expected[in_gear_braking], rtol=1e-6)

@@ -2,13 +2,13 @@
 
 While the driver brakes in gear the engine is in its fuel cut: its indicated torque is zero and
 a torque report net of the friction (`engine_torque.torque_report_form`) reads minus the
-nominal friction, SPN 514 (`engine_friction_torque_nm`). What the report less the accessories'
-torque (`engine_torque.driveline_torque_nm`) reads above that on those samples is the report's
-offset together with the driveline's spin loss: the constant part of the force balance's error,
-which reaches the wheels through the gear ratio, so the smoother's single bias state cannot hold
-it across the gears of an urban drive. Its median over the overrun samples is that offset; the
-friction itself is the engine's drag at the wheels while it brakes (`overrun_wheel_force_n`),
-which tightens the braking bound where the truck brakes on descents.
+nominal friction, SPN 514 (`engine_friction_torque_nm`). What the report reads above that on
+those samples is the report's offset: the constant part of the force balance's error, which
+reaches the wheels through the gear ratio, so the smoother's single bias state cannot hold it
+across the gears of an urban drive. Its median over the overrun samples is that offset. The
+accessories (SPN 2978) are not in the report; in a fuel cut the wheels drive them through the
+crankshaft with the friction, so the engine's drag at the wheels while it brakes is both
+(`overrun_wheel_force_n`), which tightens the braking bound where the truck brakes on descents.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..engine_torque import FRICTION_COLUMN, driveline_torque_nm
+from ..engine_torque import FRICTION_COLUMN, flywheel_torque_nm, parasitic_torque_nm
 from ..road_load import wheel_force_from_torque_n, wheel_torque_from_engine_nm
 from ..runs import true_runs
 
@@ -79,14 +79,14 @@ def overrun(frame: pd.DataFrame, vehicle) -> np.ndarray:
 
 def torque_report_offset(frame: pd.DataFrame, vehicle) -> TorqueOffset | None:
     """The torque report's offset [Nm] from the overrun samples (`overrun`): the median of the
-    driveline torque plus SPN 514, which is zero in a fuel cut; its sigma from the spread of the
+    flywheel torque plus SPN 514, which is zero in a fuel cut; its sigma from the spread of the
     brake applications' medians (samples within one application are correlated) and the friction
     map's `FRICTION_MAP_UNCERTAINTY`. None where the log has no SPN 514, fewer than `MIN_SAMPLES`
     overrun samples or `MIN_APPLICATIONS` brake applications."""
     on = overrun(frame, vehicle)
     if on.sum() < MIN_SAMPLES or "engine_torque_nm" not in frame.columns:
         return None
-    residual = driveline_torque_nm(frame) + frame[FRICTION_COLUMN].to_numpy(dtype=float)
+    residual = flywheel_torque_nm(frame) + frame[FRICTION_COLUMN].to_numpy(dtype=float)
     on &= np.isfinite(residual)
     medians = np.array([np.median(residual[start:end]) for start, end in true_runs(on)])
     if on.sum() < MIN_SAMPLES or medians.size < MIN_APPLICATIONS:
@@ -100,12 +100,16 @@ def torque_report_offset(frame: pd.DataFrame, vehicle) -> TorqueOffset | None:
 
 def overrun_wheel_force_n(frame: pd.DataFrame, vehicle) -> np.ndarray:
     """The engine's drag at the wheels [N, negative] per sample where the engine is on overrun
-    (`overrun`), NaN elsewhere: minus SPN 514 through the gear and the driveline's efficiency."""
+    (`overrun`), NaN elsewhere: minus SPN 514 and the accessories' torque where the log reports it
+    (SPN 2978), through the gear and the driveline's efficiency."""
     on = overrun(frame, vehicle)
     if not on.any():
         return np.full(len(frame), np.nan)
-    friction = frame[FRICTION_COLUMN].to_numpy(dtype=float)
+    drag = frame[FRICTION_COLUMN].to_numpy(dtype=float)
+    parasitic = parasitic_torque_nm(frame)
+    if parasitic is not None:
+        drag = drag + parasitic
     force = wheel_force_from_torque_n(wheel_torque_from_engine_nm(
-        -friction, frame["engine_speed_rpm"].to_numpy(dtype=float), frame["speed_mps"].to_numpy(dtype=float),
+        -drag, frame["engine_speed_rpm"].to_numpy(dtype=float), frame["speed_mps"].to_numpy(dtype=float),
         vehicle.wheel_radius_m, vehicle.driveline_efficiency), vehicle.wheel_radius_m)
     return np.where(on, force, np.nan)

@@ -1,13 +1,17 @@
 """What the realistic levels add to the truck's physics: wind with gusts, a trailer change at a
 stop, a driveline whose efficiency depends on gear and load, and auxiliary loads (air compressor,
-cooling fan, PTO) that take engine torque without moving the truck."""
+cooling fan, PTO) that take engine torque without moving the truck where the engine burns fuel,
+and brake it where the engine is in a fuel cut (the wheels drive them then)."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from ..runs import true_runs
+from .driver import FAN_RATED_RPM, friction_torque_nm
 from .realism import Realism
 from .road import Road
 
@@ -58,26 +62,65 @@ def _on_periods(rng, time_s: np.ndarray, per_hour: float, low_s: float, high_s: 
     return on
 
 
-def engine_loads(states: pd.DataFrame, vehicle, level: Realism, rng: np.random.Generator) -> tuple[dict, dict]:
-    """Engine torque [Nm] the driveline and the auxiliaries really take, from the torque the
-    simulation needed at the gearbox input with the nominal efficiency: columns for the states
-    and the injected sizes."""
+@dataclass(frozen=True)
+class Accessories:
+    """What sits between the engine and the gearbox: the compressor's power and the fan's rated
+    power per simulation step [W] while each runs (none after the arrays end), the driveline's
+    efficiency per gear and its spin loss at the gearbox input [Nm]."""
+
+    compressor_w: np.ndarray
+    fan_rated_w: np.ndarray
+    gear_efficiency: np.ndarray
+    spin_loss_nm: float
+
+    @classmethod
+    def none(cls, vehicle) -> "Accessories":
+        """No accessories and a driveline as nominal (the `ideal` truck)."""
+        return cls(np.zeros(0), np.zeros(0), np.full(len(vehicle.total_ratios), vehicle.driveline_efficiency), 0.0)
+
+
+def accessories_schedule(first: pd.DataFrame, vehicle, level: Realism, rng: np.random.Generator) -> Accessories:
+    """When the compressor and the fan run, from a first pass of the drive without them: the
+    compressor cycles by time, the fan runs when the engine has been hot (the gearbox torque above
+    60 % of the reference for most of the last minute) and a few random times an hour."""
+    torque = first["engine_torque_nm"].to_numpy()
+    time_s = first["time_s"].to_numpy()
+    ref = vehicle.engine_reference_torque_nm
+    compressor = _on_periods(rng, time_s, 12.0, 15.0, 60.0) * level.aux_compressor_kw * 1000.0
+    hot = pd.Series(torque > 0.6 * ref).rolling(6000, min_periods=1).mean().to_numpy() > 0.5
+    fan = (hot | _on_periods(rng, time_s, 2.0, 60.0, 180.0)) * level.aux_fan_kw * 1000.0
+    top = len(vehicle.total_ratios)
+    gears = np.arange(top)
+    eta = vehicle.driveline_efficiency + level.driveline_gear_spread * (gears / max(top - 1, 1) - 0.5)
+    return Accessories(compressor, fan, eta, level.driveline_spin_loss_pct / 100.0 * ref)
+
+
+def _per_step(schedule: np.ndarray, n: int) -> np.ndarray:
+    """A schedule cut or padded with zeros (off) to ``n`` steps."""
+    out = np.zeros(n)
+    out[: min(n, schedule.size)] = schedule[:n]
+    return out
+
+
+def engine_loads(states: pd.DataFrame, vehicle, level: Realism, accessories: Accessories) -> tuple[dict, dict]:
+    """Engine torque [Nm] the driveline and the accessories really take, from the torque the
+    simulation put through the gearbox with the nominal efficiency: where the engine burns fuel it
+    makes the accessories' and the driveline's losses on top; in a fuel cut its net torque is its
+    friction (the wheels drive the rest). Columns for the states and the injected sizes."""
     torque = states["engine_torque_nm"].to_numpy()
     gear = states["gear"].to_numpy()
     rpm = states["engine_speed_rpm"].to_numpy()
     time_s = states["time_s"].to_numpy()
+    fuel_cut = states["fuel_cut"].to_numpy()
     eta = vehicle.driveline_efficiency
-    top = len(vehicle.total_ratios)
-    ref = vehicle.engine_reference_torque_nm
     engaged = gear > 0
-    eta_gear = np.where(engaged, eta + level.driveline_gear_spread * ((gear - 1) / max(top - 1, 1) - 0.5), eta)
+    eta_gear = np.where(engaged, accessories.gear_efficiency[np.maximum(gear, 1) - 1], eta)
     factor = np.where(torque >= 0, eta / eta_gear, eta_gear / eta)
-    spin = np.where(engaged, level.driveline_spin_loss_pct / 100.0 * ref, 0.0)
+    spin = np.where(engaged, accessories.spin_loss_nm, 0.0)
     driveline = np.where(engaged, torque * factor + spin, torque)
     omega = np.maximum(rpm, 1.0) * np.pi / 30.0
-    compressor = _on_periods(rng, time_s, 12.0, 15.0, 60.0) * level.aux_compressor_kw * 1000.0
-    hot = pd.Series(torque > 0.6 * ref).rolling(6000, min_periods=1).mean().to_numpy() > 0.5
-    fan = (hot | _on_periods(rng, time_s, 2.0, 60.0, 180.0)) * level.aux_fan_kw * 1000.0 * (rpm / 1800.0) ** 3
+    compressor = _per_step(accessories.compressor_w, len(states))
+    fan = _per_step(accessories.fan_rated_w, len(states)) * (rpm / FAN_RATED_RPM) ** 3
     standing = states["stop"].to_numpy()
     pto = np.zeros(time_s.shape)
     if level.aux_pto_kw > 0:
@@ -86,11 +129,13 @@ def engine_loads(states: pd.DataFrame, vehicle, level: Realism, rng: np.random.G
                 middle = slice(start + (end - start) // 4, start + 3 * (end - start) // 4)
                 pto[middle] = level.aux_pto_kw * 1000.0
     aux = (compressor + fan + pto) / omega
-    columns = {"engine_torque_nm": driveline + aux, "wheel_engine_torque_nm": torque, "aux_torque_nm": aux,
+    engine = driveline + aux
+    engine[fuel_cut] = -friction_torque_nm(rpm[fuel_cut], vehicle)
+    columns = {"engine_torque_nm": engine, "wheel_engine_torque_nm": torque, "aux_torque_nm": aux,
                "aux_compressor_torque_nm": compressor / omega, "aux_fan_torque_nm": fan / omega,
                "driveline_efficiency": eta_gear}
     sizes = {"aux_compressor_on_share": float(np.mean(compressor > 0)), "aux_fan_on_share": float(np.mean(fan > 0)),
              "aux_pto_on_s": float(np.sum(pto > 0) * (time_s[1] - time_s[0])),
              "driveline_gear_spread": level.driveline_gear_spread,
-             "driveline_spin_loss_nm": level.driveline_spin_loss_pct / 100.0 * ref}
+             "driveline_spin_loss_nm": accessories.spin_loss_nm}
     return columns, sizes

@@ -123,6 +123,9 @@ def gps(stream: pd.DataFrame, road: Road, states, level: Realism, rng) -> dict:
     outages outside tunnels (``gps_outages_per_h``, 20-120 s each)."""
     t = stream["time_s"].to_numpy()
     rate = 1.0 / np.median(np.diff(t))
+    outage = np.zeros(t.size, bool)
+    for start in rng.uniform(0, t[-1], rng.poisson(level.gps_outages_per_h * t[-1] / 3600.0)):
+        outage |= (t >= start) & (t < start + rng.uniform(20.0, 120.0))
     distance = _sample(states, "distance_m", t)
     east, north = road.at(road.east_m, distance), road.at(road.north_m, distance)
     town = road.town.at(east, north) if road.town is not None else np.zeros(t.size)
@@ -135,9 +138,6 @@ def gps(stream: pd.DataFrame, road: Road, states, level: Realism, rng) -> dict:
     e, n = road.local(stream["latitude_deg"].to_numpy(), stream["longitude_deg"].to_numpy())
     lat, lon = road.latlon(e + de, n + dn)
     altitude = stream["altitude_m"].to_numpy() + 1.5 * extra * _gauss_markov(rng, t.size, 5.0 * rate)
-    outage = np.zeros(t.size, bool)
-    for start in rng.uniform(0, t[-1], rng.poisson(level.gps_outages_per_h * t[-1] / 3600.0)):
-        outage |= (t >= start) & (t < start + rng.uniform(20.0, 120.0))
     fix = (stream["fix_quality"].to_numpy() > 0) & ~outage
     stream["fix_quality"] = fix.astype(np.int8)
     for column, values in (("latitude_deg", lat), ("longitude_deg", lon), ("altitude_m", altitude),
@@ -149,12 +149,16 @@ def gps(stream: pd.DataFrame, road: Road, states, level: Realism, rng) -> dict:
 
 def apply_sensor_errors(streams: dict, states, road: Road, sensors, level: Realism, rng) -> dict:
     """Apply the level's sensor errors to the streams in place (``sensors``: the scenario's noise
-    levels); return the injected sizes."""
+    levels); return the injected sizes. Each sensor draws from its own generator spawned from
+    ``rng``, its sizes before its noise, so a drive that lasts a step longer or shorter (a change of
+    the truck's physics) keeps every drawn size: a before/after of the matrix compares like drives."""
+    wheel, torque, inertial, pressure, satellite, parasitic = rng.spawn(6)
+    reference_nm = streams["engine_reference_torque_nm"]
     injected = {}
-    injected |= wheel_speed(streams["wheel_speed"], states, level, sensors, rng)
-    injected |= engine_torque(streams["engine"], states, streams["engine_reference_torque_nm"], level, sensors, rng)
-    injected |= imu(streams["imu"], level, rng)
-    injected |= barometer(streams["barometer"], states, level, rng)
-    injected |= gps(streams["gps"], road, states, level, rng)
-    injected |= parasitic_estimate(streams["engine_losses"], states, streams["engine_reference_torque_nm"], level, rng)
+    injected |= wheel_speed(streams["wheel_speed"], states, level, sensors, wheel)
+    injected |= engine_torque(streams["engine"], states, reference_nm, level, sensors, torque)
+    injected |= imu(streams["imu"], level, inertial)
+    injected |= barometer(streams["barometer"], states, level, pressure)
+    injected |= gps(streams["gps"], road, states, level, satellite)
+    injected |= parasitic_estimate(streams["engine_losses"], states, reference_nm, level, parasitic)
     return injected

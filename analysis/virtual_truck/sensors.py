@@ -14,7 +14,7 @@ import pandas as pd
 from haulprofile.contract import j1939
 
 from ..road_load import G_MPS2
-from .driver import drag_torque_nm
+from .driver import friction_torque_nm
 
 STANDARD_GRAVITY_MPS2 = 9.80665
 ACCEL_FULL_SCALE_G = 4
@@ -82,12 +82,6 @@ def parasitic_torque_nm(states, times: np.ndarray, compressor_gain: float = 1.0,
             + fan_gain * _held(states, "aux_fan_torque_nm", times))
 
 
-def friction_torque_nm(engine_speed_rpm: np.ndarray, vehicle) -> np.ndarray:
-    """The engine's friction [Nm, positive] at each speed: its motoring torque in a fuel cut."""
-    engine, ref = vehicle.engine, vehicle.engine_reference_torque_nm
-    return -np.array([drag_torque_nm(r, ref, engine.idle_speed_rpm, engine.max_speed_rpm) for r in engine_speed_rpm])
-
-
 def report_indicated_torque(engine_stream: pd.DataFrame, states, vehicle) -> dict:
     """Turn EEC1's torque report (SPN 513) into J1939-71's own form, the indicated torque: the
     friction EEC3 sends (SPN 514, same rounding) added, never below zero, and exactly 0 % in a fuel
@@ -96,8 +90,7 @@ def report_indicated_torque(engine_stream: pd.DataFrame, states, vehicle) -> dic
     ref = vehicle.engine_reference_torque_nm
     t = engine_stream["time_s"].to_numpy()
     friction = friction_torque_nm(_held(states, "engine_speed_rpm", t), vehicle)
-    simulated = "wheel_engine_torque_nm" if "wheel_engine_torque_nm" in states else "engine_torque_nm"
-    fuel_cut = _held(states, simulated, t) <= 1.0 - friction
+    fuel_cut = _held(states, "fuel_cut", t)
     indicated = np.clip(engine_stream["actual_engine_torque_pct"] + np.round(friction / ref * 100), 0, 125)
     engine_stream["actual_engine_torque_pct"] = np.where(fuel_cut, 0.0, indicated)
     return {"torque_report": "indicated"}

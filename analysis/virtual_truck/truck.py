@@ -11,7 +11,7 @@ from ..errors import UserError
 from ..vehicle import EXAMPLES, Vehicle, load_vehicle
 from . import sensors as sensor_models
 from .driver import OUTPUTS, simulate_kernel
-from .disturbances import engine_loads, head_wind_mps, trailer_change
+from .disturbances import Accessories, accessories_schedule, engine_loads, head_wind_mps, trailer_change
 from .realism import IDEAL, Realism
 from .realism import realism_level as make_realism
 from .road import Road
@@ -26,7 +26,7 @@ TRUTH_RATE_HZ = 10.0
 TRUTH_COLUMNS = ("time_s", "distance_m", "speed_mps", "accel_mps2", "gradient_pct", "road_height_m",
                  "terrain_height_m", "mass_kg", "latitude_deg", "longitude_deg", "gear", "engine_speed_rpm",
                  "engine_torque_nm", "wheel_force_n", "brake_active", "shifting", "in_tunnel", "stop",
-                 "clutch_slip")
+                 "clutch_slip", "fuel_cut")
 
 
 @dataclass
@@ -71,10 +71,12 @@ def _masses(scenario: Scenario, vehicle: Vehicle, n_stops: int) -> tuple[float, 
 
 
 def simulate(scenario: Scenario, vehicle: Vehicle, road: Road, kernel=simulate_kernel,
-             head_wind_mps: np.ndarray | None = None, after_stop_kg: np.ndarray | None = None) -> pd.DataFrame:
+             head_wind_mps: np.ndarray | None = None, after_stop_kg: np.ndarray | None = None,
+             accessories: Accessories | None = None) -> pd.DataFrame:
     """The 100 Hz states of the drive (columns `driver.OUTPUTS` plus ``time_s``); ``head_wind_mps``
     on the road's grid (default calm), ``after_stop_kg`` total mass after each stop (default from
-    the scenario's payload)."""
+    the scenario's payload), ``accessories`` between engine and gearbox (default none, a driveline
+    as nominal)."""
     if vehicle.engine is None or vehicle.total_ratios is None or vehicle.engine_reference_torque_nm is None:
         raise UserError(f"vehicle {vehicle.name}: the virtual truck needs [engine], gear_ratios, axle_ratio "
                         f"and engine_reference_torque_nm in the vehicle file")
@@ -90,6 +92,7 @@ def simulate(scenario: Scenario, vehicle: Vehicle, road: Road, kernel=simulate_k
     driver_params = np.array([driver.max_accel_mps2, driver.comfort_decel_mps2, driver.max_decel_mps2,
                               driver.speed_gain_per_s, driver.downhill_overspeed_kmh / 3.6])
     ratios = np.asarray(vehicle.total_ratios, float)
+    accessories = Accessories.none(vehicle) if accessories is None else accessories
     expected_s = (np.sum(np.diff(road.distance_m) / np.maximum(road.target_speed_mps[1:], 1.0))
                   + road.stop_duration_s.sum() + road.initial_stop_s)
     max_steps = int(1.5 * expected_s / SIM_STEP_S) + 60_000
@@ -97,7 +100,8 @@ def simulate(scenario: Scenario, vehicle: Vehicle, road: Road, kernel=simulate_k
         out = np.zeros((len(OUTPUTS), max_steps))
         steps = kernel(SIM_STEP_S, max_steps, road.target_speed_mps, road.gradient_pct, wind, road.stop_distance_m,
                        road.stop_duration_s, after, road.initial_stop_s, initial_mass, vehicle_params,
-                       engine_params, ratios, driver_params, out)
+                       engine_params, ratios, driver_params, accessories.compressor_w, accessories.fan_rated_w,
+                       accessories.gear_efficiency, accessories.spin_loss_nm, out)
         if steps > 0:
             break
         max_steps *= 2
@@ -108,7 +112,7 @@ def simulate(scenario: Scenario, vehicle: Vehicle, road: Road, kernel=simulate_k
     states.insert(0, "time_s", np.arange(steps) * SIM_STEP_S)
     for name in ("gear",):
         states[name] = states[name].astype(np.int16)
-    for name in ("brake_active", "shifting", "clutch_slip", "stop"):
+    for name in ("brake_active", "shifting", "clutch_slip", "stop", "fuel_cut"):
         states[name] = states[name].astype(bool)
     return states
 
@@ -149,7 +153,10 @@ def drive(scenario: Scenario, vehicle: Vehicle | None = None, seed: int = 0,
 
 
 def _realistic_states(scenario: Scenario, vehicle: Vehicle, road: Road, level: Realism, seed: int):
-    """States with wind, a trailer change and the driveline's and auxiliaries' torque; and the sizes."""
+    """States with wind, a trailer change and the driveline's and auxiliaries' torque; and the sizes.
+
+    Two passes: the first, without accessories, gives the times they run (the fan's "hot" rule
+    reads its load); the second drives with them between engine and gearbox, and is the truth."""
     rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x3EA1]))
     wind, injected = head_wind_mps(road, level, rng)
     after = None
@@ -157,9 +164,11 @@ def _realistic_states(scenario: Scenario, vehicle: Vehicle, road: Road, level: R
         _, after = _masses(scenario, vehicle, len(road.stop_distance_m))
         after, more = trailer_change(after, road.stop_duration_s, vehicle.curb_mass_kg, vehicle.max_payload_kg, rng)
         injected.update(more)
-    states = simulate(scenario, vehicle, road, head_wind_mps=wind, after_stop_kg=after)
+    first = simulate(scenario, vehicle, road, head_wind_mps=wind, after_stop_kg=after)
+    accessories = accessories_schedule(first, vehicle, level, rng)
+    states = simulate(scenario, vehicle, road, head_wind_mps=wind, after_stop_kg=after, accessories=accessories)
     states["head_wind_mps"] = road.at(wind, states["distance_m"].to_numpy())
-    columns, more = engine_loads(states, vehicle, level, rng)
+    columns, more = engine_loads(states, vehicle, level, accessories)
     for name, values in columns.items():
         states[name] = values
     injected.update(more)
