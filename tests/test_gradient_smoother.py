@@ -14,6 +14,7 @@ from haulprofile.analysis.errors import UserError
 from haulprofile.analysis.gradient import GradientSettings, estimate_gradient, kalman
 from haulprofile.analysis.gradient import smoother as smoother_module
 from haulprofile.analysis.gradient.smoother import GradientSmoother, Measurements, SmootherSettings
+from haulprofile.analysis.road_load import G_MPS2
 
 virtual_truck = pytest.importorskip("haulprofile.analysis.virtual_truck")
 
@@ -301,10 +302,11 @@ def test_a_barometer_step_while_driving_is_found_by_its_innovations():
     assert inside[50:-50].mean() >= 0.9
 
 
-def _warming_imu_drive(seed, warm_up_mps2, n=2000, spacing=10.0, stop_s=0.0):
+def _warming_imu_drive(seed, warm_up_mps2, n=2000, spacing=10.0, stop_s=0.0, gps_sigma_m=4.0, gps_correlation_s=30.0):
     """IMU (0.02 m/s² per bin) whose bias warms up by ``warm_up_mps2`` with a 30-minute time
     constant over 23 minutes of driving (and a standstill of ``stop_s`` halfway, the cab warming
-    on), and GPS altitude with 4 m errors correlated over 30 s; no barometer, no map."""
+    on), and GPS altitude with errors of ``gps_sigma_m`` correlated over ``gps_correlation_s``;
+    no barometer, no map."""
     rng = np.random.default_rng(seed)
     dt = np.full(n, 0.7)
     clock = dt.copy()
@@ -313,11 +315,11 @@ def _warming_imu_drive(seed, warm_up_mps2, n=2000, spacing=10.0, stop_s=0.0):
     gamma = 0.03 * np.sin(s / 900.0) + 0.01 * np.sin(s / 230.0)
     h = np.concatenate([[0.0], np.cumsum(gamma[1:] * spacing)])
     bias = 0.3 + warm_up_mps2 * (1 - np.exp(-np.cumsum(clock) / 1800.0))
-    phi = np.exp(-0.7 / 30.0)
+    phi = np.exp(-0.7 / gps_correlation_s)
     gps = np.empty(n)
-    gps[0] = rng.normal(0, 4.0)
+    gps[0] = rng.normal(0, gps_sigma_m)
     for k in range(1, n):
-        gps[k] = phi * gps[k - 1] + rng.normal(0, 4.0 * np.sqrt(1 - phi ** 2))
+        gps[k] = phi * gps[k - 1] + rng.normal(0, gps_sigma_m * np.sqrt(1 - phi ** 2))
     z = np.full((n, kalman.N_MEASUREMENTS), np.nan)
     z[:, kalman.IMU] = 9.80665 * gamma / np.sqrt(1 + gamma ** 2) + bias + rng.normal(0, 0.02, n)
     z[:, kalman.GPS] = h + gps
@@ -352,7 +354,8 @@ def test_without_a_barometer_the_bias_rate_follows_the_imus_warm_up():
     bias's rate as a state, the gradient's error falls from 0.0022-0.0024 to 0.0008-0.0009
     (four seeds) and 99 % of the bins are inside ±2σ (76-86 % with the rate off, the blocks'
     drift in the sigma). The blocks find no drift beyond the rate's ramp. On the same drive
-    with a steady bias the rate is not taken and nothing changes."""
+    with a steady bias the rate is not taken: the gradient is the rate-free model's to within
+    the rate model's small weight (`test_height_and_gradient_are_averaged_over_the_bias_rate`)."""
     for seed in range(2):
         measurements, gamma = _warming_imu_drive(seed, 0.3)
         smoother = GradientSmoother(measurements)
@@ -368,9 +371,44 @@ def test_without_a_barometer_the_bias_rate_follows_the_imus_warm_up():
         smoother = GradientSmoother(steady)
         plain = smoother.estimate()
         unrated = GradientSmoother(steady, SmootherSettings(bias_rate_prior_sigma_mps3=0.0)).estimate()
-        assert not smoother.rated
-        np.testing.assert_array_equal(plain.gradient, unrated.gradient)
-        np.testing.assert_array_equal(plain.gradient_std, unrated.gradient_std)
+        assert not smoother.rated and smoother.rate_model_weight < 0.5
+        np.testing.assert_allclose(plain.gradient, unrated.gradient, atol=1e-4)
+        assert np.all(plain.gradient_std >= 0.99 * unrated.gradient_std)
+
+
+def test_height_and_gradient_are_averaged_over_the_bias_rate():
+    """Without a barometer the log may not tell whether the IMU warms up: the result is the
+    mixture of the two models, with and without the bias's rate, weighted by their marginal
+    likelihoods (the forward innovations'), its variance holding each model's variance and its
+    distance from the mean. A warm-up the data show gets all the weight; on the old code the
+    kept model's estimate and σ came out alone."""
+    measurements, gamma = _warming_imu_drive(2, 0.05, gps_sigma_m=8.0, gps_correlation_s=120.0)
+    smoother = GradientSmoother(measurements)
+    result = smoother.estimate()
+    models = {}
+    for name, rate in (("none", None), ("rate", 0.0)):
+        single = GradientSmoother(measurements)
+        single.estimate()
+        single.bias_rate_psd = rate
+        models[name] = (single.run(single.r), single._log_likelihood(single.r))
+    (x0, p0, _, _), ll0 = models["none"]
+    (x1, p1, _, _), ll1 = models["rate"]
+    weight = 1.0 / (1.0 + np.exp(ll0 - ll1))
+    assert not smoother.rated and 0.1 < weight < 0.9
+    assert smoother.rate_model_weight == pytest.approx(weight)
+    g0, g1 = x0[:, kalman.GAMMA], x1[:, kalman.GAMMA]
+    mean = (1 - weight) * g0 + weight * g1
+    var = ((1 - weight) * (p0[:, kalman.GAMMA, kalman.GAMMA] + (g0 - mean) ** 2)
+           + weight * (p1[:, kalman.GAMMA, kalman.GAMMA] + (g1 - mean) ** 2))
+    np.testing.assert_allclose(result.gradient, mean, rtol=1e-9, atol=1e-12)
+    drift = smoother.bias_drift_sigma_mps2 / G_MPS2 * result.weights["imu"]
+    np.testing.assert_allclose(result.gradient_std, np.sqrt(var + drift ** 2), rtol=1e-9)
+    assert np.max(np.abs(g1 - g0)) > 1e-4
+    assert any("averaged over both models" in note for note in result.notes)
+    warming, _ = _warming_imu_drive(0, 0.3)
+    strong = GradientSmoother(warming)
+    strong.estimate()
+    assert strong.rated and strong.rate_model_weight > 0.999
 
 
 def test_the_bias_rate_runs_on_clock_time_through_a_standstill():
