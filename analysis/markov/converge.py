@@ -25,6 +25,7 @@ from .counting import TransitionCounts
 from .criteria import _Q, _S, ALLOWANCE, IS_MASS, deviations, evaluate, scales, scores
 from .ending import Ending
 from .generate import cycle_frame, run_batch, walk_ending
+from . import precompile
 from .load_criteria import LOAD_ALLOWANCE, N_LOADS, LoadTarget, evaluate_loads
 from .refine import refine_walk
 from .score_kernels import KINEMATIC_PENALTY
@@ -149,10 +150,14 @@ def select_refined(counts: TransitionCounts, duration_s: float = 1800.0, seed: i
     the promising walks). ``survivors`` None refines every walk over ``n_moves``. ``target`` and
     ``vehicle`` add the load criteria to the objective and to each selection's report. Walks end at
     a stop unless ``end_at_stop`` is off (`ending`); ``progress`` is told how far the search is."""
+    compiling = precompile.start()
     chain = chain or build_chain(counts)
     ending = walk_ending(chain, duration_s, end_at_stop)
     n_chains = max(n_chains or CHAINS, n_cycles)
     n_pool = max(int(n_pool), n_chains)
+    if compiling is not None:  # the refinement's kernel here while the pool's compiles beside
+        refine(chain, counts, np.full(2, chain.start_state[0]), target, 0, seed, 0, ending=ending)
+    precompile.wait(compiling)
     all_scores, objective, valid, valid_without_mass = _pool(chain, counts, duration_s, n_pool, seed, update_counts,
                                                              ending, progress)
     starts = _starts(chain, counts, duration_s, seed, update_counts, objective, target, n_chains, ending)
