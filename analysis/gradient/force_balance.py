@@ -164,10 +164,11 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         gradient, gradient_std = np.zeros(len(frame)), np.full(len(frame), np.nan)
     first = frame.assign(gradient_pct=np.nan_to_num(gradient), gradient_std_pct=np.asarray(gradient_std, dtype=float))
     scaled, offset, drag = False, None, None
-    if mass_kg is None and knows_engine_drag(frame):
-        # an indicated report reads 0 % in a fuel cut whatever its offset: only a net one shows it
+    if knows_engine_drag(frame):
+        # an indicated report reads 0 % in a fuel cut whatever its offset: only a net one shows it;
+        # it needs no mass, so a given one (`can-only`) is corrected by it too
         offset = torque_report_offset(frame, vehicle) if torque_report_form(frame) == NET else None
-        drag = overrun_wheel_force_n(frame, vehicle)
+        drag = overrun_wheel_force_n(frame, vehicle) if mass_kg is None else None
     forced = first if offset is None else first.assign(engine_torque_nm=first["engine_torque_nm"] - offset.offset_nm)
     if mass_kg is None:
         mass, mass_sigma, segment = segment_masses_kg(first, vehicle)
@@ -217,7 +218,8 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         _report_scale(result, frame, mass)
     _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
     if no_height_source:
-        _add_road_load_uncertainty(result, frame, virtual, vehicle, mass, settings.spacing_m)
+        _add_road_load_uncertainty(result, frame, virtual, vehicle, mass, settings.spacing_m,
+                                   None if offset is None else offset.sigma_nm)
         # the gaps are where the truck does not pull: a coasting sample's force is a small sum of
         # drags (engine, air, rolling) whose errors, the torque report's offset (2-6 times c_r's
         # share in acceleration on the matrix) and the wind, the given mass's bias prior (c_r
@@ -509,12 +511,13 @@ def _reference_torque_nm(frame, vehicle) -> float:
     return float(getattr(vehicle, "engine_reference_torque_nm", None) or np.nan)
 
 
-def road_load_sigma_mps2(frame, vehicle, mass_kg) -> np.ndarray:
+def road_load_sigma_mps2(frame, vehicle, mass_kg, offset_sigma_nm: float | None = None) -> np.ndarray:
     """1-sigma [m/s²] per sample of what the force balance with a given mass cannot know: the head
     wind's linear drag rho c_d A v w / m (w the `WIND_PRIOR_MPS` prior) and the torque report's offset
-    (`TORQUE_OFFSET_UNCERTAINTY` of the reference torque, through the driveline's ratio), in quadrature.
-    The rolling resistance's 15 % is in the bias prior; a constant bias is all the given mass's
-    prior holds, while the wind's and the offset's share change with speed and gear."""
+    (``offset_sigma_nm``: its 1-sigma [Nm] where SPN 514 showed it, `engine_drag.torque_report_offset`;
+    None: `TORQUE_OFFSET_UNCERTAINTY` of the reference torque), through the driveline's ratio, in
+    quadrature. The rolling resistance's 15 % is in the bias prior; a constant bias is all the
+    given mass's prior holds, while the wind's and the offset's share change with speed and gear."""
     speed = frame["speed_mps"].to_numpy(dtype=float)
     mass = np.asarray(mass_kg, dtype=float)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -522,20 +525,22 @@ def road_load_sigma_mps2(frame, vehicle, mass_kg) -> np.ndarray:
         offset = np.zeros(len(frame))
         reference = (frame["engine_reference_torque_nm"].to_numpy(dtype=float) if "engine_reference_torque_nm" in frame
                      else np.full(len(frame), getattr(vehicle, "engine_reference_torque_nm", None) or np.nan))
+        sigma_nm = TORQUE_OFFSET_UNCERTAINTY * reference if offset_sigma_nm is None else offset_sigma_nm
         if "engine_speed_rpm" in frame:
             offset = wheel_force_from_torque_n(wheel_torque_from_engine_nm(
-                TORQUE_OFFSET_UNCERTAINTY * reference, frame["engine_speed_rpm"].to_numpy(dtype=float), speed,
+                sigma_nm, frame["engine_speed_rpm"].to_numpy(dtype=float), speed,
                 vehicle.wheel_radius_m, vehicle.driveline_efficiency), vehicle.wheel_radius_m) / mass
     return np.hypot(np.nan_to_num(wind), np.nan_to_num(offset))
 
 
-def _add_road_load_uncertainty(result: GradientResult, frame, virtual, vehicle, mass, spacing_m):
+def _add_road_load_uncertainty(result: GradientResult, frame, virtual, vehicle, mass, spacing_m,
+                               offset_sigma_nm: float | None = None):
     """With a given mass and no height source, widen the gradient's sigma by the road load the force
     balance cannot know (`road_load_sigma_mps2`) over g where it carries the gradient: with nothing
     to tie it, a head wind reads as a steeper road (can-only harsh regional seed 2: its 9.8 m/s wind
     and 1.7 % torque offset made the whole drive +0.1 m/s², +1 %-pt, with a stated sigma of
     0.3-0.6 %-pt)."""
-    specific = np.where(np.isfinite(virtual), road_load_sigma_mps2(frame, vehicle, mass), np.nan)
+    specific = np.where(np.isfinite(virtual), road_load_sigma_mps2(frame, vehicle, mass, offset_sigma_nm), np.nan)
     _widen_where_measured(result, frame, specific, spacing_m)
 
 
