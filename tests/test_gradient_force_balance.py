@@ -355,3 +355,46 @@ def test_with_a_given_mass_the_torque_reports_offset_is_taken_off_where_spn_514_
     error = grid["gradient_pct"].to_numpy()[keep] - 100 * np.interp(s, *_road_slope_table(s.max()))[keep]
     assert abs(np.mean(error)) < 0.1, "the offset taken off: no steeper road where the truck pulls (+0.20 %-pt before)"
     assert any("torque report's offset +5" in note or "torque report's offset +6" in note for note in result.notes)
+
+
+def _outage_case(outage: bool):
+    """A 3 km urban road on the 10 m grid (gradient ±4 % over 400 m) whose smoothed gradient across
+    a 300 m braking gap of the force balance is its edges' straight line, while the road dips to
+    -6 % there (a braked descent); the stated sigma is the edges' 0.3 %-pt. GPS altitude measures
+    everywhere, or not over the gap and 100 m either side (``outage``)."""
+    import pandas as pd
+
+    from haulprofile.analysis.gradient.estimate import GradientResult
+    s = np.arange(0.0, 3000.0, 10.0)
+    truth = 4 * np.sin(2 * np.pi * s / 400)
+    gap = (s >= 1500) & (s < 1800)
+    truth[gap] = -6 * np.sin(np.pi * (s[gap] - 1500) / 300) + truth[gap]
+    smoothed = truth.copy()
+    smoothed[gap] = np.interp(s[gap], [1490, 1800], [truth[149], truth[180]])
+    grid = pd.DataFrame({"distance_m": s, "gradient_smooth_pct": smoothed, "gradient_smooth_std_pct": np.full(len(s), 0.3)})
+    distance = np.arange(0.0, 2995.0, 1.0)
+    frame = pd.DataFrame({"distance_m": distance, "gps_altitude_m": np.full(len(distance), 500.0)})
+    if outage:
+        frame.loc[(distance >= 1400) & (distance < 1900), "gps_altitude_m"] = np.nan
+    virtual = np.where((distance >= 1495) & (distance < 1795), np.nan, 0.1)
+    return GradientResult(grid=grid, samples={}), frame, virtual, truth, gap
+
+
+def test_where_neither_the_force_balance_nor_a_height_source_measures_the_sigma_is_the_roads_spread():
+    """A GPS outage across a braking gap (matrix urban `harsh` seed 2: 4.5 %-pt off on a braked
+    descent with a stated 1.3): nothing measures there, so the sigma returns to the road's own
+    spread away from the gap's edges; where GPS altitude measures, the height sources' sigma
+    (`_height_sources_sigma_in_gaps`) stands and nothing changes."""
+    from haulprofile.analysis.gradient import force_balance
+    for outage in (False, True):
+        result, frame, virtual, truth, gap = _outage_case(outage)
+        before = result.grid["gradient_smooth_std_pct"].to_numpy().copy()
+        force_balance._widen_where_nothing_measures(result, frame, virtual, 10.0)
+        std = result.grid["gradient_smooth_std_pct"].to_numpy()
+        error = result.grid["gradient_smooth_pct"].to_numpy() - truth
+        if not outage:
+            assert np.array_equal(std, before)
+            continue
+        assert np.array_equal(std[~gap], before[~gap]), "only where nothing measures"
+        assert np.mean(np.abs(error[gap]) <= 2 * std[gap]) >= 0.9
+        assert np.mean(np.abs(error[gap]) <= 2 * before[gap]) < 0.5, "the edges' sigma did not hold the dip"
