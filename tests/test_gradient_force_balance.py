@@ -357,11 +357,11 @@ def test_with_a_given_mass_the_torque_reports_offset_is_taken_off_where_spn_514_
     assert any("torque report's offset +5" in note or "torque report's offset +6" in note for note in result.notes)
 
 
-def _outage_case(outage: bool):
+def _braked_descent_case():
     """A 3 km urban road on the 10 m grid (gradient ±4 % over 400 m) whose smoothed gradient across
     a 300 m braking gap of the force balance is its edges' straight line, while the road dips to
-    -6 % there (a braked descent); the stated sigma is the edges' 0.3 %-pt. GPS altitude measures
-    everywhere, or not over the gap and 100 m either side (``outage``)."""
+    -6 % there (a braked descent); the smoother and the first pass (GPS altitude and the map
+    alone) both state 0.3 %-pt."""
     import pandas as pd
 
     from haulprofile.analysis.gradient.estimate import GradientResult
@@ -373,28 +373,24 @@ def _outage_case(outage: bool):
     smoothed[gap] = np.interp(s[gap], [1490, 1800], [truth[149], truth[180]])
     grid = pd.DataFrame({"distance_m": s, "gradient_smooth_pct": smoothed, "gradient_smooth_std_pct": np.full(len(s), 0.3)})
     distance = np.arange(0.0, 2995.0, 1.0)
-    frame = pd.DataFrame({"distance_m": distance, "gps_altitude_m": np.full(len(distance), 500.0)})
-    if outage:
-        frame.loc[(distance >= 1400) & (distance < 1900), "gps_altitude_m"] = np.nan
+    frame = pd.DataFrame({"distance_m": distance})
     virtual = np.where((distance >= 1495) & (distance < 1795), np.nan, 0.1)
-    return GradientResult(grid=grid, samples={}), frame, virtual, truth, gap
+    return GradientResult(grid=grid, samples={}), frame, virtual, np.full(len(s), 0.3), truth, gap
 
 
-def test_where_neither_the_force_balance_nor_a_height_source_measures_the_sigma_is_the_roads_spread():
-    """A GPS outage across a braking gap (matrix urban `harsh` seed 2: 4.5 %-pt off on a braked
-    descent with a stated 1.3): nothing measures there, so the sigma returns to the road's own
-    spread away from the gap's edges; where GPS altitude measures, the height sources' sigma
-    (`_height_sources_sigma_in_gaps`) stands and nothing changes."""
+def test_where_the_force_balance_does_not_measure_the_sigma_returns_to_the_roads_spread():
+    """Where the force balance does not measure, the height sources' sigma (the first pass's) was
+    too small on the matrix's urban drives (71-91 % inside ±2σ in the gaps; urban `harsh` seed 2: a
+    braked descent in a GPS outage 4.5 %-pt off with a stated 1.3): within a gap of a few hundred
+    metres GPS altitude and the map tell the gradient no better than the road's own spread, to
+    which the sigma now returns away from the gap's edges; where the force balance measures
+    nothing changes."""
     from haulprofile.analysis.gradient import force_balance
-    for outage in (False, True):
-        result, frame, virtual, truth, gap = _outage_case(outage)
-        before = result.grid["gradient_smooth_std_pct"].to_numpy().copy()
-        force_balance._widen_where_nothing_measures(result, frame, virtual, 10.0)
-        std = result.grid["gradient_smooth_std_pct"].to_numpy()
-        error = result.grid["gradient_smooth_pct"].to_numpy() - truth
-        if not outage:
-            assert np.array_equal(std, before)
-            continue
-        assert np.array_equal(std[~gap], before[~gap]), "only where nothing measures"
-        assert np.mean(np.abs(error[gap]) <= 2 * std[gap]) >= 0.9
-        assert np.mean(np.abs(error[gap]) <= 2 * before[gap]) < 0.5, "the edges' sigma did not hold the dip"
+    result, frame, virtual, first, truth, gap = _braked_descent_case()
+    before = result.grid["gradient_smooth_std_pct"].to_numpy().copy()
+    force_balance._height_sources_sigma_in_gaps(result, frame, virtual, first, 10.0)
+    std = result.grid["gradient_smooth_std_pct"].to_numpy()
+    error = result.grid["gradient_smooth_pct"].to_numpy() - truth
+    assert np.mean(np.abs(error[gap]) <= 2 * before[gap]) < 0.5, "the stated sigma did not hold the dip"
+    assert np.mean(np.abs(error[gap]) <= 2 * std[gap]) >= 0.9
+    assert np.array_equal(std[~gap], before[~gap]), "only where the force balance does not measure"

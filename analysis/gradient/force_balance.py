@@ -229,7 +229,6 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         _widen_in_gaps(result, frame, pulling, settings.spacing_m)
     else:
         _height_sources_sigma_in_gaps(result, frame, measured, first_grid_std, settings.spacing_m)
-        _widen_where_nothing_measures(result, frame, measured, settings.spacing_m)
         if mass_kg is None:
             offset_sigma = (TORQUE_OFFSET_UNCERTAINTY * _reference_torque_nm(frame, vehicle) if offset is None
                             else offset.sigma_nm)
@@ -340,11 +339,10 @@ def _braking_bound(result, frame, virtual, vehicle, mass):
     return out
 
 
-def _gaps(grid, frame, virtual, spacing_m, also_measured=None):
+def _gaps(grid, frame, virtual, spacing_m):
     """(w, measured, length) where ``virtual`` measured on at least 50 grid points and not on all:
-    w = exp(-2 d / L) per grid point, d the distance to the nearest measured grid point (``virtual``'s,
-    or one of ``also_measured``, a per grid point mask) and L [bins] the correlation length of the
-    smoothed gradient where ``virtual`` measured; None otherwise."""
+    w = exp(-2 d / L) per grid point, d the distance to the nearest measured grid point and L
+    [bins] the correlation length of the smoothed gradient where it measured; None otherwise."""
     from scipy.ndimage import distance_transform_edt
 
     from . import grid as distance_grid
@@ -362,8 +360,6 @@ def _gaps(grid, frame, virtual, spacing_m, also_measured=None):
     length = _correlation_length_bins(np.where(measured, gradient, np.nan), max_lag=len(grid) // 2)
     if not np.isfinite(length) or length <= 0:
         return None
-    if also_measured is not None:
-        measured = measured | also_measured
     return np.exp(-2 * distance_transform_edt(~measured) / length), measured, length
 
 
@@ -457,63 +453,36 @@ def _widen_in_gaps(result: GradientResult, frame, virtual, spacing_m):
 
 
 def _height_sources_sigma_in_gaps(result: GradientResult, frame, virtual, first_std_pct, spacing_m):
-    """With height sources, where the force balance measures nothing (braking, a segment without a
-    plausible mass) the gradient is the height sources' with the road curvature the force balance
-    chose where it measured: a random walk fitted over 10 m bins, stiffer than a road is over
-    hundreds of metres (the matrix's roads: the gradient's mean square change per metre is 14-18
-    times larger over 200 m than over 10 m), so its sigma there was too small (urban ideal drive:
-    86 % inside ±2σ). There the sigma returns to at least the first pass's (the height sources
-    alone, their curvature chosen by their own innovations): sigma² = sigma² w + max(sigma_first²,
-    sigma²) (1 - w), w as in `_widen_in_gaps`."""
+    """With height sources, where the force balance measures nothing (braking, shifting, a segment
+    without a plausible mass, a GPS outage) the gradient is the height sources' with the road
+    curvature the force balance chose where it measured: a random walk fitted over 10 m bins,
+    stiffer than a road is over hundreds of metres (the matrix's roads: the gradient's mean square
+    change per metre is 14-18 times larger over 200 m than over 10 m), so its sigma there was too
+    small (urban ideal drive: 86 % inside ±2σ). There the sigma returns, away from the measured bins,
+    to at least the larger of the first pass's (the height sources alone, their curvature chosen by
+    GPS altitude's innovations) and the road's own spread (the RMS of the smoothed gradient where the
+    force balance measured, as with no height source at all, `_widen_in_gaps`):
+    sigma² = sigma² w + max(sigma_first², rms², sigma²) (1 - w), w as in `_widen_in_gaps`. The
+    first pass's sigma alone was too small in the gaps of the urban drives (matrix `typical` and
+    `harsh`, traced with the truth: rms(error/sigma) 1.3-1.75, 71-91 % inside ±2σ): within a gap of
+    a few hundred metres GPS altitude (metres of error) and the map (metres, correlated over
+    hundreds of metres) tell the gradient no better than the road's spread, and GPS altitude's
+    innovations choose a curvature stiffer than an urban road; the gaps are also where the truck
+    brakes, on the steepest descents (urban `harsh` seed 2: a braked descent in a GPS outage 4.5
+    %-pt off with a stated 1.3)."""
     gaps = _gaps(result.grid, frame, virtual, spacing_m)
     if gaps is None or first_std_pct is None:
         return
-    w, _, _ = gaps
-    std = result.grid["gradient_smooth_std_pct"].to_numpy()
-    first = np.nan_to_num(np.asarray(first_std_pct, dtype=float), nan=0.0)
-    _set_grid(result, frame, gradient_smooth_std_pct=np.sqrt(std ** 2 * w + np.maximum(first ** 2, std ** 2) * (1 - w)))
-
-
-def _height_measured(result: GradientResult, frame, spacing_m) -> np.ndarray:
-    """Per grid point whether a height source measured there: a GPS altitude sample, or the map
-    where it was looked up (a position) and not gated out."""
-    from . import grid as distance_grid
-    grid = result.grid
-    measured = np.zeros(len(grid), bool)
-    if "gps_altitude_m" in frame and "distance_m" in frame:
-        distance = frame["distance_m"].to_numpy(dtype=float)
-        ok = np.isfinite(distance) & np.isfinite(frame["gps_altitude_m"].to_numpy(dtype=float))
-        index = distance_grid.grid_index(distance[ok], spacing_m)
-        measured[index[(index >= 0) & (index < len(grid))]] = True
-    if "height_map_m" in grid:
-        gated = grid["map_gated"].to_numpy(dtype=bool) if "map_gated" in grid else np.zeros(len(grid), bool)
-        measured |= np.isfinite(grid["height_map_m"].to_numpy(dtype=float)) & ~gated
-    return measured
-
-
-def _widen_where_nothing_measures(result: GradientResult, frame, virtual, spacing_m):
-    """With height sources, where none of them measures either (a GPS outage: no altitude, and no
-    position to look the map up at) and the force balance has no sample (braking, shifting), the
-    gradient is known only from its neighbours: the smoother's random walk, and the first pass's
-    (`_height_sources_sigma_in_gaps`), grow their sigma there far slower than a road changes
-    (matrix urban `harsh` seed 2: a braked descent in an 89-s outage, 4.5 %-pt off with a stated
-    1.3). There the sigma returns to the road's own spread, as with no height source at all
-    (`_widen_in_gaps`): sigma² = sigma² w + max(rms², sigma²) (1 - w), w = exp(-2 d / L), d the
-    distance to the nearest grid point where anything measured, rms and L the smoothed gradient's
-    where the force balance measured."""
-    gaps = _gaps(result.grid, frame, virtual, spacing_m, also_measured=_height_measured(result, frame, spacing_m))
-    if gaps is None:
-        return
-    w, measured, _ = gaps
-    if measured.all():
-        return
+    w, measured, length = gaps
     gradient = result.grid["gradient_smooth_pct"].to_numpy()
     rms = float(np.sqrt(np.mean(gradient[measured] ** 2)))
     std = result.grid["gradient_smooth_std_pct"].to_numpy()
-    _set_grid(result, frame, gradient_smooth_std_pct=np.sqrt(std ** 2 * w + np.maximum(rms ** 2, std ** 2) * (1 - w)))
-    result.notes.append(f"where neither the force balance nor a height source measures ({100 * (1 - measured.mean()):.1f} % "
-                        f"of the distance: GPS outages) the gradient's sigma returns to the road's own spread "
-                        f"({rms:.1f} %-pt)")
+    first = np.nan_to_num(np.asarray(first_std_pct, dtype=float), nan=0.0)
+    floor = np.maximum(np.maximum(first ** 2, rms ** 2), std ** 2)
+    _set_grid(result, frame, gradient_smooth_std_pct=np.sqrt(std ** 2 * w + floor * (1 - w)))
+    result.notes.append(f"where the force balance measures nothing ({100 * (1 - measured.mean()):.0f} % of the distance) "
+                        f"the gradient's sigma returns to the larger of the height sources' and the road's own spread "
+                        f"({rms:.1f} %-pt over {length * spacing_m:.0f} m)")
 
 
 def _add_mass_uncertainty(result: GradientResult, frame, virtual, relative, vehicle, spacing_m):
