@@ -11,10 +11,11 @@ enters the smoother through the accelerometer's channel, whose bias state takes 
 error (c_r, a torque offset) and, with masses from a first pass, a scale state per mass segment
 the mass's error (`SCALE_STATE`); its noise and curvature are estimated from the data as for an
 IMU without a barometer. The mass comes from a first pass (GPS altitude and DEM), or is given.
-With a first pass's masses and a log that reports the engine's friction (J1939 SPN 514) the torque
-report's offset is found on the samples where the truck brakes in gear and taken off, and the
-engine's drag tightens the braking bound (`engine_drag`); what the bias state cannot hold of the
-wind and of the offset's remaining error is in the sigma (`drag_sigma`).
+With a log that reports the engine's friction (J1939 SPN 514) the torque report's offset is found on
+the samples where the truck brakes in gear and taken off, whether the mass is given or from a first
+pass; with a first pass's masses the engine's drag also tightens the braking bound (`engine_drag`),
+and what the bias state cannot hold of the wind and of the offset's remaining error is in the
+sigma (`drag_sigma`).
 
 Identifiability: a mass error dm/m scales the whole measurement, so it reads as a gradient error
 of -(dm/m)(a + g sin(alpha) + g c_r) / g, which the bias takes up only where that sum is
