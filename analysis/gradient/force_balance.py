@@ -11,10 +11,11 @@ enters the smoother through the accelerometer's channel, whose bias state takes 
 error (c_r, a torque offset) and, with masses from a first pass, a scale state per mass segment
 the mass's error (`SCALE_STATE`); its noise and curvature are estimated from the data as for an
 IMU without a barometer. The mass comes from a first pass (GPS altitude and DEM), or is given.
-With a first pass's masses and a log that reports the engine's friction (J1939 SPN 514) the torque
-report's offset is found on the samples where the truck brakes in gear and taken off, and the
-engine's drag tightens the braking bound (`engine_drag`); what the bias state cannot hold of the
-wind and of the offset's remaining error is in the sigma (`drag_sigma`).
+With a log that reports the engine's friction (J1939 SPN 514) the torque report's offset is found on
+the samples where the truck brakes in gear and taken off, whether the mass is given or from a first
+pass; with a first pass's masses the engine's drag also tightens the braking bound (`engine_drag`),
+and what the bias state cannot hold of the wind and of the offset's remaining error is in the
+sigma (`drag_sigma`).
 
 Identifiability: a mass error dm/m scales the whole measurement, so it reads as a gradient error
 of -(dm/m)(a + g sin(alpha) + g c_r) / g, which the bias takes up only where that sum is
@@ -164,10 +165,11 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         gradient, gradient_std = np.zeros(len(frame)), np.full(len(frame), np.nan)
     first = frame.assign(gradient_pct=np.nan_to_num(gradient), gradient_std_pct=np.asarray(gradient_std, dtype=float))
     scaled, offset, drag = False, None, None
-    if mass_kg is None and knows_engine_drag(frame):
-        # an indicated report reads 0 % in a fuel cut whatever its offset: only a net one shows it
+    if knows_engine_drag(frame):
+        # an indicated report reads 0 % in a fuel cut whatever its offset: only a net one shows it;
+        # it needs no mass, so a given one (`can-only`) is corrected by it too
         offset = torque_report_offset(frame, vehicle) if torque_report_form(frame) == NET else None
-        drag = overrun_wheel_force_n(frame, vehicle)
+        drag = overrun_wheel_force_n(frame, vehicle) if mass_kg is None else None
     forced = first if offset is None else first.assign(engine_torque_nm=first["engine_torque_nm"] - offset.offset_nm)
     if mass_kg is None:
         mass, mass_sigma, segment = segment_masses_kg(first, vehicle)
@@ -217,7 +219,8 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         _report_scale(result, frame, mass)
     _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
     if no_height_source:
-        _add_road_load_uncertainty(result, frame, virtual, vehicle, mass, settings.spacing_m)
+        _add_road_load_uncertainty(result, frame, virtual, vehicle, mass, settings.spacing_m,
+                                   None if offset is None else offset.sigma_nm)
         # the gaps are where the truck does not pull: a coasting sample's force is a small sum of
         # drags (engine, air, rolling) whose errors, the torque report's offset (2-6 times c_r's
         # share in acceleration on the matrix) and the wind, the given mass's bias prior (c_r
@@ -451,21 +454,36 @@ def _widen_in_gaps(result: GradientResult, frame, virtual, spacing_m):
 
 
 def _height_sources_sigma_in_gaps(result: GradientResult, frame, virtual, first_std_pct, spacing_m):
-    """With height sources, where the force balance measures nothing (braking, a segment without a
-    plausible mass) the gradient is the height sources' with the road curvature the force balance
-    chose where it measured: a random walk fitted over 10 m bins, stiffer than a road is over
-    hundreds of metres (the matrix's roads: the gradient's mean square change per metre is 14-18
-    times larger over 200 m than over 10 m), so its sigma there was too small (urban ideal drive:
-    86 % inside ±2σ). There the sigma returns to at least the first pass's (the height sources
-    alone, their curvature chosen by their own innovations): sigma² = sigma² w + max(sigma_first²,
-    sigma²) (1 - w), w as in `_widen_in_gaps`."""
+    """With height sources, where the force balance measures nothing (braking, shifting, a segment
+    without a plausible mass, a GPS outage) the gradient is the height sources' with the road
+    curvature the force balance chose where it measured: a random walk fitted over 10 m bins,
+    stiffer than a road is over hundreds of metres (the matrix's roads: the gradient's mean square
+    change per metre is 14-18 times larger over 200 m than over 10 m), so its sigma there was too
+    small (urban ideal drive: 86 % inside ±2σ). There the sigma returns, away from the measured bins,
+    to at least the larger of the first pass's (the height sources alone, their curvature chosen by
+    GPS altitude's innovations) and the road's own spread (the RMS of the smoothed gradient where the
+    force balance measured, as with no height source at all, `_widen_in_gaps`):
+    sigma² = sigma² w + max(sigma_first², rms², sigma²) (1 - w), w as in `_widen_in_gaps`. The
+    first pass's sigma alone was too small in the gaps of the urban drives (matrix `typical` and
+    `harsh`, traced with the truth: rms(error/sigma) 1.3-1.75, 71-91 % inside ±2σ): within a gap of
+    a few hundred metres GPS altitude (metres of error) and the map (metres, correlated over
+    hundreds of metres) tell the gradient no better than the road's spread, and GPS altitude's
+    innovations choose a curvature stiffer than an urban road; the gaps are also where the truck
+    brakes, on the steepest descents (urban `harsh` seed 2: a braked descent in a GPS outage 4.5
+    %-pt off with a stated 1.3)."""
     gaps = _gaps(result.grid, frame, virtual, spacing_m)
     if gaps is None or first_std_pct is None:
         return
-    w, _, _ = gaps
+    w, measured, length = gaps
+    gradient = result.grid["gradient_smooth_pct"].to_numpy()
+    rms = float(np.sqrt(np.mean(gradient[measured] ** 2)))
     std = result.grid["gradient_smooth_std_pct"].to_numpy()
     first = np.nan_to_num(np.asarray(first_std_pct, dtype=float), nan=0.0)
-    _set_grid(result, frame, gradient_smooth_std_pct=np.sqrt(std ** 2 * w + np.maximum(first ** 2, std ** 2) * (1 - w)))
+    floor = np.maximum(np.maximum(first ** 2, rms ** 2), std ** 2)
+    _set_grid(result, frame, gradient_smooth_std_pct=np.sqrt(std ** 2 * w + floor * (1 - w)))
+    result.notes.append(f"where the force balance measures nothing ({100 * (1 - measured.mean()):.0f} % of the distance) "
+                        f"the gradient's sigma returns to the larger of the height sources' and the road's own spread "
+                        f"({rms:.1f} %-pt over {length * spacing_m:.0f} m)")
 
 
 def _add_mass_uncertainty(result: GradientResult, frame, virtual, relative, vehicle, spacing_m):
@@ -509,12 +527,13 @@ def _reference_torque_nm(frame, vehicle) -> float:
     return float(getattr(vehicle, "engine_reference_torque_nm", None) or np.nan)
 
 
-def road_load_sigma_mps2(frame, vehicle, mass_kg) -> np.ndarray:
+def road_load_sigma_mps2(frame, vehicle, mass_kg, offset_sigma_nm: float | None = None) -> np.ndarray:
     """1-sigma [m/s²] per sample of what the force balance with a given mass cannot know: the head
     wind's linear drag rho c_d A v w / m (w the `WIND_PRIOR_MPS` prior) and the torque report's offset
-    (`TORQUE_OFFSET_UNCERTAINTY` of the reference torque, through the driveline's ratio), in quadrature.
-    The rolling resistance's 15 % is in the bias prior; a constant bias is all the given mass's
-    prior holds, while the wind's and the offset's share change with speed and gear."""
+    (``offset_sigma_nm``: its 1-sigma [Nm] where SPN 514 showed it, `engine_drag.torque_report_offset`;
+    None: `TORQUE_OFFSET_UNCERTAINTY` of the reference torque), through the driveline's ratio, in
+    quadrature. The rolling resistance's 15 % is in the bias prior; a constant bias is all the
+    given mass's prior holds, while the wind's and the offset's share change with speed and gear."""
     speed = frame["speed_mps"].to_numpy(dtype=float)
     mass = np.asarray(mass_kg, dtype=float)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -522,20 +541,22 @@ def road_load_sigma_mps2(frame, vehicle, mass_kg) -> np.ndarray:
         offset = np.zeros(len(frame))
         reference = (frame["engine_reference_torque_nm"].to_numpy(dtype=float) if "engine_reference_torque_nm" in frame
                      else np.full(len(frame), getattr(vehicle, "engine_reference_torque_nm", None) or np.nan))
+        sigma_nm = TORQUE_OFFSET_UNCERTAINTY * reference if offset_sigma_nm is None else offset_sigma_nm
         if "engine_speed_rpm" in frame:
             offset = wheel_force_from_torque_n(wheel_torque_from_engine_nm(
-                TORQUE_OFFSET_UNCERTAINTY * reference, frame["engine_speed_rpm"].to_numpy(dtype=float), speed,
+                sigma_nm, frame["engine_speed_rpm"].to_numpy(dtype=float), speed,
                 vehicle.wheel_radius_m, vehicle.driveline_efficiency), vehicle.wheel_radius_m) / mass
     return np.hypot(np.nan_to_num(wind), np.nan_to_num(offset))
 
 
-def _add_road_load_uncertainty(result: GradientResult, frame, virtual, vehicle, mass, spacing_m):
+def _add_road_load_uncertainty(result: GradientResult, frame, virtual, vehicle, mass, spacing_m,
+                               offset_sigma_nm: float | None = None):
     """With a given mass and no height source, widen the gradient's sigma by the road load the force
     balance cannot know (`road_load_sigma_mps2`) over g where it carries the gradient: with nothing
     to tie it, a head wind reads as a steeper road (can-only harsh regional seed 2: its 9.8 m/s wind
     and 1.7 % torque offset made the whole drive +0.1 m/s², +1 %-pt, with a stated sigma of
     0.3-0.6 %-pt)."""
-    specific = np.where(np.isfinite(virtual), road_load_sigma_mps2(frame, vehicle, mass), np.nan)
+    specific = np.where(np.isfinite(virtual), road_load_sigma_mps2(frame, vehicle, mass, offset_sigma_nm), np.nan)
     _widen_where_measured(result, frame, specific, spacing_m)
 
 
