@@ -404,6 +404,8 @@ def test_height_and_gradient_are_averaged_over_the_bias_rate():
     drift = smoother.bias_drift_sigma_mps2 / G_MPS2 * result.weights["imu"]
     np.testing.assert_allclose(result.gradient_std, np.sqrt(var + drift ** 2), rtol=1e-9)
     assert np.max(np.abs(g1 - g0)) > 1e-4
+    b0, b1 = x0[:, kalman.BIAS], x1[:, kalman.BIAS]
+    np.testing.assert_allclose(result.imu_bias_mps2, (1 - weight) * b0 + weight * b1, rtol=1e-9, atol=1e-12)
     assert any("averaged over both models" in note for note in result.notes)
     warming, _ = _warming_imu_drive(0, 0.3)
     strong = GradientSmoother(warming)

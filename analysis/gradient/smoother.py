@@ -61,8 +61,8 @@ class SmootherSettings:
     bias_rate_probability: float = 1e-3
     """False-alarm probability of the likelihood-ratio test (chi-square, 1 dof) a bias-rate
     candidate must pass against the simpler one before it (the map gate's 1e-3). The model it
-    keeps gives the bias; height and gradient are averaged over the models with and without a rate
-    (`GradientSmoother._averaged_over_the_rate`)."""
+    keeps gives the notes; height, gradient and bias are averaged over the models with and without
+    a rate (`GradientSmoother._averaged_over_the_rate`)."""
     offset_psd: float | None = None
     """Random walk of the barometric offset d while driving [m²/s] (the cab's overpressure follows
     the ventilation's level and the airflow; a weather front is the drift rate). None: chosen per
@@ -410,8 +410,8 @@ class GradientSmoother:
             x, p = self._averaged_over_the_rate(r, x, p)
             if 0.05 < self.rate_model_weight < 0.95:
                 self.notes.append(f"no barometer: the log does not tell whether the IMU's bias drifts (warm-up): a "
-                                  f"rate state is {100 * self.rate_model_weight:.0f} % likely; height and gradient "
-                                  f"are averaged over both models, their σ holds both")
+                                  f"rate state is {100 * self.rate_model_weight:.0f} % likely; height, gradient and "
+                                  f"bias are averaged over both models, their σ holds both")
         if self.rated:
             moved = x[-1, kalman.BIAS] - x[0, kalman.BIAS]
             self.notes.append(f"no barometer: the IMU's bias follows a drift (warm-up) as a rate state, by "
@@ -615,15 +615,16 @@ class GradientSmoother:
         return x, p
 
     def _averaged_over_the_rate(self, r, x, p):
-        """Height and gradient averaged over the two models of the IMU bias: without a rate and
+        """Height, gradient and the IMU's bias averaged over the two models of the bias: without a rate and
         with one (the rate the likelihood-ratio test took, else a constant one), weighted by their
         marginal likelihoods (the forward innovations' likelihood integrates the rate's prior) at
         even prior odds: a cold IMU warms up on every start, a warm one does not, and the log
         does not say which. The test keeps the simpler model unless the data insist; where GPS
         altitude cannot tell a ramp from its own correlated error (likelihoods within a few units)
         the model it kept stated a σ that held neither the warm-up it missed nor the other model's
-        estimate (long-haul `typical` seed 2 of the matrix: 85 % of the bins inside ±2σ). Returns
-        ``x``, ``p`` with the mixture's mean and variance in the height and gradient."""
+        estimate (long-haul `typical` seed 2 of the matrix: 85 % of the bins inside ±2σ). The bias
+        goes to the mass's accelerometer regressor, which needs the same answer. Returns ``x``, ``p``
+        with the mixture's mean and variance in the height, gradient and bias."""
         kept = self.bias_rate_psd
         ll_kept = self._log_likelihood(r)
         self.bias_rate_psd = 0.0 if kept is None else None
@@ -633,7 +634,7 @@ class GradientSmoother:
         weight = 1.0 / (1.0 + np.exp(np.clip(ll_kept - ll_other, -700.0, 700.0)))
         self.rate_model_weight = weight if kept is None else 1.0 - weight
         x, p = x.copy(), p.copy()
-        for state in (kalman.H, kalman.GAMMA):
+        for state in (kalman.H, kalman.GAMMA, kalman.BIAS):
             mean = (1.0 - weight) * x[:, state] + weight * x_other[:, state]
             p[:, state, state] = ((1.0 - weight) * (p[:, state, state] + (x[:, state] - mean) ** 2)
                                   + weight * (p_other[:, state, state] + (x_other[:, state] - mean) ** 2))
