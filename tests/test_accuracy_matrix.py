@@ -109,3 +109,37 @@ def test_the_road_curvature_grid_reaches_an_urban_streets():
     scores = case["sensor_sets"]["gps+can"]
     assert scores["gradient"]["smoother"]["outside"] < 1.45
     assert scores["gradient_within_2_sigma"]["smoother"] >= 0.9
+
+
+def test_each_scored_mass_carries_its_error_over_its_sigma(typical):
+    """``mass_kg_z`` is (m̂ - m) / σ per segment scored for coverage, so |z| <= 2 is exactly the
+    coverage flag (with one weighing too)."""
+    for key in ("mass_kg", "mass_kg_weighed"):
+        scores = typical["mass"]["exact"]["smoother"]
+        z, inside = scores[f"{key}_z"], scores[f"{key}_within_2_sigma"]
+        assert len(z) == len(inside)
+        assert [abs(v) <= 2 for v in z] == inside
+    assert typical["mass"]["exact"]["smoother"]["mass_kg_z"]
+
+
+def test_the_summary_gives_the_rms_of_the_masses_error_over_sigma():
+    """The matrix's line per cell pools ``mass_kg_z`` over its drives: RMS 1 where σ is honest."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
+    from benchmarks.accuracy import summarise
+    from haulprofile.testing.accuracy import CATEGORIES, MASS_KEYS
+
+    def drive(z):
+        mass = {key: [0.01] for key in MASS_KEYS} | {
+            "mass_kg_within_2_sigma": [abs(v) <= 2 for v in z], "mass_kg_z": z,
+            "mass_kg_weighed_within_2_sigma": [], "mass_kg_weighed_z": []}
+        scores = {"gradient": {"smoother": {cat: 0.1 for cat in CATEGORIES}}, "gradient_within_2_sigma": {},
+                  "mass": {"exact": {"smoother": mass}, "datasheet": {"smoother": mass}}}
+        return {"case": {"level": "typical"}, "sensor_sets": {"full": scores}}
+
+    lines = summarise([drive([1.0, -3.0]), drive([0.0, 2.0])])
+    line = next(l for l in lines if l.get("method") == "smoother" and l.get("vehicle") == "exact")
+    assert line["mass_error"]["mass_kg"]["rms_z"] == pytest.approx(np.sqrt((1 + 9 + 0 + 4) / 4))
+    assert line["mass_error"]["mass_kg"]["within_2_sigma"] == 0.75
+    assert "rms_z" not in line["mass_error"]["mass_kg_weighed"]

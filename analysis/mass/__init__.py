@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..engine_torque import REPORTED, driveline_torque_nm, torque_used
+from ..engine_torque import REPORTED, driveline_torque_nm, parasitic_torque_nm, torque_used
 from ..road_load import G_MPS2
 from . import calibration
 from .joint import JointFit, JointSettings, aux_power_regressor, fit_joint, offset_regressor, wind_regressors
@@ -114,9 +114,10 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     engine_torque = torque_used(frame)
     if engine_torque != REPORTED:
         notes.append(f"engine torque: {engine_torque}")
+    aux_prior = _aux_prior_w(frame, regression, bounds, joint_settings) if aux is not None else None
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
                               columns, max_mass, notes, segment_settings, wind,
-                              offset, aux)
+                              offset, aux, aux_prior)
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint, engine_torque=engine_torque)
 
@@ -184,6 +185,24 @@ def _aux_regressor(frame, regression):
     return aux_power_regressor(regression.force, _smoothed_torque(frame), frame["engine_speed_rpm"].to_numpy(dtype=float))
 
 
+def _aux_prior_w(frame, regression, bounds, settings):
+    """Per segment, the 1-sigma [W] of the auxiliary power the force still holds where the log's
+    SPN 2978 was taken off it (`engine_torque.parasitic_torque_nm`): its estimate's error,
+    ``parasitic_estimate_uncertainty`` of the accessories' mean power over the segment's usable
+    samples (NaN: none usable). None where the log has no such column: the whole accessories' load
+    is still in the force."""
+    parasitic = parasitic_torque_nm(frame)
+    if parasitic is None:
+        return None
+    power = np.abs(parasitic) * frame["engine_speed_rpm"].to_numpy(dtype=float) * np.pi / 30.0
+    out = np.full(len(bounds), np.nan)
+    for j, (start, end) in enumerate(bounds):
+        used = regression.usable[start:end] & np.isfinite(power[start:end])
+        if used.any():
+            out[j] = settings.parasitic_estimate_uncertainty * float(np.mean(power[start:end][used]))
+    return out
+
+
 def _smoothed_torque(frame):
     """The driveline's engine torque [Nm] (the force's) over the force's 1 s window, so that
     F_wheel / T_engine is the driveline's ratio."""
@@ -202,7 +221,7 @@ def _aux_power(fit: JointFit, j: int, gain: float) -> dict:
 
 
 def _joint(regression, time_s, bounds, vehicle, settings, known, segments, columns, max_mass, notes,
-           segment_settings, wind=None, offset=None, aux=None):
+           segment_settings, wind=None, offset=None, aux=None, aux_prior=None):
     """Joint fit with the IMU regressor (else the gradient one), calibration, and per segment the
     chosen ``mass_kg`` and its total ``mass_uncertainty_kg``; the gradient-based joint fit too,
     for comparison."""
@@ -211,13 +230,14 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         fits["imu"] = fit_joint(regression.force, regression.excess_imu, regression.cos_angle,
                                 regression.aero_per_cda, time_s, bounds, regression.usable_imu, vehicle, settings, "imu",
                                 instrument=regression.excess_gradient, wind_regressors=wind, offset_regressor=offset,
-                                aux_regressor=aux)
+                                aux_regressor=aux, aux_prior_w=aux_prior)
     else:
         notes.append("no accelerometer with a calibrated bias (accel_x_mps2, imu_bias_mps2): mass from the "
                      "gradient-based regressor")
     fits["gradient"] = fit_joint(regression.force, regression.excess_gradient, regression.cos_angle,
                                  regression.aero_per_cda, time_s, bounds, regression.usable, vehicle, settings, "gradient",
-                                 wind_regressors=wind, offset_regressor=offset, aux_regressor=aux)
+                                 wind_regressors=wind, offset_regressor=offset, aux_regressor=aux,
+                                 aux_prior_w=aux_prior)
     chosen = fits.get("imu", fits["gradient"])
     gradient_bias = G_MPS2 * np.sin(np.arctan(segment_settings.gradient_bias_pct / 100))
     covariances = {}
@@ -284,9 +304,11 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         else:
             segment["mass_kg"] = segment["mass_uncertainty_kg"] = None
     if chosen.aux_power_w is not None:
+        held = (f"{100 * settings.parasitic_estimate_uncertainty:g} % of the accessories' power the engine reports "
+                f"(SPN 2978, taken off the force)" if aux_prior is not None else "that prior")
         notes.append(f"an auxiliary power (compressor, fan, alternator) fitted per segment, >= 0 with a "
                      f"{settings.aux_power_sigma_w / 1000:g} kW prior; where the drive cannot tell it from the mass "
-                     f"(aux_power_identified false) that prior is in the mass's uncertainty")
+                     f"(aux_power_identified false) {held} is in the mass's uncertainty")
     if chosen.outliers:
         notes.append(f"{chosen.outliers} samples got weight 0 in the joint fit: their force balance is broken "
                      f"(auxiliary loads, unflagged braking)")

@@ -79,6 +79,13 @@ class JointSettings:
     """Prior 1-sigma of each segment's auxiliary power [W] (half-normal, P >= 0): the average engine
     power a truck's compressor, cooling fan, alternator and steering pump take while driving is a
     few kW (the vehicle files' ``auxiliary_power_w`` for the same consumers: 4-6 kW). 0: not fitted."""
+    parasitic_estimate_uncertainty: float = 0.15
+    """Relative 1-sigma of the engine's own estimate of its accessories' torque (J1939 EEC3, SPN
+    2978): an engine controller takes it from maps of its fan and compressor (fan power as the fan
+    law's N³ at the bench's air density, which moves by ±10 % between -10 and +30 °C and by -10 % at
+    1000 m; a compressor's with the system pressure it pumps against). Where the log's SPN 2978 is
+    taken off the force, a power the drive cannot resolve holds this share of it, not the whole
+    accessories' ``aux_power_sigma_w`` (`fit_joint`'s ``aux_prior_w``)."""
 
 
 @dataclass
@@ -346,7 +353,7 @@ def _biweight_slope_share(residual, weights, seg, n_seg, tuning):
 
 def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, settings: JointSettings = JointSettings(),
               regressor_name: str = "", instrument=None, wind_regressors=None, offset_regressor=None,
-              aux_regressor=None) -> JointFit:
+              aux_regressor=None, aux_prior_w=None) -> JointFit:
     """Masses of the segments ``bounds`` ([start, end) index pairs) and the shared c_r, c_d·A from
     the samples in ``usable`` (see the module docstring). Coefficients the drive cannot identify
     (relative std above ``max_relative_std``, a non-physical value, or a singular system) are fixed
@@ -368,7 +375,13 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     [N/W] (`aux_power_regressor`, η/v); given (and ``aux_power_sigma_w`` > 0), an auxiliary power
     P_j >= 0 is fitted per segment (half-normal prior of that width): an auxiliary running on most
     of a segment is not rejected by the robust weights and reads as mass. Where the drive cannot
-    tell P_j from the mass, the prior's width is in that mass's covariance."""
+    tell P_j from the mass, the prior's width is in that mass's covariance.
+
+    ``aux_prior_w`` (per segment [W], NaN: the default): the 1-sigma of the auxiliary power the
+    force still holds where the drive cannot resolve it, for the covariance of a power held at 0
+    (default ``aux_power_sigma_w``, the whole accessories' load): where the log's own estimate of
+    the accessories' torque was taken off the force, what is left is that estimate's error. The fit
+    and which powers it resolves keep ``aux_power_sigma_w``, so no estimate moves."""
     n_seg = len(bounds)
     seg_of = np.full(len(force), -1)
     for j, (start, end) in enumerate(bounds):
@@ -474,9 +487,23 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
         # like the torque gain, an auxiliary power the drive cannot resolve is a systematic term of
         # the mass's uncertainty, not a want of excitation: out of the statistical covariance
         seen = free & ~unidentified
-        statistical = _block_covariance((bread + np.diag(precision))[np.ix_(seen, seen)], np.flatnonzero(seen), m, seg,
-                                        block, weights, residual, row, theta, c, q, ex, aux,
-                                        extra_meat=noise_var * np.diag(precision), gusts=gusts)
+        seen_normal = (bread + np.diag(precision))[np.ix_(seen, seen)]
+        statistical = _block_covariance(seen_normal, np.flatnonzero(seen), m, seg, block, weights, residual, row,
+                                        theta, c, q, ex, aux, extra_meat=noise_var * np.diag(precision), gusts=gusts)
+        # a held power is 0 in the fit whatever the data say, so what it leaves in the estimates is
+        # the fit's response to it times its prior's width: the force still holds a power P_j
+        # P_j η / v, and the fitted parameters move by N⁻¹ (Σ w z x_j) P_j (a "consider"
+        # parameter); its width is what the force still holds of the accessories (`aux_prior_w`):
+        # where the log's own estimate took them off, not the whole accessories' load
+        held = np.flatnonzero(unidentified)
+        width = np.full(m, np.nan) if aux_prior_w is None else np.asarray(aux_prior_w, dtype=float)[kept]
+        width = np.where(np.isfinite(width), width, settings.aux_power_sigma_w)[held - aux_index[0]]
+        plain, _ = _normal_equations(x, x if z is None else z, c, q, ex, aux, seg, theta, m, weights, residual)
+        response = np.linalg.lstsq((plain + np.diag(precision))[np.ix_(seen, seen)], plain[np.ix_(seen, unidentified)],
+                                   rcond=None)[0]
+        cov = statistical.copy()
+        cov[np.ix_(seen, seen)] += (response * width ** 2) @ response.T
+        cov[held, held] = width ** 2
     scale = np.sqrt(np.abs(np.diag(normal)))
     informative = scale > 0  # a segment without a single usable sample has an empty row
     condition = float(np.linalg.cond(normal[np.ix_(informative, informative)]
@@ -526,7 +553,7 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
         result.aux_power_w, result.aux_power_std_w = np.full(n_seg, np.nan), np.full(n_seg, np.nan)
         result.aux_identified = np.zeros(n_seg, bool)
         result.aux_power_w[kept], result.aux_power_std_w[kept] = theta[aux_index], std
-        result.aux_identified[kept] = std < settings.max_prior_fraction * settings.aux_power_sigma_w
+        result.aux_identified[kept] = (std < settings.max_prior_fraction * settings.aux_power_sigma_w) & ~unidentified[aux_index]
     result.slope_share = np.full(n_seg, np.nan)
     result.slope_share[kept] = share
     result.weights[ok] = weights

@@ -142,7 +142,8 @@ def _scored_segments(segments, truth):
 def mass_errors(signals, truth, vehicle, column: str) -> dict:
     """Relative errors of each confident segment's mass when the gradient is ``column``: LS and
     RLS where the LS is ``ok``; ``mass_kg`` (the joint estimate, else LS) wherever it is given,
-    and in ``mass_kg_within_2_sigma`` whether the truth lies inside its stated ±2σ. The same for
+    and in ``mass_kg_within_2_sigma`` whether the truth lies inside its stated ±2σ, in ``mass_kg_z``
+    its error over its stated σ, (m̂ - m) / σ (N(0, 1) where σ is honest). The same for
     ``mass_kg_weighed``: with the first scored segment weighed (`--known-mass`, its true mass),
     the other segments' errors, the torque gain calibrated."""
     from haulprofile.analysis.mass import estimate_mass
@@ -150,8 +151,8 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
     if column != METHODS["smoother"] and "gradient_mass_pct" in frame.columns:
         frame = frame.drop(columns=[c for c in ("gradient_mass_pct", "gradient_mass_std_pct") if c in frame.columns])
     result = estimate_mass(frame, vehicle)
-    out = {key: [] for key in MASS_KEYS} | {"mass_kg_within_2_sigma": [], "mass_kg_weighed": [],
-                                           "mass_kg_weighed_within_2_sigma": []}
+    out = {key: [] for key in MASS_KEYS} | {"mass_kg_within_2_sigma": [], "mass_kg_z": [], "mass_kg_weighed": [],
+                                           "mass_kg_weighed_within_2_sigma": [], "mass_kg_weighed_z": []}
     scored = list(_scored_segments(result.segments, truth))
     for _, segment, true in scored:
         for key in MASS_KEYS:
@@ -161,6 +162,7 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
         sigma = segment.get("mass_uncertainty_kg")
         if segment.get("mass_kg") is not None and sigma is not None and np.isfinite(sigma):
             out["mass_kg_within_2_sigma"].append(bool(abs(segment["mass_kg"] - true) <= 2 * sigma))
+            out["mass_kg_z"].append(float((segment["mass_kg"] - true) / sigma) if sigma > 0 else None)
     # a weighing calibrates the joint fit: its segment needs a joint mass (not the LS standing in)
     weighed = [(j, true) for j, segment, true in scored if segment.get("mass_kg") is not None
                and segment.get(f"mass_{segment.get('mass_regressor')}_kg") is not None]
@@ -173,6 +175,7 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
                 continue
             out["mass_kg_weighed"].append(float(segment["mass_kg"] / true - 1))
             out["mass_kg_weighed_within_2_sigma"].append(bool(abs(segment["mass_kg"] - true) <= 2 * sigma))
+            out["mass_kg_weighed_z"].append(float((segment["mass_kg"] - true) / sigma) if sigma > 0 else None)
     return out
 
 

@@ -4,7 +4,8 @@ levels through the real analysis (MCAP log -> ingest -> gradient -> mass), score
 truth. One JSON line per vehicle file (exact / datasheet-mismatched), level and gradient method:
 gradient RMSE [%-pt] on the 10 m grid per road category (median and p95 over drives) and the mass
 error per segment (median and worst of |error| over all segments, LS, RLS and ``mass_kg``, the
-joint estimate, with the share of segments whose truth is inside its stated ±2σ; and
+joint estimate, with the share of segments whose truth is inside its stated ±2σ and the RMS of
+their error over their stated σ, ``rms_z`` (1 where σ is honest); and
 ``mass_kg_weighed``, the other segments with the first one weighed), and for the
 smoother the share of 10 m bins whose true gradient is inside its stated ±2σ. Each drive is
 analysed with each sensor set (`SENSOR_SETS`: the full log and the same log without barometer,
@@ -92,6 +93,10 @@ def _summarise_set(results: list[dict], sensor_set: str) -> list[dict]:
                                for c in r["mass"][vehicle][method].get(f"{key}_within_2_sigma", [])]
                     if covered:
                         mass[key]["within_2_sigma"] = float(np.mean(covered))
+                    z = [v for r in have if r["mass"] for v in r["mass"][vehicle][method].get(f"{key}_z", [])
+                         if v is not None]
+                    if z:
+                        mass[key]["rms_z"] = float(np.sqrt(np.mean(np.square(z))))
                 covered = [r["gradient_within_2_sigma"].get(method) for r in have]
                 covered = [c for c in covered if c is not None]
                 coverage = {"median": float(np.median(covered)), "min": float(np.min(covered))} if covered else None
