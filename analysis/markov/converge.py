@@ -20,12 +20,12 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from . import precompile
 from .chain import Chain, build_chain
 from .counting import TransitionCounts
 from .criteria import _Q, _S, ALLOWANCE, IS_MASS, deviations, evaluate, scales, scores
 from .ending import Ending
 from .generate import cycle_frame, run_batch, walk_ending
-from . import precompile
 from .load_criteria import LOAD_ALLOWANCE, N_LOADS, LoadTarget, evaluate_loads
 from .refine import refine_walk
 from .score_kernels import KINEMATIC_PENALTY

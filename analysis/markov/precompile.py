@@ -4,7 +4,7 @@ On the first run after an install numba compiles two kernels for a refined selec
 the other: `generate.batch` for the pool's walks (a third of the compile time), then
 `refine.refine_walk`. One process compiles one kernel at a time (numba's compiler lock; a thread
 beside it gained nothing, docs/cycles.md), so the second core idles. Where ``batch`` has no valid
-entry in numba's cache, `start` runs this module beside the selection: it compiles ``batch`` on a
+entry in numba's cache, `start` runs `compile_batch` in a second process: it compiles ``batch`` on a
 small drive with the argument types of the pool and leaves it in the cache, while the selection
 compiles ``refine_walk`` first (`converge.select_refined`); `wait`, before the pool, lets the
 selection load ``batch`` from the cache instead of compiling it again. The kernels are the same
@@ -34,8 +34,8 @@ def start() -> subprocess.Popen | None:
     if not needed():
         return None
     try:
-        return subprocess.Popen([sys.executable, "-c", f"import {__name__} as m; m.compile_batch()"], stdin=subprocess.DEVNULL,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        return subprocess.Popen([sys.executable, "-c", f"import {__name__} as m; m.compile_batch()"],
+                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     except OSError:
         return None
 
