@@ -303,6 +303,17 @@ def test_a_segment_without_a_mass_of_its_own_measures_with_the_drives(monkeypatc
     assert np.mean(np.abs(error[part]) <= 2 * grid["gradient_smooth_std_pct"].to_numpy()[part]) >= 0.9
 
 
+def _errors_where_pulling(can_only, vehicle, mass, grid):
+    """The gradient's error [%-pt] in the grid's bins where the truck pulls (the force balance
+    measures), 200 m from either end, and those bins."""
+    s = grid["distance_m"].to_numpy()
+    pulling = virtual_accelerometer_mps2(can_only.assign(gradient_pct=0.0), vehicle, mass, coasting=False)
+    measured = np.zeros(len(s), bool)
+    measured[np.clip(np.round(can_only["distance_m"].to_numpy()[np.isfinite(pulling)] / 10).astype(int), 0, len(s) - 1)] = True
+    keep = measured & (s > 200) & (s < s.max() - 200)
+    return grid["gradient_pct"].to_numpy()[keep] - 100 * np.interp(s, *_road_slope_table(s.max()))[keep], keep
+
+
 def test_with_nothing_but_can_the_sigma_holds_a_head_wind_the_force_balance_cannot_see(drive):
     """With a given mass and no height source nothing ties the force balance's bias: an 8 m/s head
     wind reads as a steeper road (+0.5 %-pt here). Its linear drag (the wind prior's 5 m/s) and
@@ -320,12 +331,7 @@ def test_with_nothing_but_can_the_sigma_holds_a_head_wind_the_force_balance_cann
     mass = drive["true_mass_kg"].to_numpy()
     result = estimate_gradient_force_balance(can_only, None, vehicle, mass_kg=mass)
     grid = result.grid
-    s = grid["distance_m"].to_numpy()
-    pulling = virtual_accelerometer_mps2(can_only.assign(gradient_pct=0.0), vehicle, mass, coasting=False)
-    measured = np.zeros(len(s), bool)
-    measured[np.clip(np.round(can_only["distance_m"].to_numpy()[np.isfinite(pulling)] / 10).astype(int), 0, len(s) - 1)] = True
-    keep = measured & (s > 200) & (s < s.max() - 200)
-    error = grid["gradient_pct"].to_numpy()[keep] - 100 * np.interp(s, *_road_slope_table(s.max()))[keep]
+    error, keep = _errors_where_pulling(can_only, vehicle, mass, grid)
     assert np.mean(error) > 0.3, "the head wind reads as a steeper road"
     assert np.mean(np.abs(error) <= 2 * grid["gradient_smooth_std_pct"].to_numpy()[keep]) >= 0.9
 
@@ -347,12 +353,7 @@ def test_with_a_given_mass_the_torque_reports_offset_is_taken_off_where_spn_514_
     mass = drive["true_mass_kg"].to_numpy()
     result = estimate_gradient_force_balance(can_only, None, vehicle, mass_kg=mass)
     grid = result.grid
-    s = grid["distance_m"].to_numpy()
-    pulling = virtual_accelerometer_mps2(can_only.assign(gradient_pct=0.0), vehicle, mass, coasting=False)
-    measured = np.zeros(len(s), bool)
-    measured[np.clip(np.round(can_only["distance_m"].to_numpy()[np.isfinite(pulling)] / 10).astype(int), 0, len(s) - 1)] = True
-    keep = measured & (s > 200) & (s < s.max() - 200)
-    error = grid["gradient_pct"].to_numpy()[keep] - 100 * np.interp(s, *_road_slope_table(s.max()))[keep]
+    error, keep = _errors_where_pulling(can_only, vehicle, mass, grid)
     assert abs(np.mean(error)) < 0.1, "the offset taken off: no steeper road where the truck pulls (+0.20 %-pt before)"
     assert any("torque report's offset +5" in note or "torque report's offset +6" in note for note in result.notes)
 
