@@ -13,7 +13,8 @@ from test_gradient_virtual_truck import virtual_drive_data
 from haulprofile.analysis.errors import UserError
 from haulprofile.analysis.gradient import GradientSettings, estimate_gradient, kalman
 from haulprofile.analysis.gradient import smoother as smoother_module
-from haulprofile.analysis.gradient.smoother import GradientSmoother, Measurements, SmootherSettings
+from haulprofile.analysis.gradient.smoother import (GradientSmoother, Measurements, SmootherSettings,
+                                                    innovation_log_likelihood)
 from haulprofile.analysis.road_load import G_MPS2
 
 virtual_truck = pytest.importorskip("haulprofile.analysis.virtual_truck")
@@ -390,9 +391,10 @@ def test_height_and_gradient_are_averaged_over_the_bias_rate():
         single = GradientSmoother(measurements)
         single.estimate()
         single.bias_rate_psd = rate
-        models[name] = (single.run(single.r), single._log_likelihood(single.r))
-    (x0, p0, _, _), ll0 = models["none"]
-    (x1, p1, _, _), ll1 = models["rate"]
+        models[name] = single.run(single.r)
+    x0, p0, nu0, var0 = models["none"]
+    x1, p1, nu1, var1 = models["rate"]
+    ll0, ll1 = innovation_log_likelihood(nu0, var0), innovation_log_likelihood(nu1, var1)
     weight = 1.0 / (1.0 + np.exp(ll0 - ll1))
     assert not smoother.rated and 0.1 < weight < 0.9
     assert smoother.rate_model_weight == pytest.approx(weight)

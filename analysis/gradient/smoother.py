@@ -209,6 +209,12 @@ def standstill_bins(index: np.ndarray, speed_mps: np.ndarray, n_bins: int, stop_
     return np.bincount(index[stopped], minlength=n_bins)[:n_bins] > 0
 
 
+def innovation_log_likelihood(nu: np.ndarray, var: np.ndarray) -> float:
+    """Gaussian log-likelihood of a filter's innovations ``nu`` with variances ``var`` (NaN: no
+    measurement), -1/2 sum(log S + nu²/S): the data's marginal likelihood under the model."""
+    return float(-0.5 * np.nansum(np.log(var) + nu ** 2 / var))
+
+
 def _robust_var(values: np.ndarray) -> float:
     values = values[np.isfinite(values)]
     if len(values) < 10:
@@ -405,9 +411,9 @@ class GradientSmoother:
             white = max(s.dem_white_fraction * self.dem_sigma_m, 0.5)
             h_acc = np.nan_to_num(m.h_acc_m, nan=10.0)
             r[:, kalman.DEM] = np.where(self.gated, np.nan, white ** 2 + (s.terrain_cross_slope * h_acc) ** 2)
-        x, p, _, _ = self.run(r)
+        x, p, nu, var = self.run(r)
         if self.rate_possible:
-            x, p = self._averaged_over_the_rate(r, x, p)
+            x, p = self._averaged_over_the_rate(r, x, p, innovation_log_likelihood(nu, var))
             if 0.05 < self.rate_model_weight < 0.95:
                 self.notes.append(f"no barometer: the log does not tell whether the IMU's bias drifts (warm-up): a "
                                   f"rate state is {100 * self.rate_model_weight:.0f} % likely; height, gradient and "
@@ -614,22 +620,22 @@ class GradientSmoother:
         x, p, _, _ = block.run(r, use=(True, False, True, True))
         return x, p
 
-    def _averaged_over_the_rate(self, r, x, p):
-        """Height, gradient and the IMU's bias averaged over the two models of the bias: without a rate and
-        with one (the rate the likelihood-ratio test took, else a constant one), weighted by their
+    def _averaged_over_the_rate(self, r, x, p, ll_kept):
+        """Height, gradient and the IMU's bias averaged over the two models of the bias: without a
+        rate and with one (the rate the likelihood-ratio test took, else a constant one), weighted by their
         marginal likelihoods (the forward innovations' likelihood integrates the rate's prior) at
         even prior odds: a cold IMU warms up on every start, a warm one does not, and the log
         does not say which. The test keeps the simpler model unless the data insist; where GPS
         altitude cannot tell a ramp from its own correlated error (likelihoods within a few units)
         the model it kept stated a σ that held neither the warm-up it missed nor the other model's
         estimate (long-haul `typical` seed 2 of the matrix: 85 % of the bins inside ±2σ). The bias
-        goes to the mass's accelerometer regressor, which needs the same answer. Returns ``x``, ``p``
-        with the mixture's mean and variance in the height, gradient and bias."""
+        goes to the mass's accelerometer regressor, which needs the same answer. ``x``, ``p`` and
+        ``ll_kept`` are the kept model's run and its log-likelihood; returns them with the mixture's
+        mean and variance in the height, gradient and bias."""
         kept = self.bias_rate_psd
-        ll_kept = self._log_likelihood(r)
         self.bias_rate_psd = 0.0 if kept is None else None
-        ll_other = self._log_likelihood(r)
-        x_other, p_other, _, _ = self.run(r)
+        x_other, p_other, nu, var = self.run(r)
+        ll_other = innovation_log_likelihood(nu, var)
         self.bias_rate_psd = kept
         weight = 1.0 / (1.0 + np.exp(np.clip(ll_kept - ll_other, -700.0, 700.0)))
         self.rate_model_weight = weight if kept is None else 1.0 - weight
@@ -640,11 +646,6 @@ class GradientSmoother:
                                   + weight * (p_other[:, state, state] + (x_other[:, state] - mean) ** 2))
             x[:, state] = mean
         return x, p
-
-    def _log_likelihood(self, r) -> float:
-        """Gaussian log-likelihood of all sources' forward innovations, -1/2 sum(log S + nu²/S)."""
-        _, _, nu, var = self.run(r, backward=False)
-        return float(-0.5 * np.nansum(np.log(var) + nu ** 2 / var))
 
     def _noise_by_likelihood(self, r, have, names=("curvature_psd", "offset_psd", "bias_psd", "imu_noise_factor")) -> bool:
         """Maximum likelihood of the map-free innovations (barometer, IMU, GPS) over the noise
@@ -679,7 +680,7 @@ class GradientSmoother:
         def likelihood():
             r[:, kalman.IMU] = imu * self.imu_noise_factor + self.imu_scale_var
             _, _, nu, var = self.run(r, use=use, backward=False)
-            return float(-0.5 * np.nansum(np.log(var) + nu ** 2 / var))
+            return innovation_log_likelihood(nu, var)
 
         rate_gain = chi2.ppf(1 - self.s.bias_rate_probability, 1) / 2
         start = {name: getattr(self, name) for name, _ in axes}
@@ -711,7 +712,7 @@ class GradientSmoother:
         for candidate in self.s.curvature_candidates:
             self.curvature_psd = candidate
             _, _, nu, var = self.run(r, use=(True, False, True, True), backward=False)
-            ll = -0.5 * np.nansum(np.log(var) + nu ** 2 / var)
+            ll = innovation_log_likelihood(nu, var)
             if ll > best_ll:
                 best, best_ll = candidate, ll
         return best
