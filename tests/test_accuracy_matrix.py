@@ -143,3 +143,19 @@ def test_the_summary_gives_the_rms_of_the_masses_error_over_sigma():
     assert line["mass_error"]["mass_kg"]["rms_z"] == pytest.approx(np.sqrt((1 + 9 + 0 + 4) / 4))
     assert line["mass_error"]["mass_kg"]["within_2_sigma"] == 0.75
     assert "rms_z" not in line["mass_error"]["mass_kg_weighed"]
+
+
+def test_other_seeds_draw_the_same_matrix_from_drives_not_tuned_on():
+    """``ACCURACY_SEEDS`` swaps the default seeds (0-3) for others: the same 36 drive shapes."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
+    from benchmarks.accuracy import matrix, seeds_from
+
+    assert seeds_from("4-7") == (4, 5, 6, 7) and seeds_from("4, 9-10") == (4, 9, 10)
+    assert seeds_from("") is None and seeds_from(None) is None
+    default, other = matrix(False), matrix(False, seeds_from("4-7"))
+    assert len(other) == len(default) == 36
+    assert {c.seed for c in default} == {0, 1, 2, 3} and {c.seed for c in other} == {4, 5, 6, 7}
+    shape = lambda c: (c.scenario, c.level, c.length_m, c.stop_s, c.dem)
+    assert [shape(c) for c in other] == [shape(c) for c in default]
