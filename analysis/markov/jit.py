@@ -13,9 +13,41 @@ lowers it inside its caller, so it has no compiled library of its own, which LLV
 and translate to machine code once for it and once more inside every caller (6 % of the first run's
 compile time for the six of them). Called from Python (the tests), it compiles on its own as any
 kernel. In its own file only: numba's cache checks only the file of the kernel it loads.
+
+A kernel the cycle code calls only from other kernels is a `helper`: it is compiled without the
+Python entry (the code that converts Python arguments and results, which a kernel with many array
+arguments spends as much code on as on its work), which numba would otherwise compile and link
+into every caller's library as well (12 % of the first run's compile time for the refinement). A
+helper called from Python (the tests, a kernel's ``py_func``) runs a twin of it compiled with the
+entry on first use and not cached: numba's cache keys an entry on its signature and source, not on
+its options, so the twin must not share the helper's entries.
 """
 
 import numba
+from numba.core import config
+from numba.core.registry import CPUDispatcher
 
-kernel = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True)
-inlined_kernel = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, inline="always")
+OPTIONS = dict(nogil=True, no_cfunc_wrapper=True)
+
+kernel = numba.njit(cache=True, **OPTIONS)
+inlined_kernel = numba.njit(cache=True, inline="always", **OPTIONS)
+
+
+class HelperDispatcher(CPUDispatcher):
+    """numba's dispatcher for a `helper`: kernels call its entry-less compile, Python its twin."""
+
+    _twin = None
+
+    def __call__(self, *args, **kwargs):
+        if self._twin is None:
+            self._twin = numba.njit(**OPTIONS)(self.py_func)
+        return self._twin(*args, **kwargs)
+
+
+def helper(function):
+    """``function`` as a kernel without a Python entry (see above), cached as every kernel."""
+    if config.DISABLE_JIT:
+        return function
+    dispatcher = HelperDispatcher(py_func=function, locals={}, targetoptions=dict(no_cpython_wrapper=True, **OPTIONS))
+    dispatcher.enable_caching()
+    return dispatcher

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from .generate import GOLDEN, is_free, mix, path_statistics, plain_index, steered_end, steered_index, uniform
-from .jit import inlined_kernel, kernel
+from .jit import helper, inlined_kernel, kernel
 from .score_kernels import kinematic_objective, load_objective, path_loads
 
 TAIL_SHARE = 0.2
@@ -28,7 +28,7 @@ HEAD_SHARE = 0.1
 draw from there until the old walk's first window is met."""
 
 
-@kernel
+@helper
 def _next_state(row_ptr, dest, count, cum_count, s, r_after, ending, rng):
     """The state after ``s`` with ``r_after`` seconds of the walk left after it, ending at a stop
     as ``ending`` (`ending.Ending.as_tuple`) says; ``r_after`` < 0 past the walk's end. The callers
@@ -41,14 +41,14 @@ def _next_state(row_ptr, dest, count, cum_count, s, r_after, ending, rng):
     return dest[j if j >= 0 else plain_index(row_ptr, free_end, cum_count, s, rng)]
 
 
-@kernel
+@helper
 def _kinematic_deviation(path, speed, gradient, mass, measured, scale, q_index, s_index, stats, out):
     path_statistics(path, speed, gradient, mass, stats)
     for i in range(out.shape[0]):
         out[i] = abs(stats[q_index[i], s_index[i]] - measured[q_index[i], s_index[i]]) / scale[i]
 
 
-@kernel
+@helper
 def _continue(current, n, k, c, row_ptr, dest, count, cum_count, ending, rng, proposal):
     """``proposal[k]`` is ``current[c]``: go on with the old walk after ``c`` while it can still
     reach a stop by the end, then with the chain, up to ``n`` states."""
@@ -75,7 +75,7 @@ def _continue(current, n, k, c, row_ptr, dest, count, cum_count, ending, rng, pr
         proposal[k] = s
 
 
-@kernel
+@helper
 def _rejoin(current, n, first, last, k, s, row_ptr, dest, count, cum_count, ending, rng, limit, mark, proposal):
     """From state ``s`` at ``proposal[k]``, draw until a state of ``current[first..last]`` is met
     (within ``limit`` steps) and go on with the old walk from there; False if none is met."""
