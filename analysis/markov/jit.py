@@ -20,7 +20,8 @@ arguments spends as much code on as on its work), which numba would otherwise co
 into every caller's library as well (12 % of the first run's compile time for the refinement). A
 helper called from Python (the tests, a kernel's ``py_func``) runs a twin of it compiled with the
 entry on first use and not cached: numba's cache keys an entry on its signature and source, not on
-its options, so the twin must not share the helper's entries.
+its options, so the twin must not share the helper's entries. `HelperDispatcher.await_before_compile`
+lets a compile wait until a second process has left the helper in the cache (`precompile`).
 """
 
 import numba
@@ -37,11 +38,23 @@ class HelperDispatcher(CPUDispatcher):
     """numba's dispatcher for a `helper`: kernels call its entry-less compile, Python its twin."""
 
     _twin = None
+    _awaited = None
 
     def __call__(self, *args, **kwargs):
         if self._twin is None:
             self._twin = numba.njit(**OPTIONS)(self.py_func)
         return self._twin(*args, **kwargs)
+
+    def await_before_compile(self, until) -> None:
+        """Call ``until()`` (once) before this helper's next compile or load: numba then finds what
+        another process has meanwhile left in the cache instead of compiling it here too."""
+        self._awaited = until
+
+    def compile(self, sig):
+        until, self._awaited = self._awaited, None
+        if until is not None:
+            until()
+        return super().compile(sig)
 
 
 def helper(function):

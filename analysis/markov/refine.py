@@ -15,6 +15,7 @@ objective (`score_kernels.objective`, computed in two parts) falls; the kernel w
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .generate import GOLDEN, is_free, mix, path_statistics, plain_index, steered_end, steered_index, uniform
@@ -110,6 +111,22 @@ def _rejoin(current, n, first, last, k, s, row_ptr, dest, count, cum_count, endi
         return False
     _continue(current, n, k + j, hit, row_ptr, dest, count, cum_count, ending, rng, proposal)
     return True
+
+
+MOVE_KERNELS = (_rejoin, _continue)
+"""The kernels a move calls: `compile_moves` compiles them (``_next_state`` inside them)."""
+
+
+def compile_moves(row_ptr, dest, count, cum_count, ending) -> None:
+    """Compile `MOVE_KERNELS` for the argument types `refine_walk` gives them (through `_propose`),
+    for a chain's arrays and ``ending`` (`ending.Ending.as_tuple`), without compiling `refine_walk`:
+    numba caches them, and `refine_walk`'s own compile then loads them (`precompile`)."""
+    walk = numba.typeof(np.empty(0, np.int64))  # current, mark, proposal: arrays refine_walk allocates
+    rng = numba.typeof(np.empty(1, np.uint64))
+    index = numba.types.int64
+    chain = tuple(numba.typeof(a) for a in (row_ptr, dest, count, cum_count))
+    _rejoin.compile((walk, index, index, index, index, index, *chain, numba.typeof(ending), rng, index, walk, walk))
+    _continue.compile((walk, index, index, index, *chain, numba.typeof(ending), rng, walk))
 
 
 @inlined_kernel
