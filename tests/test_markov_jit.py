@@ -35,14 +35,22 @@ print(json.dumps({"order": order, "from_kernel": from_kernel, "from_python": twi
 """
 
 
-def test_a_helper_compiles_without_python_entry_runs_from_python_and_awaits_once(tmp_path):
-    (tmp_path / "probe.py").write_text(PROBE)  # a file: numba caches only kernels defined in one
+def _probe(tmp_path):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
     done = subprocess.run([sys.executable, str(tmp_path / "probe.py")], capture_output=True, text=True, check=True,
                           env=env)
-    out = json.loads(done.stdout.splitlines()[-1])
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+def test_a_helper_compiles_without_python_entry_runs_from_python_and_awaits_once(tmp_path):
+    """The helper compiles once for the kernel, without a Python entry, after the awaited call;
+    Python runs its twin, compiled once more with the entry; a second process compiles nothing."""
+    (tmp_path / "probe.py").write_text(PROBE)  # a file: numba caches only kernels defined in one
+    out = _probe(tmp_path)
     assert out["from_kernel"] == 41 and out["from_python"] == 40
     assert out["has_python_entry"] == [False]
     compiles = [o for o in out["order"] if o == "compile twice"]
     assert out["order"].index("awaited") < out["order"].index("compile twice")
     assert out["order"].count("awaited") == 1 and len(compiles) == 2  # the helper, then its twin for Python
+    again = _probe(tmp_path)
+    assert again["from_kernel"] == 41 and again["from_python"] == 40 and again["order"] == []

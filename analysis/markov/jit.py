@@ -19,10 +19,12 @@ Python entry (the code that converts Python arguments and results, which a kerne
 arguments spends as much code on as on its work), which numba would otherwise compile and link
 into every caller's library as well (12 % of the first run's compile time for the refinement). A
 helper called from Python (the tests, a kernel's ``py_func``) runs a twin of it compiled with the
-entry on first use and not cached: numba's cache keys an entry on its signature and source, not on
-its options, so the twin must not share the helper's entries. `HelperDispatcher.await_before_compile`
+entry on first use, cached under a name of its own: numba's cache keys an entry on the function's
+name, signature and source, not on its options, so the twin must not share the helper's entries. `HelperDispatcher.await_before_compile`
 lets a compile wait until a second process has left the helper in the cache (`precompile`).
 """
+
+import types
 
 import numba
 from numba.core import config
@@ -42,7 +44,11 @@ class HelperDispatcher(CPUDispatcher):
 
     def __call__(self, *args, **kwargs):
         if self._twin is None:
-            self._twin = numba.njit(**OPTIONS)(self.py_func)
+            function = self.py_func
+            twin = types.FunctionType(function.__code__, function.__globals__, function.__name__,
+                                      function.__defaults__, function.__closure__)
+            twin.__qualname__ = f"{function.__qualname__}.python_entry"
+            self._twin = numba.njit(cache=True, **OPTIONS)(twin)
         return self._twin(*args, **kwargs)
 
     def await_before_compile(self, until) -> None:
