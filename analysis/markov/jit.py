@@ -20,8 +20,9 @@ arguments spends as much code on as on its work), which numba would otherwise co
 into every caller's library as well (12 % of the first run's compile time for the refinement). A
 helper called from Python (the tests, a kernel's ``py_func``) runs a twin of it compiled with the
 entry on first use, cached under a name of its own: numba's cache keys an entry on the function's
-name, signature and source, not on its options, so the twin must not share the helper's entries. `HelperDispatcher.await_before_compile`
-lets a compile wait until a second process has left the helper in the cache (`precompile`).
+name, signature and source, not on its options, so the twin must not share the helper's entries.
+`HelperDispatcher.await_before_compile` lets a compile wait until a second process has left the
+helper in the cache (`precompile`).
 """
 
 import types
