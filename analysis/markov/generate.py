@@ -27,7 +27,7 @@ from ..errors import UserError
 from .chain import Chain, build_chain
 from .counting import TransitionCounts
 from .ending import WINDOW_S, Ending, ending_for, free_ending
-from .jit import inlined_kernel, kernel
+from .jit import helper, inlined_kernel, kernel
 
 GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 MIX1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -39,21 +39,21 @@ class GenerationError(UserError):
     pass
 
 
-@kernel
+@helper
 def mix(z):
     z = (z ^ (z >> np.uint64(30))) * MIX1
     z = (z ^ (z >> np.uint64(27))) * MIX2
     return z ^ (z >> np.uint64(31))
 
 
-@kernel
+@helper
 def uniform(rng):
     """Next uniform number in [0, 1) of the SplitMix64 stream in ``rng`` (uint64[1])."""
     rng[0] += GOLDEN
     return np.float64(mix(rng[0]) >> np.uint64(11)) * TWO_POW_MINUS_53
 
 
-@kernel
+@helper
 def _ending_factor(state, r_after, steps_to_stop, weight):
     """Weight of arriving in ``state`` with ``r_after`` seconds left (`ending.Ending`)."""
     if r_after < weight.shape[0]:
@@ -61,7 +61,7 @@ def _ending_factor(state, r_after, steps_to_stop, weight):
     return 1.0 if steps_to_stop[state] <= r_after else 0.0
 
 
-@kernel
+@helper
 def steered_index(weights, a, b, dest, r_after, steps_to_stop, weight, rng):
     """Transition ``a <= j < b`` drawn with ``weights[j]`` times its ending factor; −1 if all are 0."""
     total = 0.0
@@ -82,20 +82,20 @@ def steered_index(weights, a, b, dest, r_after, steps_to_stop, weight, rng):
     return -1
 
 
-@kernel
+@helper
 def is_free(s, r_after, reach_max, weight):
     """True when no transition out of ``s`` is constrained with ``r_after`` seconds left."""
     return r_after < 0 or (r_after >= weight.shape[0] and reach_max[s] <= r_after)
 
 
-@kernel
+@helper
 def steered_end(row_ptr, free_end, s, r_after, weight):
     """End of the transitions out of ``s`` a steered draw chooses from: its ending ones too in the
     window."""
     return row_ptr[s + 1] if r_after < weight.shape[0] else free_end[s]
 
 
-@kernel
+@helper
 def plain_index(row_ptr, free_end, cum_count, s, rng):
     """Transition out of ``s`` on a walk's way, drawn in proportion to its count."""
     a = row_ptr[s]
@@ -205,7 +205,7 @@ def walk(row_ptr, dest, count, cum_count, start_state, start_cum, seed, index, u
         remaining[touched[t]] = count[touched[t]]
 
 
-@kernel
+@helper
 def path_statistics(path, speed, gradient, mass, out):
     """(mean, std, min, max) of speed, gradient, acceleration (1 Hz speed difference) and mass
     along ``path`` into ``out[4, 4]`` (population std)."""

@@ -15,10 +15,11 @@ objective (`score_kernels.objective`, computed in two parts) falls; the kernel w
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .generate import GOLDEN, is_free, mix, path_statistics, plain_index, steered_end, steered_index, uniform
-from .jit import inlined_kernel, kernel
+from .jit import helper, inlined_kernel, kernel
 from .score_kernels import kinematic_objective, load_objective, path_loads
 
 TAIL_SHARE = 0.2
@@ -28,7 +29,7 @@ HEAD_SHARE = 0.1
 draw from there until the old walk's first window is met."""
 
 
-@kernel
+@helper
 def _next_state(row_ptr, dest, count, cum_count, s, r_after, ending, rng):
     """The state after ``s`` with ``r_after`` seconds of the walk left after it, ending at a stop
     as ``ending`` (`ending.Ending.as_tuple`) says; ``r_after`` < 0 past the walk's end. The callers
@@ -41,14 +42,14 @@ def _next_state(row_ptr, dest, count, cum_count, s, r_after, ending, rng):
     return dest[j if j >= 0 else plain_index(row_ptr, free_end, cum_count, s, rng)]
 
 
-@kernel
+@helper
 def _kinematic_deviation(path, speed, gradient, mass, measured, scale, q_index, s_index, stats, out):
     path_statistics(path, speed, gradient, mass, stats)
     for i in range(out.shape[0]):
         out[i] = abs(stats[q_index[i], s_index[i]] - measured[q_index[i], s_index[i]]) / scale[i]
 
 
-@kernel
+@helper
 def _continue(current, n, k, c, row_ptr, dest, count, cum_count, ending, rng, proposal):
     """``proposal[k]`` is ``current[c]``: go on with the old walk after ``c`` while it can still
     reach a stop by the end, then with the chain, up to ``n`` states."""
@@ -75,7 +76,7 @@ def _continue(current, n, k, c, row_ptr, dest, count, cum_count, ending, rng, pr
         proposal[k] = s
 
 
-@kernel
+@helper
 def _rejoin(current, n, first, last, k, s, row_ptr, dest, count, cum_count, ending, rng, limit, mark, proposal):
     """From state ``s`` at ``proposal[k]``, draw until a state of ``current[first..last]`` is met
     (within ``limit`` steps) and go on with the old walk from there; False if none is met."""
@@ -110,6 +111,22 @@ def _rejoin(current, n, first, last, k, s, row_ptr, dest, count, cum_count, endi
         return False
     _continue(current, n, k + j, hit, row_ptr, dest, count, cum_count, ending, rng, proposal)
     return True
+
+
+MOVE_KERNELS = (_rejoin, _continue)
+"""The kernels a move calls: `compile_moves` compiles them (``_next_state`` inside them)."""
+
+
+def compile_moves(row_ptr, dest, count, cum_count, ending) -> None:
+    """Compile `MOVE_KERNELS` for the argument types `refine_walk` gives them (through `_propose`),
+    for a chain's arrays and ``ending`` (`ending.Ending.as_tuple`), without compiling `refine_walk`:
+    numba caches them, and `refine_walk`'s own compile then loads them (`precompile`)."""
+    walk = numba.typeof(np.empty(0, np.int64))  # current, mark, proposal: arrays refine_walk allocates
+    rng = numba.typeof(np.empty(1, np.uint64))
+    index = numba.types.int64
+    chain = tuple(numba.typeof(a) for a in (row_ptr, dest, count, cum_count))
+    _rejoin.compile((walk, index, index, index, index, index, *chain, numba.typeof(ending), rng, index, walk, walk))
+    _continue.compile((walk, index, index, index, *chain, numba.typeof(ending), rng, walk))
 
 
 @inlined_kernel

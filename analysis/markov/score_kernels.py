@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .jit import inlined_kernel, kernel
+from .jit import helper, inlined_kernel, kernel
 
 EXPONENTS = np.arange(3, 9).astype(np.float64)
 """Wöhler exponents k of the damage-equivalent torque criteria (consecutive integers)."""
@@ -27,7 +27,7 @@ LOAD_WEIGHT = 0.1
 allowances the loads count half as much as the kinematic criteria, which define the cycle."""
 
 
-@kernel
+@helper
 def _add_powers(x, weight, exponents, out):
     """out[e] += weight · x^k for consecutive integer exponents k (one power, then products)."""
     p = weight * x ** exponents[0]
@@ -200,7 +200,7 @@ def time_quantiles_sorted(values, n_half, half_a, half_b, shares, out):
         q += 1
 
 
-@kernel
+@helper
 def path_loads(path, n, speed, mass, resistance, radius, speed_edges, torque_edges, share, range_scale, out,
                torque, power, residence):
     """Load criteria values (order of `load_criteria.LOAD_NAMES`) of the walk ``path[:n]`` into
@@ -257,7 +257,7 @@ def path_loads(path, n, speed, mass, resistance, radius, speed_edges, torque_edg
     out[out.shape[0] - 1] = 0.5 * tvd
 
 
-@kernel
+@helper
 def kinematic_objective(kin_deviation, kin_allowance):
     """The score (15) plus `KINEMATIC_PENALTY` times each criterion's excess over its allowance."""
     total = 0.0
@@ -270,7 +270,7 @@ def kinematic_objective(kin_deviation, kin_allowance):
     return total / kin_deviation.shape[0] + excess
 
 
-@kernel
+@helper
 def load_objective(load_values, load_measured, load_scale, load_allowance):
     """`LOAD_WEIGHT` times the mean load deviation over its allowance, plus `LOAD_PENALTY` times
     each excess over an allowance except the residence distance's (its own deviation): a 1800 s
