@@ -236,3 +236,22 @@ def test_gps_altitude_alone_gives_a_gradient_with_an_honest_uncertainty(drive):
 def test_imu_gradient_is_reported(drive, dem):
     grid = estimate_gradient(drive, dem).grid
     assert "gradient_imu_pct" in grid and np.isfinite(grid["gradient_imu_pct"]).mean() > 0.9
+
+
+def test_a_standstill_shows_how_far_the_imu_bias_moved():
+    """Standing, the specific force along x is g sin(alpha) + bias: its change between the
+    standstill's first and last 20 s is the bias's (here 0.012 m/s² over 10 minutes, in noise of
+    0.05 m/s² per sample), with the variance of that difference; a standstill too short to tell
+    has none, and driving between standstills counts in neither."""
+    rng = np.random.default_rng(1)
+    time_s = np.arange(0.0, 900.0, 0.1)
+    speed = np.where((time_s > 100) & (time_s < 700), 0.0, 12.0)
+    speed[(time_s > 800) & (time_s < 803)] = 0.0
+    bias = 0.3 + 0.012 * np.clip((time_s - 100) / 600, 0, 1)
+    force = 9.80665 * np.sin(0.02) + bias + rng.normal(0, 0.05, len(time_s))
+    changes = sources.standstill_bias_changes(time_s, speed, force)
+    assert len(changes) == 1
+    start, change, variance = changes[0]
+    assert time_s[start] == pytest.approx(100.1, abs=0.15)
+    assert abs(change - 0.012 * (1 - 24 / 600)) <= 3 * np.sqrt(variance)
+    assert 0.001 < np.sqrt(variance) < 0.01

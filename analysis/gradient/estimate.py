@@ -191,6 +191,11 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
 
     measurements = _measurements(frame, index, n_bins, time_s, bin_baro, map_bins, map_accuracy, imu_excess, settings,
                                  notes)
+    if imu_excess is not None and _column(frame, "accel_x_scale_var_m2ps4") is None:
+        # a real accelerometer's (the force balance standing in for one has no force standing)
+        changes = sources.standstill_bias_changes(time_s, speed, imu_excess)
+        measurements = replace(measurements, standstill_bias_changes=tuple(
+            (int(index[start]), change, variance) for start, change, variance in changes if 0 <= index[start] < n_bins))
     smoothed = GradientSmoother(measurements, settings.smoother).estimate()
     notes.extend(smoothed.notes)
     smooth_height = _integrate(smoothed.gradient, spacing)
@@ -200,6 +205,7 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     out["baro_drift_m"] = smoothed.drift_m if bin_baro is not None else np.nan
     out["imu_bias_mps2"] = smoothed.imu_bias_mps2 if imu_excess is not None else np.nan
     out["imu_bias_std_mps2"] = smoothed.imu_bias_std_mps2 if imu_excess is not None else np.nan
+    out["imu_bias_ramp_std_mps2"] = smoothed.imu_bias_ramp_std_mps2 if imu_excess is not None else np.nan
     if smoothed.imu_scale is not None:
         out["force_balance_log_scale"] = smoothed.imu_scale
         out["force_balance_log_scale_std"] = smoothed.imu_scale_std

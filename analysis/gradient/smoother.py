@@ -145,6 +145,9 @@ class Measurements:
     imu_scale_reset_var: np.ndarray | None = None
     """(n_bins,) the scale state's prior variance [-] where a new mass segment starts (its first
     grid point; the first bin holds the first segment's), 0 elsewhere."""
+    standstill_bias_changes: tuple = ()
+    """(grid point, change [m/s²], its variance [m⁴/s⁴]) of the accelerometer bias over each
+    standstill, as the log's specific force shows it (`sources.standstill_bias_changes`)."""
 
     def part(self, grid_points: slice) -> "Measurements":
         """The same measurements over ``grid_points`` alone: every per-bin array cut."""
@@ -168,6 +171,10 @@ class SmootherResult:
     weights: dict[str, np.ndarray]
     noise: dict[str, float]
     notes: list[str]
+    imu_bias_ramp_std_mps2: float = 0.0
+    """1-sigma [m/s²] of the IMU bias's departure from the smoother's bias that its standstills show
+    (`GradientSmoother._standstill_ramp_sigma`); not in ``imu_bias_std_mps2``: it is not one
+    error of the drive but one of each stretch between stops."""
 
 
 def bin_times(index: np.ndarray, speed_mps: np.ndarray, n_bins: int, spacing_m: float) -> np.ndarray:
@@ -424,6 +431,7 @@ class GradientSmoother:
                               f"{moved:+.3f} m/s² over the drive (rate {60e3 * x[0, kalman.BIAS_RATE]:+.2f} mm/s² "
                               f"per minute at the start, {60e3 * x[-1, kalman.BIAS_RATE]:+.2f} at the end)")
         weights = self._weights(r, p, have)
+        ramp = self._standstill_ramp_sigma(x[:, kalman.BIAS]) if self.rate_possible else 0.0
         # the bias's drift that the near-constant bias state does not follow, in the share of the
         # gradient the accelerometer carries
         drift = self.bias_drift_sigma_mps2 / G_MPS2 * weights["imu"]
@@ -443,7 +451,34 @@ class GradientSmoother:
                                       if have[kalman.IMU] else None),
                    "dem_sigma_m": self.dem_sigma_m if have[kalman.DEM] else None,
                    "dem_correlation_m": self.dem_correlation_m if have[kalman.DEM] else None},
-            notes=self.notes)
+            notes=self.notes, imu_bias_ramp_std_mps2=ramp)
+
+    def _standstill_ramp_sigma(self, bias_mps2) -> float:
+        """1-sigma [m/s²] of the IMU bias's departure from ``bias_mps2``, this smoother's, as the
+        standstills show it: standing, the log measures how far the bias moved
+        (`Measurements.standstill_bias_changes`), and the smoother's bias between the grid points
+        either side of the standstill's should have moved as far (its means over ``bias_block_s``
+        of driving before and after, the stretches whose masses it goes into). Without a barometer its bias
+        state follows a cab's warm-up only as its near-constant walk or its rate allow, and the
+        drift between blocks (`_bias_drift_between_blocks`) does not tell that from GPS altitude's
+        correlated error (the matrix's long-haul `harsh` seed 5: the bias moved 0.016 m/s² over
+        its 10-minute stop, the smoother's by 0.007 at the standstill, the drift between blocks 0, the
+        stated sigma 0.0014 against an error of 0.009 after the stop). The largest difference over the drive's
+        standstills, less the change's own noise, as one error of each stretch between stops:
+        the difference of two stretches' errors bounds neither alone."""
+        worst = 0.0
+        driven = np.cumsum(self.m.dt_s)
+        for k, change, variance in self.m.standstill_bias_changes:
+            before = (driven < driven[k]) & (driven >= driven[k] - self.s.bias_block_s)
+            after = (driven > driven[k]) & (driven <= driven[k] + self.s.bias_block_s)
+            if before.any() and after.any():
+                moved = np.mean(bias_mps2[after]) - np.mean(bias_mps2[before])
+                worst = max(worst, (moved - change) ** 2 - variance)
+        sigma = float(np.sqrt(worst))
+        if sigma > 0:
+            self.notes.append(f"no barometer: the IMU's bias moved over a standstill by {sigma:.4f} m/s² more or less "
+                              f"than the smoother's (imu_bias_ramp_std_mps2, in the mass's uncertainty)")
+        return sigma
 
     def _offset_steps(self, r) -> bool:
         """Where the barometer's forward innovation fails a chi-square test against the

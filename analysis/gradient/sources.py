@@ -53,6 +53,35 @@ def imu_excess_mps2(accel_imu_mps2, accel_mps2, time_s, window_s: float = 1.0):
     return np.where(finite, smooth, np.nan) - np.asarray(accel_mps2, dtype=float)
 
 
+def standstill_bias_changes(time_s, speed_mps, specific_force_mps2, stop_speed_mps: float = 0.3,
+                            edge_s: float = 20.0, settle_s: float = 2.0) -> list[tuple[int, float, float]]:
+    """How far the accelerometer's bias moved over each standstill, as the log shows it: standing,
+    the truck neither accelerates nor moves along the road, so its specific force along x is
+    g sin(alpha) + bias with alpha fixed, and what changes between a standstill's first and last
+    ``edge_s`` (medians, ``settle_s`` after stopping and before starting left out) is the bias,
+    moved by the cab's temperature (an IMU warming up or cooling down) or a tractor tilted by what
+    was coupled or loaded. Per standstill long enough to tell: (its first sample's index, the
+    change [m/s²], the variance of that change from the samples' robust spread [m²/s⁴])."""
+    time_s = np.asarray(time_s, dtype=float)
+    force = np.asarray(specific_force_mps2, dtype=float)
+    standing = ~(np.nan_to_num(np.asarray(speed_mps, dtype=float), nan=np.inf) > stop_speed_mps)
+    out = []
+    for start, end in true_runs(standing):
+        t, f = time_s[start:end], force[start:end]
+        edge = min(edge_s, (t[-1] - t[0] - 2 * settle_s) / 2)
+        if not edge > 0:
+            continue
+        first = f[(t >= t[0] + settle_s) & (t < t[0] + settle_s + edge)]
+        last = f[(t > t[-1] - settle_s - edge) & (t <= t[-1] - settle_s)]
+        first, last = first[np.isfinite(first)], last[np.isfinite(last)]
+        if len(first) < 5 or len(last) < 5:
+            continue
+        spread = 1.4826 * np.median(np.abs(np.concatenate([first - np.median(first), last - np.median(last)])))
+        variance = np.pi / 2 * spread ** 2 * (1 / len(first) + 1 / len(last))
+        out.append((start, float(np.median(last) - np.median(first)), float(variance)))
+    return out
+
+
 def stuck_to_nan(values, run_samples: int):
     """NaN for runs of at least ``run_samples`` bit-identical values (a sensor that stopped but
     whose last reading was carried forward); a live barometer never repeats itself that long."""

@@ -23,6 +23,7 @@ from . import calibration
 from .joint import JointFit, JointSettings, aux_power_regressor, fit_joint, offset_regressor, wind_regressors
 from .regression import FilterSettings, Regression, build_regression
 from .segments import SegmentSettings, estimate_segment, segment_bounds, split_at_payload_changes
+from .unmodelled import ls_unmodelled_kg
 
 __all__ = ["estimate_mass", "MassResult", "FilterSettings", "SegmentSettings", "JointSettings"]
 
@@ -117,7 +118,7 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     aux_prior = _aux_prior_w(frame, regression, bounds, joint_settings) if aux is not None else None
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
                               columns, max_mass, notes, segment_settings, wind,
-                              offset, aux, aux_prior)
+                              offset, aux, aux_prior, speed)
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint, engine_torque=engine_torque)
 
@@ -221,7 +222,7 @@ def _aux_power(fit: JointFit, j: int, gain: float) -> dict:
 
 
 def _joint(regression, time_s, bounds, vehicle, settings, known, segments, columns, max_mass, notes,
-           segment_settings, wind=None, offset=None, aux=None, aux_prior=None):
+           segment_settings, wind=None, offset=None, aux=None, aux_prior=None, speed=None):
     """Joint fit with the IMU regressor (else the gradient one), calibration, and per segment the
     chosen ``mass_kg`` and its total ``mass_uncertainty_kg``; the gradient-based joint fit too,
     for comparison."""
@@ -251,14 +252,20 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         else:
             regressor_std = np.full(len(time_s), gradient_bias)
         bias_kg = regressor_bias_kg(fit, regressor_std, bounds)
+        ramp_kg = np.zeros(len(bounds))
+        if name == "imu" and regression.excess_imu_ramp_std is not None:
+            ramp_kg = regressor_bias_kg(fit, np.nan_to_num(regression.excess_imu_ramp_std, nan=0.0), bounds)
         # for a weighing: a regressor error constant over a segment (the IMU's bias calibration,
         # the height source's slow drift under the gradient) is one error of the drive, fully
         # correlated across its segments (the truth of the accuracy matrix's ideal no-imu drives,
         # where the gradient is the mass's main error: 1.6 % RMS shared by a drive's segments,
         # 0.4 % their own); an auxiliary power's prior the drive cannot resolve (the fit's
-        # sensitivity) is the segment's own
-        covariances[name] = fit.mass_covariance_kg2 + np.diag(fit.sensitivity_kg ** 2) + np.outer(bias_kg, bias_kg)
-        fit.sensitivity_kg = np.hypot(fit.sensitivity_kg, bias_kg)
+        # sensitivity) is the segment's own; so is the IMU bias's move over a standstill that the
+        # smoother did not follow (`imu_bias_ramp_std_mps2`): it is the difference of the errors
+        # either side of a stop, so a weighing before the stop tells nothing of it after
+        covariances[name] = (fit.mass_covariance_kg2 + np.diag(fit.sensitivity_kg ** 2 + ramp_kg ** 2)
+                             + np.outer(bias_kg, bias_kg))
+        fit.sensitivity_kg = np.sqrt(fit.sensitivity_kg ** 2 + bias_kg ** 2 + ramp_kg ** 2)
     gain_uncertainty = float(np.hypot(settings.torque_gain_uncertainty, settings.driveline_efficiency_uncertainty))
     results = {}
     for name, fit in fits.items():
@@ -296,11 +303,20 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
             # the LS of (9) only where the joint fit had too few samples to say anything; where
             # it found the segment uncertain, the LS (no wind, no torque offset, the datasheet
             # road load) is not more certain, it only ignores what the joint fit saw (harsh
-            # urban: +25.6 % inside a stated 4.6 %). Its uncertainty gets the gain's term too.
+            # urban: +25.6 % inside a stated 4.6 %). Its uncertainty gets the gain's term too, and
+            # what the LS leaves out that the joint fit models (wind, c_r, c_d·A, offset, accessories)
             ls = segment["mass_ls_kg"] / gain["gain"]
+            left_out = 0.0
+            if speed is not None:
+                part = slice(start, end)
+                left_out = ls_unmodelled_kg(
+                    regression.phi[part], regression.y[part], speed[part], regression.cos_angle[part],
+                    segment["mass_ls_kg"], vehicle, settings, None if offset is None else offset[part],
+                    None if aux is None else aux[part], None if aux_prior is None else aux_prior[j]) / gain["gain"]
             segment["mass_kg"] = ls
-            segment["mass_uncertainty_kg"] = float(np.hypot(segment["uncertainty_kg"] / gain["gain"],
-                                                            ls * gain["relative_std"]))
+            segment["mass_uncertainty_kg"] = float(np.sqrt((segment["uncertainty_kg"] / gain["gain"]) ** 2
+                                                           + (ls * gain["relative_std"]) ** 2
+                                                           + np.nan_to_num(left_out) ** 2))
         else:
             segment["mass_kg"] = segment["mass_uncertainty_kg"] = None
     if chosen.aux_power_w is not None:

@@ -65,6 +65,9 @@ class Regression:
     """The data filter where the accelerometer regressor is finite too."""
     excess_imu_std: np.ndarray | None = None
     """1-sigma of the IMU bias calibration [m/s²] (a systematic regressor error)."""
+    excess_imu_ramp_std: np.ndarray | None = None
+    """1-sigma of the IMU bias's drift away from the calibrated one over the drive [m/s²]
+    (``imu_bias_ramp_std_mps2``: a warm-up the smoother's bias did not follow), None: not stated."""
     excess_gradient_std: np.ndarray | None = None
     """1-sigma of g sin(alpha) from the gradient's own stated sigma [m/s²] (`gradient_std_pct`),
     None where the gradient states none."""
@@ -128,6 +131,7 @@ def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = Fi
     if accel_imu is not None and bias is not None and np.isfinite(accel_imu).any() and np.isfinite(bias).any():
         excess_imu = _centred_mean(accel_imu, window) - bias
     bias_std = _column(frame, "imu_bias_std_mps2")
+    ramp_std = _column(frame, "imu_bias_ramp_std_mps2")
 
     with np.errstate(invalid="ignore", divide="ignore"):
         total_ratio = (2 * np.pi * engine_rpm / 60.0) * vehicle.wheel_radius_m / speed
@@ -170,6 +174,7 @@ def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = Fi
                       cos_angle=cos_angle, excess_gradient=accel + road_load.G_MPS2 * np.sin(road_load.road_angle_rad(gradient)),
                       excess_imu=excess_imu, usable_imu=usable_imu,
                       excess_imu_std=bias_std if excess_imu is not None else None,
+                      excess_imu_ramp_std=ramp_std if excess_imu is not None else None,
                       excess_gradient_std=gradient_regressor_std_mps2(_column(frame, "gradient_std_pct")))
 
 
