@@ -239,7 +239,7 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
         out["imu_bias_mps2"] += np.interp(np.arange(n_bins), np.flatnonzero(have), on_grid[have])
     return GradientResult(grid=out, samples=samples, notes=notes, map_sigma_m=map_sigma,
                           smoother={"method": settings.gradient_method, **smoothed.noise,
-                                    "imu_bias_mps2": (float(np.median(smoothed.imu_bias_mps2))
+                                    "imu_bias_mps2": (float(np.median(out["imu_bias_mps2"]))
                                                       if imu_excess is not None else None),
                                     "map_gated_km": float(smoothed.map_gated.sum() * spacing / 1000),
                                     "mean_weights": {k: float(np.mean(v)) for k, v in smoothed.weights.items()}})
