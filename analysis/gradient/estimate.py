@@ -12,7 +12,7 @@ from .. import checks, kinematics
 from ..errors import UserError
 from ..geodesy import local_east_north_m
 from . import grid as distance_grid
-from . import kalman, sources
+from . import kalman, sources, standstill_bias
 from .smoother import (KNOWN_BIAS_MPS2, GradientSmoother, Measurements, SmootherSettings, bin_times, clock_times,
                        standstill_bins)
 
@@ -44,6 +44,10 @@ class GradientSettings:
     use_air_temperature: bool = False
     """Scale barometric height steps by T_air / T_standard; off by default because a logger's
     temperature sensor sits in a warm box (measured: it made the virtual truck's gradient worse)."""
+    imu_standstill_steps: bool = True
+    """Take the steps of the accelerometer's bias that long standstills show out of its channel
+    before the smoother and put them back into the bias it states (`standstill_bias`): the
+    smoother's bias cannot step while the truck stands."""
 
 
 @dataclass
@@ -158,10 +162,19 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
 
     accel_imu = _column(frame, "accel_x_mps2")
     imu_excess = None
+    bias_steps = []
     if accel_imu is not None:
         accel = _column(frame, "accel_mps2")
         accel = kinematics.acceleration_mps2(time_s, speed) if accel is None else accel
         imu_excess = sources.imu_excess_mps2(accel_imu, accel, time_s)
+        bias_steps = (standstill_bias.standstill_steps(time_s, speed, accel_imu)
+                      if settings.imu_standstill_steps else [])
+        step_offset, step_std, imu_clock = standstill_bias.step_offsets(time_s, bias_steps)
+        imu_excess = imu_excess - step_offset
+        if bias_steps:
+            notes.append(f"IMU: its bias stepped by {', '.join(f'{1000 * st.step_mps2:+.1f}' for st in bias_steps)} "
+                         f"mm/s² over {len(bias_steps)} long standstill(s) (the reading's change where the truck "
+                         f"stood): taken out of the accelerometer before the smoother, put back into imu_bias_mps2")
         sin_angle = distance_grid.bin_mean(index, sources.imu_sin_angle(accel_imu, accel), n_bins)
         level, _, _ = distance_grid.local_linear(sin_angle, np.ones(n_bins), spacing, settings.imu_sigma_m)
         out["gradient_imu_pct"] = 100 * np.tan(np.arcsin(np.clip(level, -1, 1)))
@@ -196,6 +209,9 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
         changes = sources.standstill_bias_changes(time_s, speed, imu_excess)
         measurements = replace(measurements, standstill_bias_changes=tuple(
             (int(index[start]), change, variance) for start, change, variance in changes if 0 <= index[start] < n_bins))
+    if imu_excess is not None and bias_steps:
+        # the bias's change over the measured standstills is in the steps: its rate acts on the rest
+        measurements = replace(measurements, clock_s=clock_times(index, imu_clock, measurements.dt_s))
     smoothed = GradientSmoother(measurements, settings.smoother).estimate()
     notes.extend(smoothed.notes)
     smooth_height = _integrate(smoothed.gradient, spacing)
@@ -220,9 +236,16 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
 
     samples = {name: np.interp(distance, s_grid, out[name].to_numpy(), left=np.nan, right=np.nan)
                for name in out.columns if name != "distance_m"}
+    if imu_excess is not None and bias_steps:
+        # per sample, not per grid point: a standstill's samples share one point, its step is in time
+        samples["imu_bias_mps2"] = samples["imu_bias_mps2"] + step_offset
+        samples["imu_bias_std_mps2"] = np.hypot(samples["imu_bias_std_mps2"], step_std)
+        on_grid = distance_grid.bin_mean(index, step_offset, n_bins)
+        have = np.isfinite(on_grid)
+        out["imu_bias_mps2"] += np.interp(np.arange(n_bins), np.flatnonzero(have), on_grid[have])
     return GradientResult(grid=out, samples=samples, notes=notes, map_sigma_m=map_sigma,
                           smoother={"method": settings.gradient_method, **smoothed.noise,
-                                    "imu_bias_mps2": (float(np.median(smoothed.imu_bias_mps2))
+                                    "imu_bias_mps2": (float(np.median(out["imu_bias_mps2"]))
                                                       if imu_excess is not None else None),
                                     "map_gated_km": float(smoothed.map_gated.sum() * spacing / 1000),
                                     "mean_weights": {k: float(np.mean(v)) for k, v in smoothed.weights.items()}})
