@@ -44,10 +44,12 @@ class GradientSettings:
     use_air_temperature: bool = False
     """Scale barometric height steps by T_air / T_standard; off by default because a logger's
     temperature sensor sits in a warm box (measured: it made the virtual truck's gradient worse)."""
-    imu_standstill_steps: bool = True
+    imu_standstill_steps: bool = False
     """Take the steps of the accelerometer's bias that long standstills show out of its channel
     before the smoother and put them back into the bias it states (`standstill_bias`): the
-    smoother's bias cannot step while the truck stands."""
+    smoother's bias cannot step while the truck stands. Off by default: on drives never tuned on
+    (the matrix's seeds 4-7) it made the mass's tails after a stop worse and its σ less honest
+    than the standstill's change held in σ alone (docs/estimation.md, stop 40)."""
 
 
 @dataclass
