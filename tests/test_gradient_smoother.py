@@ -312,15 +312,8 @@ def _warming_imu_drive(seed, warm_up_mps2, n=2000, spacing=10.0, stop_s=0.0, gps
     dt = np.full(n, 0.7)
     clock = dt.copy()
     clock[n // 2] += stop_s
-    s = np.arange(n) * spacing
-    gamma = 0.03 * np.sin(s / 900.0) + 0.01 * np.sin(s / 230.0)
-    h = np.concatenate([[0.0], np.cumsum(gamma[1:] * spacing)])
+    gamma, h, gps = _road_and_gps_error(rng, n, spacing, gps_sigma_m, gps_correlation_s)
     bias = 0.3 + warm_up_mps2 * (1 - np.exp(-np.cumsum(clock) / 1800.0))
-    phi = np.exp(-0.7 / gps_correlation_s)
-    gps = np.empty(n)
-    gps[0] = rng.normal(0, gps_sigma_m)
-    for k in range(1, n):
-        gps[k] = phi * gps[k - 1] + rng.normal(0, gps_sigma_m * np.sqrt(1 - phi ** 2))
     z = np.full((n, kalman.N_MEASUREMENTS), np.nan)
     z[:, kalman.IMU] = 9.80665 * gamma / np.sqrt(1 + gamma ** 2) + bias + rng.normal(0, 0.02, n)
     z[:, kalman.GPS] = h + gps
@@ -476,20 +469,27 @@ def test_the_imu_noise_factor_is_chosen_on_the_residuals_noise_not_compounded():
     assert np.array_equal(r[:, kalman.IMU], first)
 
 
-def _imu_drive_with_a_stop(seed, step_mps2, n=2000, spacing=10.0, gps_sigma_m=4.0, gps_correlation_s=30.0):
-    """IMU without a barometer whose bias stays put while driving and moves by ``step_mps2`` over a
-    standstill halfway (the cab warmed or cooled, a trailer tilted the tractor), GPS altitude with
-    correlated errors; the standstill's change as the log's specific force shows it."""
-    rng = np.random.default_rng(seed)
+def _road_and_gps_error(rng, n, spacing, gps_sigma_m, gps_correlation_s):
+    """A rolling road's gradient and height on ``n`` bins and GPS altitude's error, correlated
+    over ``gps_correlation_s`` at 0.7 s a bin."""
     s = np.arange(n) * spacing
     gamma = 0.03 * np.sin(s / 900.0) + 0.01 * np.sin(s / 230.0)
     h = np.concatenate([[0.0], np.cumsum(gamma[1:] * spacing)])
-    bias = np.where(np.arange(n) > n // 2, 0.3 + step_mps2, 0.3)
     phi = np.exp(-0.7 / gps_correlation_s)
     gps = np.empty(n)
     gps[0] = rng.normal(0, gps_sigma_m)
     for k in range(1, n):
         gps[k] = phi * gps[k - 1] + rng.normal(0, gps_sigma_m * np.sqrt(1 - phi ** 2))
+    return gamma, h, gps
+
+
+def _imu_drive_with_a_stop(seed, step_mps2, n=2000, spacing=10.0, gps_sigma_m=4.0, gps_correlation_s=30.0):
+    """IMU without a barometer whose bias stays put while driving and moves by ``step_mps2`` over a
+    standstill halfway (the cab warmed or cooled, a trailer tilted the tractor), GPS altitude with
+    correlated errors; the standstill's change as the log's specific force shows it."""
+    rng = np.random.default_rng(seed)
+    gamma, h, gps = _road_and_gps_error(rng, n, spacing, gps_sigma_m, gps_correlation_s)
+    bias = np.where(np.arange(n) > n // 2, 0.3 + step_mps2, 0.3)
     z = np.full((n, kalman.N_MEASUREMENTS), np.nan)
     z[:, kalman.IMU] = 9.80665 * gamma / np.sqrt(1 + gamma ** 2) + bias + rng.normal(0, 0.02, n)
     z[:, kalman.GPS] = h + gps
