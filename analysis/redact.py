@@ -6,13 +6,15 @@ damaged log is refused: ``analyze recover`` first):
 
 1. the ``/gps/fix`` positions give the stretches spent in a zone: from the first fix inside to the
    first fix outside again, on the monotonic clock (to the start of the file when its first fix
-   is inside, or the file before ended inside; to the end when its last one is);
-2. a new file is written with the ``mcap`` library's writer: fixes inside are dropped, NMEA
-   sentences received inside are cut out of their ``/gps/nmea`` batches (a batch left empty is
-   dropped), J1939 Vehicle Position (PGN 65267) and Time/Date (65254) frames inside leave
-   ``/can/frames`` (as do Vehicle Position frames whose own position is in a zone), ``/time/sync``
-   inside loses its GPS time, and ``/privacy/zone`` records (``source =
-   "redact"``) mark each stretch. Every other message, schema, channel, metadata and attachment
+   is inside, or the file before ended inside; to the end when its last one is). A loaded
+   logger stamps the epochs it reads from the port in one go with one time: a time held by any
+   fix inside is inside;
+2. a new file is written with the ``mcap`` library's writer: fixes inside are dropped (each fix
+   by its own position), NMEA sentences received inside are cut out of their ``/gps/nmea``
+   batches (a batch left empty is dropped), J1939 Vehicle Position (PGN 65267) and Time/Date
+   (65254) frames inside leave ``/can/frames`` (as do Vehicle Position frames whose own position
+   is in a zone), ``/time/sync`` inside loses its GPS time, and ``/privacy/zone`` records
+   (``source = "redact"``) mark each stretch. Every other message, schema, channel, metadata and attachment
    is copied as it was (data byte for byte, times, sequence numbers); chunk indexes, statistics
    and the summary are those of the new file.
 
@@ -87,20 +89,21 @@ class RedactReport:
 
 
 def _stretches(fixes: list[tuple[int, bool]], inside_at_start: bool) -> list[tuple[float, float]]:
-    """[start, end) monotonic intervals [ns] spent in a zone, from (t_mono_ns, inside) of each fix."""
-    stretches, start = [], None
-    first = True
-    for t, inside in sorted(fixes):
-        if inside and start is None:
-            start = -INF if first and inside_at_start else t
-        elif not inside and start is not None:
+    """[start, end) monotonic intervals [ns] spent in a zone, from (t_mono_ns, inside) of each fix;
+    fixes that share a time are one instant, inside if any of them is."""
+    inside_at: dict[int, bool] = {}
+    for t, inside in fixes:
+        inside_at[t] = inside_at.get(t, False) or inside
+    times = sorted(inside_at)
+    stretches, start = [], -INF if inside_at_start or (times and inside_at[times[0]]) else None
+    for t in times:
+        if inside_at[t] and start is None:
+            start = t
+        elif not inside_at[t] and start is not None:
             stretches.append((start, t))
             start = None
-        first = False
     if start is not None:
         stretches.append((start, INF))
-    if not fixes and inside_at_start:
-        stretches.append((-INF, INF))
     return stretches
 
 
@@ -213,12 +216,15 @@ def redact_bytes(data: bytes, zones: list[Zone], target_stream, inside_at_start:
             topic = message.channel.topic
             payload = message.data
             if topic == contract.GPS_FIX.name:
-                t = int(json.loads(payload)["t_mono_ns"])
+                fix = json.loads(payload)
+                t = int(fix["t_mono_ns"])
                 if t in starts:
                     marker("entered", message, t)
+                    starts.discard(t)
                 if t in ends:
                     marker("left", message, t)
-                if _in(stretches, t):
+                    ends.discard(t)
+                if in_any(zones, fix["latitude"], fix["longitude"]):
                     report.fixes_removed += 1
                     continue
             elif topic == contract.GPS_NMEA.name and stretches:

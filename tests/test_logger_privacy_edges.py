@@ -122,3 +122,53 @@ def test_redact_removes_j1939_vehicle_positions_recorded_in_a_zone(tmp_path):
     assert not any(privacy.in_any(zones, a, b) for a, b in zip(lat_kept, lon_kept))
     assert len(positions) > 0 and report.messages_out > 0
     assert (kept["arbitration_id"] == 0x0CF00400).sum() == len(lat), "every engine frame kept"
+
+
+def test_redact_decides_each_fix_of_a_burst_by_its_own_position(tmp_path):
+    """A loaded logger reads several epochs from the serial port in one go and stamps them with one
+    monotonic time. Where such a burst spans a zone's edge the fixes outside stay (byte for byte),
+    those inside go, and the zone is entered and left once each."""
+    from haulprofile.analysis.redact import redact_bytes
+    from haulprofile.contract.privacy import zones_from_tables
+    from haulprofile.logger.writer import LogWriter
+    from mcap.reader import make_reader
+
+    source = tmp_path / "burst.mcap"
+    lat = np.linspace(48.1300, 48.1400, 41)  # through the zone at 48.1350
+    zones = zones_from_tables([ZONE])
+    inside = np.array([privacy.in_any(zones, a, 11.58) for a in lat])
+    first_in, last_in = np.flatnonzero(inside)[[0, -1]]
+    burst = {first_in - 3: first_in + 2, last_in - 2: last_in + 3}  # each burst stamped with one time
+    stamps, t = [], 0
+    for i in range(len(lat)):
+        start = next((a for a, b in burst.items() if a < i <= b), None)
+        t = t if start is not None else (i + 1) * 1_000_000_000
+        stamps.append(t)
+    with open(source, "wb") as stream:
+        writer = LogWriter(stream)
+        for latitude, t in zip(lat, stamps):
+            writer.write_json(contract.GPS_FIX, contract.location_fix(t, t, latitude, 11.58, 520.0, 1.0, 2.0), t, t)
+        writer.close()
+    target = tmp_path / "redacted.mcap"
+    with open(target, "wb") as stream:
+        report = redact_bytes(source.read_bytes(), zones, stream)
+    with open(target, "rb") as stream:
+        kept = [(channel.topic, json.loads(message.data)) for _, channel, message in make_reader(stream).iter_messages()]
+    fixes = [m["latitude"] for topic, m in kept if topic == contract.GPS_FIX.name]
+    assert fixes == [float(a) for a, i in zip(lat, inside) if not i]
+    assert report.fixes_removed == inside.sum()
+    assert [m["event"] for topic, m in kept if topic == contract.PRIVACY_ZONE.name] == ["entered", "left"]
+
+
+@pytest.mark.parametrize("fixes, inside_at_start, expected", [
+    ([(1, False), (2, True), (3, True), (4, False)], False, [(2, 4)]),
+    ([(1, True), (2, False), (3, True)], False, [(-np.inf, 2), (3, np.inf)]),  # inside before the first fix
+    ([(1, False), (2, True)], True, [(-np.inf, 1), (2, np.inf)]),  # the file before ended inside
+    ([(1, False), (2, False), (2, True), (3, False)], False, [(2, 3)]),  # one time, one fix inside
+    ([], True, [(-np.inf, np.inf)]),
+    ([], False, []),
+])
+def test_redact_stretches_in_zones(fixes, inside_at_start, expected):
+    from haulprofile.analysis.redact import _stretches
+
+    assert _stretches(fixes, inside_at_start) == expected
