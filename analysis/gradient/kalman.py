@@ -352,13 +352,18 @@ def covariance_with_mean(p_filt, p_smooth, dt, step, params, state, clock=None):
     phi = np.exp(-spacing / dem_corr)
     clock = dt if clock is None else clock
     resets = np.zeros(n, bool) if ns <= SCALE else step[:, SCALE] > 0
+    f = np.array([_transition(spacing, dt[i], phi, ns, resets[i], clock[i]) for i in range(1, n)])
+    q = np.array([_process_noise(spacing, dt[i], q_c, q_r, q_b, dem_sigma ** 2, phi, ns, q_bdot, clock[i])
+                  for i in range(1, n)])
+    ahead = f @ p_filt[:-1]
+    predicted = ahead @ np.swapaxes(f, 1, 2) + q
+    predicted[:, range(ns), range(ns)] += step[1:]
+    # a pinned state (zero predicted variance: its rows of F P_filt are zero too) gets a unit pivot,
+    # which leaves its gains zero, as `smooth_reference` leaves them
+    pinned = np.diagonal(predicted, axis1=1, axis2=2) <= 0
+    predicted[:, range(ns), range(ns)] += pinned
     gains = np.zeros((n, ns, ns))
-    for i in range(n - 1):
-        f = _transition(spacing, dt[i + 1], phi, ns, resets[i + 1], clock[i + 1])
-        predicted = (f @ p_filt[i] @ f.T + _process_noise(spacing, dt[i + 1], q_c, q_r, q_b, dem_sigma ** 2, phi, ns,
-                                                          q_bdot, clock[i + 1]) + np.diag(step[i + 1]))
-        free = np.diag(predicted) > 0
-        gains[i][np.ix_(free, free)] = np.linalg.solve(predicted[np.ix_(free, free)], (f @ p_filt[i])[free][:, free]).T
+    gains[:-1] = np.swapaxes(np.linalg.solve(predicted, ahead), 1, 2)
     later = np.zeros((n, ns))  # Σ_{j >= i} Cov(x_i, x_j[state])
     later[-1] = p_smooth[-1][:, state]
     for i in range(n - 2, -1, -1):
