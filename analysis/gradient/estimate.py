@@ -224,6 +224,9 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     out["imu_bias_mps2"] = smoothed.imu_bias_mps2 if imu_excess is not None else np.nan
     out["imu_bias_std_mps2"] = smoothed.imu_bias_std_mps2 if imu_excess is not None else np.nan
     out["imu_bias_ramp_std_mps2"] = smoothed.imu_bias_ramp_std_mps2 if imu_excess is not None else np.nan
+    out["imu_bias_shared_std_mps2"] = (smoothed.imu_bias_shared_std_mps2
+                                       if imu_excess is not None and smoothed.imu_bias_shared_std_mps2 is not None
+                                       else np.nan)
     if smoothed.imu_scale is not None:
         out["force_balance_log_scale"] = smoothed.imu_scale
         out["force_balance_log_scale_std"] = smoothed.imu_scale_std

@@ -338,3 +338,41 @@ def _store(x, p, xs, ps, i):
         xs[i, a] = x[a]
         for b in range(x.shape[0]):
             ps[i, a, b] = p[a, b]
+
+
+def covariance_with_mean(p_filt, p_smooth, dt, step, params, state, clock=None):
+    """Per grid point i, the smoothed covariance of one state's error there with that state's error
+    averaged over the grid, (1/n) Σ_j Cov(x_i, x_j | all data): how much of a point's error it
+    shares with the whole drive. ``p_filt``: the forward filter's covariances (`smooth` with
+    ``backward=False``), ``p_smooth`` the smoothed ones, the rest as `smooth_reference`. The
+    cross-covariances are those of the RTS smoother, Cov(x_i, x_j) = C_i … C_{j-1} P_j (i < j),
+    summed by one backward and one forward recursion (no n × n matrix)."""
+    spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g, q_bdot = params
+    n, ns = len(dt), p_filt.shape[1]
+    phi = np.exp(-spacing / dem_corr)
+    clock = dt if clock is None else clock
+    resets = np.zeros(n, bool) if ns <= SCALE else step[:, SCALE] > 0
+    f = np.array([_transition(spacing, dt[i], phi, ns, resets[i], clock[i]) for i in range(1, n)])
+    q = np.array([_process_noise(spacing, dt[i], q_c, q_r, q_b, dem_sigma ** 2, phi, ns, q_bdot, clock[i])
+                  for i in range(1, n)])
+    ahead = f @ p_filt[:-1]
+    predicted = ahead @ np.swapaxes(f, 1, 2) + q
+    predicted[:, range(ns), range(ns)] += step[1:]
+    # a pinned state (zero predicted variance: its rows of F P_filt are zero too) gets a unit pivot,
+    # which leaves its gains zero, as `smooth_reference` leaves them
+    pinned = np.diagonal(predicted, axis1=1, axis2=2) <= 0
+    predicted[:, range(ns), range(ns)] += pinned
+    gains = np.zeros((n, ns, ns))
+    gains[:-1] = np.swapaxes(np.linalg.solve(predicted, ahead), 1, 2)
+    later = np.zeros((n, ns))  # Σ_{j >= i} Cov(x_i, x_j[state])
+    later[-1] = p_smooth[-1][:, state]
+    for i in range(n - 2, -1, -1):
+        later[i] = p_smooth[i][:, state] + gains[i] @ later[i + 1]
+    row = np.zeros(ns)  # Σ_{j < i} (C_j … C_{i-1})[state, :]
+    total = np.empty(n)
+    unit = np.zeros(ns)
+    unit[state] = 1.0
+    for i in range(n):
+        total[i] = later[i][state] + row @ p_smooth[i][:, state]
+        row = (row + unit) @ gains[i]
+    return total / n

@@ -252,19 +252,25 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         else:
             regressor_std = np.full(len(time_s), gradient_bias)
         bias_kg = regressor_bias_kg(fit, regressor_std, bounds)
+        shared_kg = bias_kg
+        if name == "imu" and regression.excess_imu_shared_std is not None:
+            shared = regression.excess_imu_shared_std
+            shared_kg = regressor_bias_kg(fit, np.where(np.isfinite(shared), shared, regressor_std), bounds)
+        own_kg = np.sqrt(np.clip(bias_kg ** 2 - shared_kg ** 2, 0.0, None))
         ramp_kg = np.zeros(len(bounds))
         if name == "imu" and regression.excess_imu_ramp_std is not None:
             ramp_kg = regressor_bias_kg(fit, np.nan_to_num(regression.excess_imu_ramp_std, nan=0.0), bounds)
-        # for a weighing: a regressor error constant over a segment (the IMU's bias calibration,
-        # the height source's slow drift under the gradient) is one error of the drive, fully
-        # correlated across its segments (the truth of the accuracy matrix's ideal no-imu drives,
-        # where the gradient is the mass's main error: 1.6 % RMS shared by a drive's segments,
-        # 0.4 % their own); an auxiliary power's prior the drive cannot resolve (the fit's
-        # sensitivity) is the segment's own; so is the IMU bias's move over a standstill that the
-        # smoother did not follow (`imu_bias_ramp_std_mps2`): it is the difference of the errors
+        # for a weighing: a regressor error constant over a segment (the height source's slow drift
+        # under the gradient) is one error of the drive, fully correlated across its segments (the
+        # truth of the accuracy matrix's ideal no-imu drives, where the gradient is the mass's main
+        # error: 1.6 % RMS shared by a drive's segments, 0.4 % their own); the IMU bias's error is
+        # shared only as far as the smoother's cross-covariances say (`imu_bias_shared_std_mps2`),
+        # the rest is each segment's own; an auxiliary power's prior the drive cannot resolve (the
+        # fit's sensitivity) is the segment's own; so is the IMU bias's move over a standstill that
+        # the smoother did not follow (`imu_bias_ramp_std_mps2`): it is the difference of the errors
         # either side of a stop, so a weighing before the stop tells nothing of it after
-        covariances[name] = (fit.mass_covariance_kg2 + np.diag(fit.sensitivity_kg ** 2 + ramp_kg ** 2)
-                             + np.outer(bias_kg, bias_kg))
+        covariances[name] = (fit.mass_covariance_kg2 + np.diag(fit.sensitivity_kg ** 2 + ramp_kg ** 2 + own_kg ** 2)
+                             + np.outer(shared_kg, shared_kg))
         fit.sensitivity_kg = np.sqrt(fit.sensitivity_kg ** 2 + bias_kg ** 2 + ramp_kg ** 2)
     gain_uncertainty = float(np.hypot(settings.torque_gain_uncertainty, settings.driveline_efficiency_uncertainty))
     results = {}

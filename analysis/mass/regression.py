@@ -65,6 +65,9 @@ class Regression:
     """The data filter where the accelerometer regressor is finite too."""
     excess_imu_std: np.ndarray | None = None
     """1-sigma of the IMU bias calibration [m/s²] (a systematic regressor error)."""
+    excess_imu_shared_std: np.ndarray | None = None
+    """The part of ``excess_imu_std`` the bias's error shares with the whole drive [m/s², signed]
+    (``imu_bias_shared_std_mps2``); the rest is each stretch's own. None: not stated (all shared)."""
     excess_imu_ramp_std: np.ndarray | None = None
     """1-sigma of the IMU bias's drift away from the calibrated one over the drive [m/s²]
     (``imu_bias_ramp_std_mps2``: a warm-up the smoother's bias did not follow), None: not stated."""
@@ -132,6 +135,7 @@ def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = Fi
         excess_imu = _centred_mean(accel_imu, window) - bias
     bias_std = _column(frame, "imu_bias_std_mps2")
     ramp_std = _column(frame, "imu_bias_ramp_std_mps2")
+    shared_std = _column(frame, "imu_bias_shared_std_mps2")
 
     with np.errstate(invalid="ignore", divide="ignore"):
         total_ratio = (2 * np.pi * engine_rpm / 60.0) * vehicle.wheel_radius_m / speed
@@ -175,6 +179,7 @@ def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = Fi
                       excess_imu=excess_imu, usable_imu=usable_imu,
                       excess_imu_std=bias_std if excess_imu is not None else None,
                       excess_imu_ramp_std=ramp_std if excess_imu is not None else None,
+                      excess_imu_shared_std=shared_std if excess_imu is not None else None,
                       excess_gradient_std=gradient_regressor_std_mps2(_column(frame, "gradient_std_pct")))
 
 
