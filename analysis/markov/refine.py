@@ -113,8 +113,21 @@ def _rejoin(current, n, first, last, k, s, row_ptr, dest, count, cum_count, endi
     return True
 
 
+OBJECTIVE_KERNELS = (_kinematic_deviation, kinematic_objective)
+"""The kinematic part of the objective, the first kernels `refine_walk`'s compile reaches:
+`compile_objective` compiles them (``path_statistics`` inside them)."""
 MOVE_KERNELS = (_rejoin, _continue)
 """The kernels a move calls: `compile_moves` compiles them (``_next_state`` inside them)."""
+
+
+def compile_objective(speed, gradient, mass, measured, kin_scale, q_index, s_index, kin_allowance) -> None:
+    """Compile `OBJECTIVE_KERNELS` for the argument types `refine_walk` gives them, for its
+    arguments of the same names, without compiling `refine_walk` (`precompile`)."""
+    walk = numba.typeof(np.empty(0, np.int64))
+    vector = numba.typeof(np.empty(0))
+    arrays = tuple(numba.typeof(a) for a in (speed, gradient, mass, measured, kin_scale, q_index, s_index))
+    _kinematic_deviation.compile((walk, *arrays, numba.typeof(np.empty((4, 4))), vector))
+    kinematic_objective.compile((vector, numba.typeof(kin_allowance)))
 
 
 def compile_moves(row_ptr, dest, count, cum_count, ending) -> None:
