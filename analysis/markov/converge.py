@@ -23,11 +23,11 @@ import numpy as np
 from . import precompile
 from .chain import Chain, build_chain
 from .counting import TransitionCounts
-from .criteria import _Q, _S, ALLOWANCE, IS_MASS, deviations, evaluate, scales, scores
+from .criteria import ALLOWANCE, IS_MASS, deviations, evaluate, scores
 from .ending import Ending
 from .generate import cycle_frame, run_batch, walk_ending
 from .load_criteria import LOAD_ALLOWANCE, N_LOADS, LoadTarget, evaluate_loads
-from .refine import refine_walk
+from .refine import kinematic_arrays, refine_walk
 from .score_kernels import KINEMATIC_PENALTY
 from .select import BATCH, Selection
 
@@ -101,14 +101,6 @@ def _load_arrays(chain: Chain, target: LoadTarget | None):
                 np.ones(N_LOADS))
     return (target.resistance_n, target.wheel_radius_m, target.speed_edges_rpm, target.torque_edges_nm,
             target.residence_share, target.range_scale_nm, target.measured, target.scale)
-
-
-def kinematic_arrays(chain: Chain, counts: TransitionCounts) -> tuple:
-    """`refine.refine_walk`'s arguments for the kinematic part of its objective, in its order: the
-    states' speed, gradient and mass, the measured statistics, their scales, the criteria's
-    indices into them and their allowances."""
-    return (chain.speed_mps, chain.gradient_pct, chain.mass_kg, counts.statistics,
-            scales(counts.statistics, counts.widths), _Q, _S, ALLOWANCE)
 
 
 def refine(chain: Chain, counts: TransitionCounts, path: np.ndarray, target: LoadTarget | None, n_moves: int,

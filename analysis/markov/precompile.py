@@ -153,13 +153,12 @@ def compile_ahead(chain, counts, ending, duration_s: float, update_counts: bool,
     """The objective's kernels, the moves' kernels and ``batch``, for the types a selection with
     these arguments gives them; ``tell`` the lines `OBJECTIVE_CACHED` and `MOVES_CACHED` after the
     first two groups."""
-    from .converge import kinematic_arrays
     from .generate import run_batch
     from .refine import MOVE_KERNELS, OBJECTIVE_KERNELS, compile_moves, compile_objective
 
     for kernel in OBJECTIVE_KERNELS + MOVE_KERNELS:  # a fork's copy of the parent's waits
         kernel.await_before_compile(None)
-    compile_objective(*kinematic_arrays(chain, counts))
+    compile_objective(chain, counts)
     tell(OBJECTIVE_CACHED)
     compile_moves(chain.row_ptr, chain.dest, chain.count, chain.cum_count, ending.as_tuple())
     tell(MOVES_CACHED)
