@@ -23,11 +23,11 @@ import numpy as np
 from . import precompile
 from .chain import Chain, build_chain
 from .counting import TransitionCounts
-from .criteria import _Q, _S, ALLOWANCE, IS_MASS, deviations, evaluate, scales, scores
+from .criteria import ALLOWANCE, IS_MASS, deviations, evaluate, scores
 from .ending import Ending
 from .generate import cycle_frame, run_batch, walk_ending
 from .load_criteria import LOAD_ALLOWANCE, N_LOADS, LoadTarget, evaluate_loads
-from .refine import refine_walk
+from .refine import kinematic_arrays, refine_walk
 from .score_kernels import KINEMATIC_PENALTY
 from .select import BATCH, Selection
 
@@ -116,8 +116,7 @@ def refine(chain: Chain, counts: TransitionCounts, path: np.ndarray, target: Loa
         _load_arrays(chain, target)
     window = int(max(2, min(max_window_s, len(path) - 1)))
     best = refine_walk(path, chain.row_ptr, chain.dest, chain.count, chain.cum_count, chain.start_state,
-                       chain.start_cum, ending.as_tuple(), chain.speed_mps, chain.gradient_pct, chain.mass_kg, counts.statistics,
-                       scales(counts.statistics, counts.widths), _Q, _S, ALLOWANCE, target is not None, resistance,
+                       chain.start_cum, ending.as_tuple(), *kinematic_arrays(chain, counts), target is not None, resistance,
                        radius, speed_edges, torque_edges, share, range_scale, load_measured, load_scale,
                        LOAD_ALLOWANCE, int(n_moves), window, float(temperature), int(seed), int(stream), trace)
     return path, trace, float(best)
@@ -150,14 +149,16 @@ def select_refined(counts: TransitionCounts, duration_s: float = 1800.0, seed: i
     the promising walks). ``survivors`` None refines every walk over ``n_moves``. ``target`` and
     ``vehicle`` add the load criteria to the objective and to each selection's report. Walks end at
     a stop unless ``end_at_stop`` is off (`ending`); ``progress`` is told how far the search is."""
-    compiling = precompile.start()
     chain = chain or build_chain(counts)
     ending = walk_ending(chain, duration_s, end_at_stop)
     n_chains = max(n_chains or CHAINS, n_cycles)
     n_pool = max(int(n_pool), n_chains)
-    if compiling is not None:  # the refinement's kernel here while the pool's compiles beside
-        refine(chain, counts, np.full(2, chain.start_state[0]), target, 0, seed, 0, ending=ending)
-    precompile.wait(compiling)
+    compiling = precompile.start(chain, counts, ending, duration_s, update_counts)
+    try:
+        if compiling is not None:  # the refinement's kernel here while the pool's compiles beside
+            refine(chain, counts, np.full(2, chain.start_state[0]), target, 0, seed, 0, ending=ending)
+    finally:
+        precompile.wait(compiling)
     all_scores, objective, valid, valid_without_mass = _pool(chain, counts, duration_s, n_pool, seed, update_counts,
                                                              ending, progress)
     starts = _starts(chain, counts, duration_s, seed, update_counts, objective, target, n_chains, ending)

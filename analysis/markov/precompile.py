@@ -4,20 +4,30 @@ On the first run after an install numba compiles two kernels for a refined selec
 the other: `generate.batch` for the pool's walks, then `refine.refine_walk` with every kernel it
 calls. One process compiles one kernel at a time (numba's compiler lock; a thread beside it gained
 nothing, docs/cycles.md), so the second core idles. Where ``batch`` has no valid entry in numba's
-cache, `start` runs `compile_in_child` in a second process. It first compiles the kernels of the
-refinement's moves (`refine.MOVE_KERNELS`) for the argument types ``refine_walk`` gives them, then
-``batch`` for the pool's, and leaves them in the cache. Meanwhile the selection compiles
-``refine_walk`` (`converge.select_refined`): numba reaches the moves' kernels last, waits there
-until the child has cached them and loads them, and `wait`, before the pool, lets the selection
-load ``batch`` as well. The kernels are the same either way; a child that fails or cannot write
-the cache costs only the waits for it.
+cache, `start` runs `compile_ahead` in a second process. It compiles, for the argument types the
+selection gives them, the kernels of the objective's kinematic part (`refine.OBJECTIVE_KERNELS`),
+then those of the refinement's moves (`refine.MOVE_KERNELS`), then ``batch``, and leaves them in
+the cache, writing a line after each group. Meanwhile the selection compiles ``refine_walk``
+(`converge.select_refined`): where numba reaches one of these kernels it waits for the child's
+line and loads it, and `wait`, before the pool, lets it load ``batch`` as well. The kernels are
+the same either way; a child that fails or cannot write the cache costs only the waits for it.
+
+Where the system can, the second process is a fork of this one (`os.fork`): it needs no imports
+and no numba set-up of its own (about a second of CPU on a first run, docs/cycles.md), and it
+compiles for the selection's own chain. Elsewhere it is a new interpreter that compiles on the
+chain of a four-minute synthetic drive (`compile_in_child`), with the same types.
 """
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+from collections.abc import Callable
+from typing import IO
 
+OBJECTIVE_CACHED = "objective"
+"""The child's line once the objective's kernels are in the cache."""
 MOVES_CACHED = "moves"
 """The child's line once the moves' kernels are in the cache."""
 
@@ -34,62 +44,139 @@ def needed() -> bool:
 
 
 class Child:
-    """The second process, and how far it has come."""
+    """The second process, and how far it has come: the lines it wrote on ``out``, read as they
+    are needed; ``reap()`` waits for its end and returns its exit status."""
 
-    def __init__(self, process: subprocess.Popen):
-        self.process = process
+    def __init__(self, out: IO[str], reap: Callable[[], int]):
+        self.out = out
+        self.reap = reap
         self.lines: list[str] = []
+        self.ended = False
+        self.returncode: int | None = None
 
-    def until(self, line: str) -> None:
-        """Until the child has written ``line`` (or ended)."""
-        while line not in self.lines:
-            out = self.process.stdout.readline()
+    def until(self, line: str | None) -> None:
+        """Until the child has written ``line`` (or ended; None: until it has ended)."""
+        while not self.ended and (line is None or line not in self.lines):
+            out = self.out.readline()
             if not out:
-                return
-            self.lines.append(out.strip())
+                self.ended = True
+            else:
+                self.lines.append(out.strip())
+
+    def finish(self) -> None:
+        """Until the child has ended; its exit status in ``returncode``."""
+        if self.returncode is None:
+            self.until(None)
+            self.out.close()
+            self.returncode = self.reap()
 
 
-def start() -> Child | None:
-    """This module's compile in a second process, if `needed` (at normal priority: the selection
-    waits for it); the refinement's compile waits for the moves' kernels where it needs them."""
-    if not needed():
+def _prepare_compiler() -> None:
+    """Set up numba's typing and lowering registries now (what a process's first compile does
+    first, 0.3–0.4 s): a forked child then inherits them instead of repeating the work."""
+    from numba.core.registry import cpu_target
+
+    cpu_target.typing_context.refresh()
+    cpu_target.target_context.refresh()
+
+
+def _fork(compile_here: Callable[[Callable[[str], None]], None]) -> Child | None:
+    """``compile_here(tell)`` in a fork of this process, ``tell(line)`` writing to the parent.
+    Forked while holding numba's compiler lock, so no thread of this process is inside a compile
+    (a child forked mid-compile would wait for that lock for ever)."""
+    from numba.core.compiler_lock import global_compiler_lock
+
+    read_fd, write_fd = os.pipe()
+    try:
+        with global_compiler_lock:
+            pid = os.fork()
+    except OSError:
+        os.close(read_fd)
+        os.close(write_fd)
         return None
-    from .refine import MOVE_KERNELS
+    if pid == 0:  # the child: compile, tell, and end without the parent's exit handlers or errors
+        status = 1
+        try:
+            os.close(read_fd)
+            compile_here(lambda line: os.write(write_fd, f"{line}\n".encode()))
+            status = 0
+        finally:
+            os._exit(status)
+    os.close(write_fd)
+    return Child(os.fdopen(read_fd, "r"), lambda: os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))
 
+
+def _spawn() -> Child | None:
+    """`compile_in_child` in a new interpreter."""
     try:
         process = subprocess.Popen([sys.executable, "-c", f"import {__name__} as m; m.compile_in_child()"],
                                    stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                                    text=True)
     except OSError:
         return None
-    child = Child(process)
-    for kernel in MOVE_KERNELS:
-        kernel.await_before_compile(lambda: child.until(MOVES_CACHED))
+    return Child(process.stdout, process.wait)
+
+
+def start(chain, counts, ending, duration_s: float, update_counts: bool, fork: bool | None = None) -> Child | None:
+    """The compile ahead in a second process, if `needed` (at normal priority: the selection waits
+    for it), for the selection's chain, counts, ending, duration [s] and ``update_counts``; the
+    refinement's compile waits for each kernel the child compiles where it needs it. ``fork``:
+    a fork of this process (None: where the system has ``os.fork`` and is not macOS, whose system
+    libraries are not safe to use in a fork) or a new interpreter."""
+    if not needed():
+        return None
+    from .refine import MOVE_KERNELS, OBJECTIVE_KERNELS
+
+    if fork is None:
+        fork = hasattr(os, "fork") and sys.platform != "darwin"
+    if fork:
+        _prepare_compiler()
+        child = _fork(lambda tell: compile_ahead(chain, counts, ending, duration_s, update_counts, tell))
+    else:
+        child = _spawn()
+    if child is None:
+        return None
+    for kernels, line in ((OBJECTIVE_KERNELS, OBJECTIVE_CACHED), (MOVE_KERNELS, MOVES_CACHED)):
+        for kernel in kernels:
+            kernel.await_before_compile(lambda line=line: child.until(line))
     return child
 
 
 def wait(child: Child | None) -> None:
     """Until the second process has left its kernels in the cache (or failed)."""
     if child is not None:
-        child.until(MOVES_CACHED)
-        child.process.communicate()
+        child.finish()
+
+
+def compile_ahead(chain, counts, ending, duration_s: float, update_counts: bool,
+                  tell: Callable[[str], None]) -> None:
+    """The objective's kernels, the moves' kernels and ``batch``, for the types a selection with
+    these arguments gives them; ``tell`` the lines `OBJECTIVE_CACHED` and `MOVES_CACHED` after the
+    first two groups."""
+    from .generate import run_batch
+    from .refine import MOVE_KERNELS, OBJECTIVE_KERNELS, compile_moves, compile_objective
+
+    for kernel in OBJECTIVE_KERNELS + MOVE_KERNELS:  # a fork's copy of the parent's waits
+        kernel.await_before_compile(None)
+    compile_objective(chain, counts)
+    tell(OBJECTIVE_CACHED)
+    compile_moves(chain.row_ptr, chain.dest, chain.count, chain.cum_count, ending.as_tuple())
+    tell(MOVES_CACHED)
+    run_batch(chain, duration_s, 1, 0, 0, update_counts, ending=ending)
 
 
 def compile_in_child() -> None:
-    """The moves' kernels and then ``batch``, on the chain of a four-minute drive; the line
-    `MOVES_CACHED` on stdout between the two."""
+    """`compile_ahead` in a new interpreter, on the chain of a four-minute drive; its lines on
+    stdout."""
     import numpy as np
 
     from .chain import build_chain
     from .counting import count_transitions
-    from .generate import run_batch, walk_ending
-    from .refine import compile_moves
+    from .generate import walk_ending
 
     time_s = np.arange(0.0, 240.0)
     signals = {"time_s": time_s, "speed_mps": np.clip(12.0 * np.sin(np.pi * time_s / 120.0), 0.0, None),
                "gradient_pct": 2.0 * np.sin(time_s / 30.0), "mass_kg": np.full(time_s.size, 14000.0)}
-    chain = build_chain(count_transitions(signals))
-    ending = walk_ending(chain, 60.0, True)
-    compile_moves(chain.row_ptr, chain.dest, chain.count, chain.cum_count, ending.as_tuple())
-    print(MOVES_CACHED, flush=True)
-    run_batch(chain, 60.0, 1, 0, 0, False, ending=ending)
+    counts = count_transitions(signals)
+    chain = build_chain(counts)
+    compile_ahead(chain, counts, walk_ending(chain, 60.0, True), 60.0, False, lambda line: print(line, flush=True))

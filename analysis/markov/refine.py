@@ -18,6 +18,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .chain import Chain
+from .counting import TransitionCounts
+from .criteria import _Q, _S, ALLOWANCE, scales
 from .generate import GOLDEN, is_free, mix, path_statistics, plain_index, steered_end, steered_index, uniform
 from .jit import helper, inlined_kernel, kernel
 from .score_kernels import kinematic_objective, load_objective, path_loads
@@ -113,8 +116,29 @@ def _rejoin(current, n, first, last, k, s, row_ptr, dest, count, cum_count, endi
     return True
 
 
+OBJECTIVE_KERNELS = (_kinematic_deviation, kinematic_objective)
+"""The kinematic part of the objective, the first kernels `refine_walk`'s compile reaches:
+`compile_objective` compiles them (``path_statistics`` inside them)."""
 MOVE_KERNELS = (_rejoin, _continue)
 """The kernels a move calls: `compile_moves` compiles them (``_next_state`` inside them)."""
+
+
+def kinematic_arrays(chain: Chain, counts: TransitionCounts) -> tuple:
+    """`refine_walk`'s arguments for the kinematic part of its objective, in its order: the
+    states' speed, gradient and mass, the measured statistics, their scales, the criteria's
+    indices into them and their allowances."""
+    return (chain.speed_mps, chain.gradient_pct, chain.mass_kg, counts.statistics,
+            scales(counts.statistics, counts.widths), _Q, _S, ALLOWANCE)
+
+
+def compile_objective(chain: Chain, counts: TransitionCounts) -> None:
+    """Compile `OBJECTIVE_KERNELS` for the argument types `refine_walk` gives them for ``chain``
+    and ``counts``, without compiling `refine_walk` (`precompile`)."""
+    *arrays, kin_allowance = (numba.typeof(a) for a in kinematic_arrays(chain, counts))
+    walk = numba.typeof(np.empty(0, np.int64))
+    vector = numba.typeof(np.empty(0))
+    _kinematic_deviation.compile((walk, *arrays, numba.typeof(np.empty((4, 4))), vector))
+    kinematic_objective.compile((vector, kin_allowance))
 
 
 def compile_moves(row_ptr, dest, count, cum_count, ending) -> None:
