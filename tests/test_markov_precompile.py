@@ -3,8 +3,10 @@ instead of compiling them again (`markov.precompile`)."""
 
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -67,8 +69,8 @@ def test_the_second_process_leaves_the_objective_the_moves_and_batch_in_the_cach
 
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="no os.fork here")
 def test_a_forked_child_is_read_line_by_line_and_a_failed_one_ends_the_waits():
-    """The parent reads the child's lines only as far as it asks; a child that fails after its
-    first line ends every later wait and reports its exit status."""
+    """The parent reads the child's lines only as far as it asks (what has arrived); a child that
+    fails after its first line ends every later wait and reports its exit status."""
     def compile_here(tell):
         tell("first")
         tell("second")
@@ -76,10 +78,28 @@ def test_a_forked_child_is_read_line_by_line_and_a_failed_one_ends_the_waits():
 
     child = precompile._fork(compile_here)
     child.until("first")
-    assert child.lines == ["first"] and not child.ended
+    assert child.lines[0] == "first" and not child.ended
     child.until("never written")
     assert child.lines == ["first", "second"] and child.ended
     precompile.wait(child)
     assert child.returncode == 1
     child.until("never written")
     assert child.lines == ["first", "second"]
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_a_silent_child_is_ended_and_the_selection_goes_on(mode):
+    """A child that writes nothing for ``silence_s`` (a fork stuck on a lock another thread held)
+    is killed; every wait for it ends, and the selection compiles the rest itself."""
+    if mode == "fork":
+        child = precompile._fork(lambda tell: time.sleep(3600))
+    else:
+        process = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(3600)"], stdout=subprocess.PIPE)
+        child = precompile.Child(os.dup(process.stdout.fileno()), process.wait, process.kill)
+    child.silence_s = 0.2
+    child.until(precompile.MOVES_CACHED)
+    assert child.stuck and child.ended and child.lines == []
+    precompile.wait(child)
+    assert child.returncode == -signal.SIGKILL
+    if mode == "spawn":
+        process.stdout.close()

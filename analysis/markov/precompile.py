@@ -21,10 +21,11 @@ chain of a four-minute synthetic drive (`compile_in_child`), with the same types
 from __future__ import annotations
 
 import os
+import select
+import signal
 import subprocess
 import sys
 from collections.abc import Callable
-from typing import IO
 
 OBJECTIVE_CACHED = "objective"
 """The child's line once the objective's kernels are in the cache."""
@@ -43,31 +44,50 @@ def needed() -> bool:
         return False
 
 
-class Child:
-    """The second process, and how far it has come: the lines it wrote on ``out``, read as they
-    are needed; ``reap()`` waits for its end and returns its exit status."""
+SILENCE_S = 120.0
+"""How long the selection waits for the child's next line before it takes the child for stuck
+and ends it [s]. Its whole work takes 3-15 s here (docs/cycles.md); a fork can hang on a lock
+another thread of the parent held when it was forked. The selection then compiles the rest itself:
+the kernels are the same either way."""
 
-    def __init__(self, out: IO[str], reap: Callable[[], int]):
-        self.out = out
+
+class Child:
+    """The second process, and how far it has come: the lines it wrote on the pipe ``fd``, read
+    as they are needed; ``reap()`` waits for its end and returns its exit status, ``kill()`` ends
+    it."""
+
+    def __init__(self, fd: int, reap: Callable[[], int], kill: Callable[[], None], silence_s: float = SILENCE_S):
+        self.fd = fd
         self.reap = reap
+        self.kill = kill
+        self.silence_s = silence_s
         self.lines: list[str] = []
+        self._partial = b""
         self.ended = False
+        self.stuck = False
         self.returncode: int | None = None
 
     def until(self, line: str | None) -> None:
-        """Until the child has written ``line`` (or ended; None: until it has ended)."""
+        """Until the child has written ``line`` (or ended, or been silent for ``silence_s``;
+        None: until it has ended)."""
         while not self.ended and (line is None or line not in self.lines):
-            out = self.out.readline()
-            if not out:
+            readable, _, _ = select.select([self.fd], [], [], self.silence_s)
+            if not readable:
+                self.stuck = self.ended = True
+                self.kill()
+                break
+            data = os.read(self.fd, 4096)
+            if not data:
                 self.ended = True
-            else:
-                self.lines.append(out.strip())
+                break
+            *complete, self._partial = (self._partial + data).split(b"\n")
+            self.lines += [text.decode(errors="replace").strip() for text in complete]
 
     def finish(self) -> None:
         """Until the child has ended; its exit status in ``returncode``."""
         if self.returncode is None:
             self.until(None)
-            self.out.close()
+            os.close(self.fd)
             self.returncode = self.reap()
 
 
@@ -103,18 +123,23 @@ def _fork(compile_here: Callable[[Callable[[str], None]], None]) -> Child | None
         finally:
             os._exit(status)
     os.close(write_fd)
-    return Child(os.fdopen(read_fd, "r"), lambda: os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))
+    return Child(read_fd, lambda: os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]),
+                 lambda: os.kill(pid, signal.SIGKILL))
 
 
 def _spawn() -> Child | None:
     """`compile_in_child` in a new interpreter."""
     try:
         process = subprocess.Popen([sys.executable, "-c", f"import {__name__} as m; m.compile_in_child()"],
-                                   stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                                   text=True)
+                                   stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     except OSError:
         return None
-    return Child(process.stdout, process.wait)
+
+    def reap() -> int:
+        process.stdout.close()
+        return process.wait()
+
+    return Child(os.dup(process.stdout.fileno()), reap, process.kill)
 
 
 def start(chain, counts, ending, duration_s: float, update_counts: bool, fork: bool | None = None) -> Child | None:
