@@ -158,3 +158,16 @@ def test_with_gps_altitude_the_gradient_across_the_shifts_is_the_force_balances(
     after, within = shift_bins_error(True)
     assert after < 0.5 * before
     assert within >= 0.9
+
+
+def test_where_the_brake_may_act_the_windows_bound_the_gradient_from_above():
+    """The brakes only take force away: over windows that span brake readings, the force balance
+    with the engine's force alone is an upper bound of g sin(alpha), within its sigma."""
+    frame, vehicle = stop_and_go_log(cycles=4)
+    measured, _, _ = force_gaps.windowed_force_balance(frame, vehicle, MASS_KG, 1.0, 200.0, 1.0)
+    bound, _, variance = force_gaps.windowed_force_balance(frame, vehicle, MASS_KG, 1.0, 200.0, 1.0, brakes=False)
+    braking = frame["brake_switch"].to_numpy() > 0.5
+    assert np.isfinite(bound[braking]).sum() > 100 and not np.isfinite(measured[braking]).any()
+    truth = frame["true_sine_mps2"].to_numpy()
+    spans = np.isfinite(bound) & ~np.isfinite(measured)
+    assert np.mean(bound[spans] + 2 * np.sqrt(variance[spans]) >= truth[spans]) >= 0.97

@@ -216,7 +216,8 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
                                 f"gradient down on {np.sum(np.isfinite(virtual) & ~np.isfinite(measured))} samples "
                                 f"where it was above what braking allows")
     if not no_height_source:
-        _hold_under_braking_bound(result, frame, vehicle, mass, relative, settings.spacing_m, drag)
+        window_bound = _window_braking_bound(forced, vehicle, mass) if mass_kg is None and FORCE_GAPS else None
+        _hold_under_braking_bound(result, frame, vehicle, mass, relative, settings.spacing_m, drag, window_bound)
     if added:
         result.notes.append(f"the force balance over windows of known force between brake applications and across "
                             f"gear shifts (the clutch open: no engine force) on {added} samples the data filter's 1-s "
@@ -418,14 +419,34 @@ BRAKE_HELD_S = 1.0
 """The braking bound takes a sample only where the brake is on this long [s] before and after it:
 the acceleration from wheel speed is smoothed and lags the brake's onset (measured: -0.2 m/s² read
 for a true -0.6 in the first half second)."""
-def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, relative, spacing_m, drag_n=None):
+def _window_braking_bound(frame, vehicle, mass):
+    """Where the brake may act within the 1-s windows of known engine force (`force_gaps`, brakes
+    counted as an unknown loss): (the upper bound of g sin(alpha) [m/s²], its variance [m²/s⁴],
+    the windows' mean (F_wheel - F_aero)/m [m/s²]) per sample, NaN elsewhere."""
+    from ..mass.regression import FilterSettings
+    from .force_gaps import windowed_force_balance
+    args = (frame, vehicle, mass, MOVING_SPEED_MPS, FilterSettings.min_engine_torque_nm, FORCE_GAPS_MARGIN_S)
+    measured, _, _ = windowed_force_balance(*args)
+    bound, accel, variance = windowed_force_balance(*args, brakes=False)
+    bound = np.where(np.isfinite(measured), np.nan, bound)
+    rolling = G_MPS2 * vehicle.rolling_resistance_coefficient
+    return bound, variance, bound + rolling + accel
+
+
+def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, relative, spacing_m, drag_n=None,
+                              window_bound=None):
     """With height sources, the gradient held under what braking allows, as a one-sided bound: where
     the truck brakes and the engine does not pull (torque <= 0) the wheels get no traction, so
     a + g sin(alpha) <= -F_aero/m - g c_r, to within a margin of two sigma of the bound's own error
     (the head wind's drag with a 5 m/s prior, c_r's 15 %, the mass's share of F_aero/m). With
     ``drag_n`` (`engine_drag.overrun_wheel_force_n`: the engine motored in gear, its friction from
     SPN 514) the wheels also get the engine's drag, F_aero - F_drag in place of F_aero, and the
-    friction map's 10 % joins the margin. Per grid
+    friction map's 10 % joins the margin. With ``window_bound`` (`_window_braking_bound`) also where
+    the brake acts in short applications (the brake switch on for single readings, the windows of
+    known engine force between them too short for the data filter): over a 1-s window of known
+    engine force, g sin(alpha) is at most its force balance without the brakes, to within two sigma
+    of the wheel speed's noise over the window, the head wind and c_r as above, and the mass's share
+    of the window's force. Per grid
     point the gradient is clipped to the mean bound of its braking samples; the heights are
     integrated again, the sigma is kept (a clip onto a bound the road satisfies only moves the
     estimate towards it). Across braking gaps the height sources (urban GPS altitude and a DEM
@@ -453,6 +474,13 @@ def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, rela
         margin = 2 * np.sqrt(wind ** 2 + (rolling * ROLLING_RESISTANCE_UNCERTAINTY) ** 2
                              + (aero * np.nan_to_num(relative)) ** 2 + (FRICTION_MAP_UNCERTAINTY * engine / mass) ** 2)
         sine = (-aero - rolling + margin - accel) / G_MPS2
+        if window_bound is not None:
+            bound, variance, net = (np.asarray(x, dtype=float) for x in window_bound)
+            window_margin = 2 * np.sqrt(wind ** 2 + (rolling * ROLLING_RESISTANCE_UNCERTAINTY) ** 2
+                                        + (net * np.nan_to_num(relative)) ** 2 + variance)
+            windowed = ~braking & np.isfinite(bound)
+            sine = np.where(windowed, (bound + window_margin) / G_MPS2, sine)
+            braking = braking | windowed
     grid = result.grid
     index = np.where(np.isfinite(distance), distance_grid.grid_index(distance, spacing_m), -1)
     limit = distance_grid.bin_mean(index, np.where(braking, sine, np.nan), len(grid))

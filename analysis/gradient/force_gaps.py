@@ -57,12 +57,14 @@ def clutch_open(frame: pd.DataFrame) -> np.ndarray:
     return frame["current_gear"].to_numpy(dtype=float) == 0
 
 
-def known_wheel_force_n(frame: pd.DataFrame, vehicle, min_engine_torque_nm: float, margin_s: float) -> np.ndarray:
+def known_wheel_force_n(frame: pd.DataFrame, vehicle, min_engine_torque_nm: float, margin_s: float,
+                        brakes: bool = True) -> np.ndarray:
     """The engine's force at the wheels [N] per sample where it is known, NaN elsewhere: 0 with the
     clutch open (`clutch_open`), in gear the driveline's torque through the gear's ratio (the ratio
     the gearbox has nearest engine speed over wheel speed, as `mass.regression`); unknown within
     ``margin_s`` of a brake application or of a gear change with no neutral reported between
-    (`unreported_shift`, as the mass's data filter has both), while the clutch slips (the ratio no gear's), and where the torque report does
+    (`unreported_shift`, as the mass's data filter has both; with ``brakes`` False the engine's
+    force also where the brake may act, which then takes an unknown force away), while the clutch slips (the ratio no gear's), and where the torque report does
     not include the engine's drag (`knows_engine_drag`) at or below ``min_engine_torque_nm``."""
     speed = frame["speed_mps"].to_numpy(dtype=float)
     rpm = frame["engine_speed_rpm"].to_numpy(dtype=float)
@@ -80,7 +82,7 @@ def known_wheel_force_n(frame: pd.DataFrame, vehicle, min_engine_torque_nm: floa
     out = np.where(geared, force, np.nan)
     out = np.where(clutch_open(frame), 0.0, out)
     valid = frame["valid"].to_numpy(dtype=bool) if "valid" in frame.columns else np.ones(len(frame), bool)
-    unknown = near(braking(frame) | unreported_shift(frame), frame, margin_s)
+    unknown = near((braking(frame) if brakes else False) | unreported_shift(frame), frame, margin_s)
     return np.where(unknown | ~valid, np.nan, out)
 
 
@@ -112,15 +114,17 @@ def near(mask: np.ndarray, frame: pd.DataFrame, margin_s: float) -> np.ndarray:
 
 
 def windowed_force_balance(frame: pd.DataFrame, vehicle, mass_kg, moving_mps: float, min_engine_torque_nm: float,
-                           margin_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                           margin_s: float, brakes: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per sample (NaN where it cannot be had): g sin(alpha) [m/s²] from the force balance integrated
     over the window of known force around it (module docstring), the window's mean acceleration
     (v_end - v_start)/T [m/s²] and the variance [m²/s⁴] of the first from the wheel speed's noise
-    and the clutch's edges. Windows lie in stretches of known force above ``moving_mps``."""
+    and the clutch's edges. Windows lie in stretches of known force above ``moving_mps``. With
+    ``brakes`` False they also span the brake's applications, counting the engine's force alone:
+    the brakes only take force away, so the value is then an upper bound of g sin(alpha)."""
     time_s = frame["time_s"].to_numpy(dtype=float)
     speed = frame["speed_mps"].to_numpy(dtype=float)
     mass = np.broadcast_to(np.asarray(mass_kg, dtype=float), (len(frame),))
-    force = known_wheel_force_n(frame, vehicle, min_engine_torque_nm, margin_s)
+    force = known_wheel_force_n(frame, vehicle, min_engine_torque_nm, margin_s, brakes)
     known = np.isfinite(force) & (speed > moving_mps) & np.isfinite(mass) & np.isfinite(time_s)
     excess, accel, variance = (np.full(len(frame), np.nan) for _ in range(3))
     noise = wheel_speed_noise_mps(speed, moving_mps)
