@@ -219,9 +219,8 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         window_bound = _window_braking_bound(forced, vehicle, mass) if mass_kg is None and FORCE_GAPS else None
         _hold_under_braking_bound(result, frame, vehicle, mass, relative, settings.spacing_m, drag, window_bound)
     if added:
-        result.notes.append(f"the force balance over windows of known force between brake applications and across "
-                            f"gear shifts (the clutch open: no engine force) on {added} samples the data filter's 1-s "
-                            f"window could not take")
+        result.notes.append(f"the force balance over windows of known force (across gear shifts: the clutch open, no "
+                            f"engine force) on {added} samples the data filter's 1-s window could not take")
     if offset is not None:
         result.notes.append(f"torque report's offset {offset.offset_nm:+.0f} ± {offset.sigma_nm:.0f} Nm (what it reads above "
                             f"minus the engine's friction, J1939 SPN 514, on {offset.samples} samples braking in gear in "
@@ -261,8 +260,9 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
 
 
 FORCE_GAPS = True
-"""With a first pass's masses, the force balance also where its 1-s window cannot span: between
-brake applications and across gear shifts (`force_gaps`)."""
+"""With a first pass's masses, the force balance also where its 1-s window cannot span: across gear
+shifts with the clutch open, and as the braking bound's upper limit across short brake
+applications (`force_gaps`)."""
 
 
 FORCE_GAPS_MARGIN_S = 1.0
@@ -419,6 +419,8 @@ BRAKE_HELD_S = 1.0
 """The braking bound takes a sample only where the brake is on this long [s] before and after it:
 the acceleration from wheel speed is smoothed and lags the brake's onset (measured: -0.2 m/s² read
 for a true -0.6 in the first half second)."""
+
+
 def _window_braking_bound(frame, vehicle, mass):
     """Where the brake may act within the 1-s windows of known engine force (`force_gaps`, brakes
     counted as an unknown loss): (the upper bound of g sin(alpha) [m/s²], its variance [m²/s⁴],

@@ -1,15 +1,14 @@
-"""The force balance over the stretches its 1-s window cannot span: between brake applications and
-across gear shifts (issue 26, `gps+can` on urban drives).
+"""The force balance over the stretches its 1-s window cannot span: across gear shifts, and as an
+upper bound across short brake applications (issue 26, `gps+can` on urban drives).
 
 The virtual accelerometer (`force_balance.virtual_accelerometer_mps2`) compares the wheel force
 with dv/dt through a centred 1-s mean, so its data filter drops every sample within a second of a
-brake application or a shift. On the matrix's urban drives the brake switch is on for single
-samples every second or so, and 77-93 % of the gradient's squared error sat in the bins this
-left without a force-balance sample. Yet between two brake applications, and while the clutch
-is open, the force on the wheels is known: the engine's through the gear where engine speed over
-wheel speed is a gear's ratio, and none at all where the gearbox reports no gear engaged (J1939
-ETC2 current gear 0: the engine's torque does not reach the wheels, whatever its report's gain
-and offset). Integrated over a window W of such samples, Newton's law gives
+shift or a brake reading. On the matrix's urban drives 68-92 % of the gradient's squared error sat
+in the bins this left without a force-balance sample. Yet while the clutch is open the force on
+the wheels is known: none at all where the gearbox reports no gear engaged (J1939 ETC2 current
+gear 0: the engine's torque does not reach the wheels, whatever its report's gain and offset), and
+the engine's through the gear where engine speed over wheel speed is a gear's ratio. Integrated
+over a window W of samples of known force, Newton's law gives
 
     g sin(alpha) = (1/T) ∫_W (F_wheel - F_aero) / m dt - g c_r - (v_end - v_start) / T
 
@@ -18,7 +17,9 @@ takes from an accelerometer. W is the 1-s window nearest the sample within its s
 whole stretch where that is shorter. Its noise is the wheel speed's at the two ends,
 sqrt(2) sigma_v / T (sigma_v from the wheel speed's own second differences), and where W holds a
 change between clutch open and closed, the one sample whose force may belong to either side,
-|F| dt / (m T).
+|F| dt / (m T). The brake switch is read once per sample and the brake acts unseen between
+readings, so the windows keep the data filter's margin from them; spanning them with the engine's
+force alone, the same sum is an upper bound (the brakes only take force away).
 """
 
 from __future__ import annotations
