@@ -171,3 +171,23 @@ def test_where_the_brake_may_act_the_windows_bound_the_gradient_from_above():
     truth = frame["true_sine_mps2"].to_numpy()
     spans = np.isfinite(bound) & ~np.isfinite(measured)
     assert np.mean(bound[spans] + 2 * np.sqrt(variance[spans]) >= truth[spans]) >= 0.97
+
+
+def test_with_a_given_mass_the_windows_keep_the_mass_filters_speed_floor():
+    """`can-only` (a given mass) keeps the data filter's 5.5 m/s floor: the windows add the shift
+    gaps above it, none below, and leave the filter's own samples as they were."""
+    from haulprofile.analysis.gradient.force_balance import _force_filter, _with_force_gaps, virtual_accelerometer_mps2
+    from haulprofile.analysis.kinematics import acceleration_mps2
+    frame, vehicle = stop_and_go_log(cycles=4)
+    frame = frame.assign(accel_mps2=acceleration_mps2(frame["time_s"], frame["speed_mps"]), gradient_pct=0.0)
+    mass = np.full(len(frame), MASS_KG)
+    virtual = virtual_accelerometer_mps2(frame, vehicle, mass)
+    floor = _force_filter(True).min_speed_mps
+    out, accel, variance, excess, count, added, sine = _with_force_gaps(
+        frame, vehicle, mass, virtual, frame["accel_mps2"].to_numpy(), floor)
+    speed = frame["speed_mps"].to_numpy()
+    opened = frame["current_gear"].to_numpy() == 0
+    assert count == added.sum() > 0 and (added & opened).any()
+    assert np.all(speed[added] > floor)
+    assert np.array_equal(out[~added], virtual[~added], equal_nan=True)
+    assert np.all(variance[~added] == 0) and np.all(variance[added] > 0)

@@ -43,6 +43,7 @@ from ..road_load import G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_t
 from .drag_sigma import head_wind_sigma_mps2, unheld_drag_sigma_mps2
 from .engine_drag import FRICTION_MAP_UNCERTAINTY, overrun_wheel_force_n, torque_report_offset
 from .estimate import GradientResult, GradientSettings, estimate_gradient
+from .sources import imu_excess_mps2
 
 
 GIVEN_MASS_GAIN_UNCERTAINTY = 0.036
@@ -188,9 +189,12 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     if not np.isfinite(virtual).any():
         raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
     accel = frame["accel_mps2"].to_numpy(dtype=float)
-    extra_var, added = np.zeros(len(frame)), 0
-    if mass_kg is None and FORCE_GAPS:
-        virtual, accel, extra_var, excess, added = _with_force_gaps(forced, vehicle, mass, virtual, accel)
+    extra_var, added, gaps = np.zeros(len(frame)), 0, None
+    if FORCE_GAPS:
+        # with a given mass above the mass filter's speed floor, as its data filter (`slow`)
+        gaps = _with_force_gaps(forced, vehicle, mass, virtual, accel,
+                                MOVING_SPEED_MPS if mass_kg is None else _force_filter(True).min_speed_mps)
+        virtual, accel, extra_var, excess, added = gaps[:5]
         frame = frame.assign(accel_x_excess_mps2=excess)
     if scaled:
         regressor = accel + G_MPS2 * vehicle.rolling_resistance_coefficient
@@ -210,8 +214,12 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         bounded = _braking_bound(result, frame, virtual, vehicle, mass)
         if bounded is not None:
             virtual = bounded
-            result = estimate_gradient(frame.drop(columns=["accel_x_excess_mps2"], errors="ignore")
-                                       .assign(accel_x_mps2=virtual), dem, settings)
+            if gaps is not None:
+                window_added, window_sine = gaps[5:]
+                kept = imu_excess_mps2(np.where(window_added, np.nan, bounded), frame["accel_mps2"].to_numpy(dtype=float),
+                                       frame["time_s"].to_numpy(dtype=float))
+                frame = frame.assign(accel_x_excess_mps2=np.where(window_added, window_sine, kept))
+            result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
             result.notes.append(f"the force balance's braking bound (the brakes only take force away) held the "
                                 f"gradient down on {np.sum(np.isfinite(virtual) & ~np.isfinite(measured))} samples "
                                 f"where it was above what braking allows")
@@ -273,22 +281,22 @@ readings near its applications (with the truth's mass, the windows' g sin(alpha)
 +0.22 m/s² high one to three samples from a brake reading, +0.03 four to six)."""
 
 
-def _with_force_gaps(frame, vehicle, mass, virtual, accel):
+def _with_force_gaps(frame, vehicle, mass, virtual, accel, moving_mps):
     """The force balance with `force_gaps.windowed_force_balance` where the data filter left no
     sample: (virtual [m/s²] as a + g sin(alpha), the acceleration it pairs with [m/s²], the added
-    samples' variance [m²/s⁴], 0 elsewhere, a_x - dv/dt for the smoother [m/s²], and how many samples
-    were added). Where the filter kept a sample all of them are as before (a_x - dv/dt the one the
-    smoother takes from an accelerometer, `sources.imu_excess_mps2`)."""
+    samples' variance [m²/s⁴], 0 elsewhere, a_x - dv/dt for the smoother [m/s²], how many samples
+    were added, which, and their g sin(alpha) [m/s²]). Where the filter kept a sample all of them are
+    as before (a_x - dv/dt the one the smoother takes from an accelerometer,
+    `sources.imu_excess_mps2`). Windows lie above ``moving_mps``."""
     from ..mass.regression import FilterSettings
     from .force_gaps import windowed_force_balance
-    from .sources import imu_excess_mps2
     time_s = frame["time_s"].to_numpy(dtype=float)
     kept = imu_excess_mps2(virtual, accel, time_s)
     sine, window_accel, variance = windowed_force_balance(
-        frame, vehicle, mass, MOVING_SPEED_MPS, FilterSettings.min_engine_torque_nm, FORCE_GAPS_MARGIN_S)
+        frame, vehicle, mass, moving_mps, FilterSettings.min_engine_torque_nm, FORCE_GAPS_MARGIN_S)
     added = ~np.isfinite(kept) & np.isfinite(sine) & np.isfinite(variance)
     return (np.where(added, sine + window_accel, virtual), np.where(added, window_accel, accel),
-            np.where(added, variance, 0.0), np.where(added, sine, kept), int(added.sum()))
+            np.where(added, variance, 0.0), np.where(added, sine, kept), int(added.sum()), added, sine)
 
 
 SCALE_STATE = True
