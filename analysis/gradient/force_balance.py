@@ -268,9 +268,9 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
 
 
 FORCE_GAPS = True
-"""With a first pass's masses, the force balance also where its 1-s window cannot span: across gear
-shifts with the clutch open, and as the braking bound's upper limit across short brake
-applications (`force_gaps`)."""
+"""The force balance also where its 1-s window cannot span: across gear shifts with the clutch open
+(with a given mass above the mass filter's speed floor, as its data filter), and with a first
+pass's masses as the braking bound's upper limit across short brake applications (`force_gaps`)."""
 
 
 FORCE_GAPS_MARGIN_S = 1.0
