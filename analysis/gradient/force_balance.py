@@ -278,7 +278,7 @@ FORCE_GAPS_MARGIN_S = 1.0
 no neutral reported, as the data filter does (its 0.5 s margin and half its 1-s window): the brake
 switch is read once per sample, and on the matrix's urban drives the brake acted unseen between
 readings near its applications (with the truth's mass, the windows' g sin(alpha) read +0.10 to
-+0.22 m/s² high one to three samples from a brake reading, +0.03 four to six)."""
++0.22 m/s² high one or two samples from a brake reading, +0.05 to +0.08 three, +0.03 four or five)."""
 
 
 def _with_force_gaps(frame, vehicle, mass, virtual, accel, moving_mps):
