@@ -169,6 +169,9 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
         accel = _column(frame, "accel_mps2")
         accel = kinematics.acceleration_mps2(time_s, speed) if accel is None else accel
         imu_excess = sources.imu_excess_mps2(accel_imu, accel, time_s)
+        stated = _column(frame, "accel_x_excess_mps2")
+        if stated is not None:  # a stand-in that states a_x - dv/dt itself (`force_balance`)
+            imu_excess = stated
         bias_steps = (standstill_bias.standstill_steps(time_s, speed, accel_imu)
                       if settings.imu_standstill_steps else [])
         step_offset, step_std, imu_clock = standstill_bias.step_offsets(time_s, bias_steps)

@@ -43,6 +43,7 @@ from ..road_load import G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_t
 from .drag_sigma import head_wind_sigma_mps2, unheld_drag_sigma_mps2
 from .engine_drag import FRICTION_MAP_UNCERTAINTY, overrun_wheel_force_n, torque_report_offset
 from .estimate import GradientResult, GradientSettings, estimate_gradient
+from .sources import imu_excess_mps2
 
 
 GIVEN_MASS_GAIN_UNCERTAINTY = 0.036
@@ -187,14 +188,22 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     virtual = virtual_accelerometer_mps2(forced, vehicle, mass, slow=mass_kg is None)
     if not np.isfinite(virtual).any():
         raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
+    accel = frame["accel_mps2"].to_numpy(dtype=float)
+    extra_var, added, gaps = np.zeros(len(frame)), 0, None
+    if FORCE_GAPS:
+        # with a given mass above the mass filter's speed floor, as its data filter (`slow`)
+        gaps = _with_force_gaps(forced, vehicle, mass, virtual, accel,
+                                MOVING_SPEED_MPS if mass_kg is None else _force_filter(True).min_speed_mps)
+        virtual, accel, extra_var, excess, added = gaps[:5]
+        frame = frame.assign(accel_x_excess_mps2=excess)
     if scaled:
-        regressor = frame["accel_mps2"].to_numpy(dtype=float) + G_MPS2 * vehicle.rolling_resistance_coefficient
+        regressor = accel + G_MPS2 * vehicle.rolling_resistance_coefficient
         frame = frame.assign(accel_x_scale_regressor_mps2=regressor,
                              accel_x_scale_segment=segment, accel_x_scale_sigma=np.log1p(relative))
     # the mass's share in the noise stays beside the scale state: the state is one constant per
     # segment, the force balance's scale varies within it (the driveline's efficiency by gear, the
     # auxiliaries); the state alone left 62 % of the bins inside ±2σ on the least typical drive
-    frame = frame.assign(accel_x_scale_var_m2ps4=scale_variance_m2ps4(virtual, relative, vehicle))
+    frame = frame.assign(accel_x_scale_var_m2ps4=scale_variance_m2ps4(virtual, relative, vehicle) + extra_var)
     result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
     measured = virtual
     no_height_source = not _has_height_source(result)
@@ -205,12 +214,21 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         bounded = _braking_bound(result, frame, virtual, vehicle, mass)
         if bounded is not None:
             virtual = bounded
+            if gaps is not None:
+                window_added, window_sine = gaps[5:]
+                kept = imu_excess_mps2(np.where(window_added, np.nan, bounded), frame["accel_mps2"].to_numpy(dtype=float),
+                                       frame["time_s"].to_numpy(dtype=float))
+                frame = frame.assign(accel_x_excess_mps2=np.where(window_added, window_sine, kept))
             result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
             result.notes.append(f"the force balance's braking bound (the brakes only take force away) held the "
                                 f"gradient down on {np.sum(np.isfinite(virtual) & ~np.isfinite(measured))} samples "
                                 f"where it was above what braking allows")
     if not no_height_source:
-        _hold_under_braking_bound(result, frame, vehicle, mass, relative, settings.spacing_m, drag)
+        window_bound = _window_braking_bound(forced, vehicle, mass) if mass_kg is None and FORCE_GAPS else None
+        _hold_under_braking_bound(result, frame, vehicle, mass, relative, settings.spacing_m, drag, window_bound)
+    if added:
+        result.notes.append(f"the force balance over windows of known force (across gear shifts: the clutch open, no "
+                            f"engine force) on {added} samples the data filter's 1-s window could not take")
     if offset is not None:
         result.notes.append(f"torque report's offset {offset.offset_nm:+.0f} ± {offset.sigma_nm:.0f} Nm (what it reads above "
                             f"minus the engine's friction, J1939 SPN 514, on {offset.samples} samples braking in gear in "
@@ -247,6 +265,38 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         result.grid = result.grid.rename(columns={"gradient_imu_pct": "gradient_force_balance_pct"})
         result.samples["gradient_force_balance_pct"] = result.samples.pop("gradient_imu_pct")
     return result
+
+
+FORCE_GAPS = True
+"""The force balance also where its 1-s window cannot span: across gear shifts with the clutch open
+(with a given mass above the mass filter's speed floor, as its data filter), and with a first
+pass's masses as the braking bound's upper limit across short brake applications (`force_gaps`)."""
+
+
+FORCE_GAPS_MARGIN_S = 1.0
+"""The force gaps' windows keep this far [s] from a brake application and from a gear change with
+no neutral reported, as the data filter does (its 0.5 s margin and half its 1-s window): the brake
+switch is read once per sample, and on the matrix's urban drives the brake acted unseen between
+readings near its applications (with the truth's mass, the windows' g sin(alpha) read +0.10 to
++0.22 m/s² high one or two samples from a brake reading, +0.05 to +0.08 three, +0.03 four or five)."""
+
+
+def _with_force_gaps(frame, vehicle, mass, virtual, accel, moving_mps):
+    """The force balance with `force_gaps.windowed_force_balance` where the data filter left no
+    sample: (virtual [m/s²] as a + g sin(alpha), the acceleration it pairs with [m/s²], the added
+    samples' variance [m²/s⁴], 0 elsewhere, a_x - dv/dt for the smoother [m/s²], how many samples
+    were added, which, and their g sin(alpha) [m/s²]). Where the filter kept a sample all of them are
+    as before (a_x - dv/dt the one the smoother takes from an accelerometer,
+    `sources.imu_excess_mps2`). Windows lie above ``moving_mps``."""
+    from ..mass.regression import FilterSettings
+    from .force_gaps import windowed_force_balance
+    time_s = frame["time_s"].to_numpy(dtype=float)
+    kept = imu_excess_mps2(virtual, accel, time_s)
+    sine, window_accel, variance = windowed_force_balance(
+        frame, vehicle, mass, moving_mps, FilterSettings.min_engine_torque_nm, FORCE_GAPS_MARGIN_S)
+    added = ~np.isfinite(kept) & np.isfinite(sine) & np.isfinite(variance)
+    return (np.where(added, sine + window_accel, virtual), np.where(added, window_accel, accel),
+            np.where(added, variance, 0.0), np.where(added, sine, kept), int(added.sum()), added, sine)
 
 
 SCALE_STATE = True
@@ -377,14 +427,36 @@ BRAKE_HELD_S = 1.0
 """The braking bound takes a sample only where the brake is on this long [s] before and after it:
 the acceleration from wheel speed is smoothed and lags the brake's onset (measured: -0.2 m/s² read
 for a true -0.6 in the first half second)."""
-def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, relative, spacing_m, drag_n=None):
+
+
+def _window_braking_bound(frame, vehicle, mass):
+    """Where the brake may act within the 1-s windows of known engine force (`force_gaps`, brakes
+    counted as an unknown loss): (the upper bound of g sin(alpha) [m/s²], its variance [m²/s⁴],
+    the windows' mean (F_wheel - F_aero)/m [m/s²]) per sample, NaN elsewhere."""
+    from ..mass.regression import FilterSettings
+    from .force_gaps import windowed_force_balance
+    args = (frame, vehicle, mass, MOVING_SPEED_MPS, FilterSettings.min_engine_torque_nm, FORCE_GAPS_MARGIN_S)
+    measured, _, _ = windowed_force_balance(*args)
+    bound, accel, variance = windowed_force_balance(*args, brakes=False)
+    bound = np.where(np.isfinite(measured), np.nan, bound)
+    rolling = G_MPS2 * vehicle.rolling_resistance_coefficient
+    return bound, variance, bound + rolling + accel
+
+
+def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, relative, spacing_m, drag_n=None,
+                              window_bound=None):
     """With height sources, the gradient held under what braking allows, as a one-sided bound: where
     the truck brakes and the engine does not pull (torque <= 0) the wheels get no traction, so
     a + g sin(alpha) <= -F_aero/m - g c_r, to within a margin of two sigma of the bound's own error
     (the head wind's drag with a 5 m/s prior, c_r's 15 %, the mass's share of F_aero/m). With
     ``drag_n`` (`engine_drag.overrun_wheel_force_n`: the engine motored in gear, its friction from
     SPN 514) the wheels also get the engine's drag, F_aero - F_drag in place of F_aero, and the
-    friction map's 10 % joins the margin. Per grid
+    friction map's 10 % joins the margin. With ``window_bound`` (`_window_braking_bound`) also where
+    the brake acts in short applications (the brake switch on for single readings, the windows of
+    known engine force between them too short for the data filter): over a 1-s window of known
+    engine force, g sin(alpha) is at most its force balance without the brakes, to within two sigma
+    of the wheel speed's noise over the window, the head wind and c_r as above, and the mass's share
+    of the window's force. Per grid
     point the gradient is clipped to the mean bound of its braking samples; the heights are
     integrated again, the sigma is kept (a clip onto a bound the road satisfies only moves the
     estimate towards it). Across braking gaps the height sources (urban GPS altitude and a DEM
@@ -412,6 +484,13 @@ def _hold_under_braking_bound(result: GradientResult, frame, vehicle, mass, rela
         margin = 2 * np.sqrt(wind ** 2 + (rolling * ROLLING_RESISTANCE_UNCERTAINTY) ** 2
                              + (aero * np.nan_to_num(relative)) ** 2 + (FRICTION_MAP_UNCERTAINTY * engine / mass) ** 2)
         sine = (-aero - rolling + margin - accel) / G_MPS2
+        if window_bound is not None:
+            bound, variance, net = (np.asarray(x, dtype=float) for x in window_bound)
+            window_margin = 2 * np.sqrt(wind ** 2 + (rolling * ROLLING_RESISTANCE_UNCERTAINTY) ** 2
+                                        + (net * np.nan_to_num(relative)) ** 2 + variance)
+            windowed = ~braking & np.isfinite(bound)
+            sine = np.where(windowed, (bound + window_margin) / G_MPS2, sine)
+            braking = braking | windowed
     grid = result.grid
     index = np.where(np.isfinite(distance), distance_grid.grid_index(distance, spacing_m), -1)
     limit = distance_grid.bin_mean(index, np.where(braking, sine, np.nan), len(grid))
