@@ -337,18 +337,26 @@ def _solve_positive_aux(data, theta0, free, aux_index, settings, prior, instrume
     return theta, weights, normal, residual, regressor, row
 
 
+SLOPE_SHARE_FLOOR = 1e-3
+"""The least factor `_biweight_slope_share` gives a segment."""
+
+
 def _biweight_slope_share(residual, weights, seg, n_seg, tuning):
     """Per segment, the mean slope psi'(u) of Tukey's psi(u) = u (1 - u²)² over its mean weight
     psi(u)/u: the factor that turns the reweighted least squares' normal matrix into the robust
     fit's own (its sandwich's bread, sum psi'(u_k) z_k x_k^T). Without it the covariance of a
-    biweight fit is too small (stated 0.85 of the spread of the masses over 100 synthetic drives)."""
+    biweight fit is too small (stated 0.85 of the spread of the masses over 100 synthetic drives).
+    A fit left with no weighted sample gets the floor everywhere, as a segment whose samples all
+    lie beyond the biweight's reach."""
     used = weights > 0
+    if not used.any():
+        return np.full(n_seg, SLOPE_SHARE_FLOOR)
     scale = 1.4826 * np.median(np.abs(residual[used] - np.median(residual[used])))
     u = residual / (tuning * max(scale, 1e-9))
     slope = np.where(np.abs(u) < 1, (1 - u * u) * (1 - 5 * u * u), 0.0)
     share = np.bincount(seg, weights=slope, minlength=n_seg) / np.maximum(np.bincount(seg, weights=weights,
                                                                                         minlength=n_seg), 1e-12)
-    return np.clip(share, 1e-3, 1.0)
+    return np.clip(share, SLOPE_SHARE_FLOOR, 1.0)
 
 
 def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, settings: JointSettings = JointSettings(),
