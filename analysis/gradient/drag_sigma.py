@@ -9,7 +9,9 @@ along a winding road) or its gear (the offset through the ratio). For an unknown
 w / m with u = v h (speed times the unit heading, from the GPS track) and the mean over the
 samples the force balance measures; the offset's likewise through the ratio's departure from
 its mean. On the accuracy matrix the wind alone made regional `harsh` seed 3's gradient 0.60
-%-pt for 0.21 without it, with 83 % of the bins inside ±2σ (100 % without).
+%-pt for 0.21 without it, with 83 % of the bins inside ±2σ (100 % without). With no heading
+at all (`can-only`) the wind's whole drag, gusts and its w² term included, is in the sigma
+(`unknown_wind_drag_sigma_mps2`).
 """
 
 from __future__ import annotations
