@@ -40,7 +40,7 @@ from ..engine_torque import NET, driveline_torque_nm, knows_engine_drag, torque_
 from ..errors import UserError
 from ..mass.joint import JointSettings
 from ..road_load import G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_torque_from_engine_nm
-from .drag_sigma import head_wind_sigma_mps2, unheld_drag_sigma_mps2
+from .drag_sigma import head_wind_sigma_mps2, unheld_drag_sigma_mps2, unknown_wind_drag_sigma_mps2
 from .engine_drag import FRICTION_MAP_UNCERTAINTY, overrun_wheel_force_n, torque_report_offset
 from .estimate import GradientResult, GradientSettings, estimate_gradient
 from .sources import imu_excess_mps2
@@ -607,8 +607,8 @@ def _reference_torque_nm(frame, vehicle) -> float:
 
 
 def road_load_sigma_mps2(frame, vehicle, mass_kg, offset_sigma_nm: float | None = None) -> np.ndarray:
-    """1-sigma [m/s²] per sample of what the force balance with a given mass cannot know: the head
-    wind's linear drag rho c_d A v w / m (w the `WIND_PRIOR_MPS` prior) and the torque report's offset
+    """1-sigma [m/s²] per sample of what the force balance with a given mass cannot know: the drag
+    of a wind of unknown direction (`drag_sigma.unknown_wind_drag_sigma_mps2`) and the torque report's offset
     (``offset_sigma_nm``: its 1-sigma [Nm] where SPN 514 showed it, `engine_drag.torque_report_offset`;
     None: `TORQUE_OFFSET_UNCERTAINTY` of the reference torque), through the driveline's ratio, in
     quadrature. The rolling resistance's 15 % is in the bias prior; a constant bias is all the
@@ -616,7 +616,7 @@ def road_load_sigma_mps2(frame, vehicle, mass_kg, offset_sigma_nm: float | None 
     speed = frame["speed_mps"].to_numpy(dtype=float)
     mass = np.asarray(mass_kg, dtype=float)
     with np.errstate(invalid="ignore", divide="ignore"):
-        wind = head_wind_sigma_mps2(speed, vehicle, mass)
+        wind = unknown_wind_drag_sigma_mps2(speed, vehicle, mass)
         offset = np.zeros(len(frame))
         reference = (frame["engine_reference_torque_nm"].to_numpy(dtype=float) if "engine_reference_torque_nm" in frame
                      else np.full(len(frame), getattr(vehicle, "engine_reference_torque_nm", None) or np.nan))
