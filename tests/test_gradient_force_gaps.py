@@ -183,11 +183,11 @@ def test_with_a_given_mass_the_windows_keep_the_mass_filters_speed_floor():
     mass = np.full(len(frame), MASS_KG)
     virtual = virtual_accelerometer_mps2(frame, vehicle, mass)
     floor = _force_filter(True).min_speed_mps
-    out, accel, variance, excess, count, added, sine = _with_force_gaps(
-        frame, vehicle, mass, virtual, frame["accel_mps2"].to_numpy(), floor)
+    gaps = _with_force_gaps(frame, vehicle, mass, virtual, frame["accel_mps2"].to_numpy(), floor)
+    added, variance = gaps.added, gaps.variance_m2ps4
     speed = frame["speed_mps"].to_numpy()
     opened = frame["current_gear"].to_numpy() == 0
-    assert count == added.sum() > 0 and (added & opened).any()
+    assert added.sum() > 0 and (added & opened).any()
     assert np.all(speed[added] > floor)
-    assert np.array_equal(out[~added], virtual[~added], equal_nan=True)
+    assert np.array_equal(gaps.virtual_mps2[~added], virtual[~added], equal_nan=True)
     assert np.all(variance[~added] == 0) and np.all(variance[added] > 0)

@@ -31,7 +31,7 @@ as a mass error and needs a weighing.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -189,13 +189,13 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     if not np.isfinite(virtual).any():
         raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
     accel = frame["accel_mps2"].to_numpy(dtype=float)
-    extra_var, added, gaps = np.zeros(len(frame)), 0, None
+    extra_var, gaps = np.zeros(len(frame)), None
     if FORCE_GAPS:
         # with a given mass above the mass filter's speed floor, as its data filter (`slow`)
         gaps = _with_force_gaps(forced, vehicle, mass, virtual, accel,
                                 MOVING_SPEED_MPS if mass_kg is None else _force_filter(True).min_speed_mps)
-        virtual, accel, extra_var, excess, added = gaps[:5]
-        frame = frame.assign(accel_x_excess_mps2=excess)
+        virtual, accel, extra_var = gaps.virtual_mps2, gaps.accel_mps2, gaps.variance_m2ps4
+        frame = frame.assign(accel_x_excess_mps2=gaps.excess_mps2)
     if scaled:
         regressor = accel + G_MPS2 * vehicle.rolling_resistance_coefficient
         frame = frame.assign(accel_x_scale_regressor_mps2=regressor,
@@ -215,10 +215,9 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         if bounded is not None:
             virtual = bounded
             if gaps is not None:
-                window_added, window_sine = gaps[5:]
-                kept = imu_excess_mps2(np.where(window_added, np.nan, bounded), frame["accel_mps2"].to_numpy(dtype=float),
+                kept = imu_excess_mps2(np.where(gaps.added, np.nan, bounded), frame["accel_mps2"].to_numpy(dtype=float),
                                        frame["time_s"].to_numpy(dtype=float))
-                frame = frame.assign(accel_x_excess_mps2=np.where(window_added, window_sine, kept))
+                frame = frame.assign(accel_x_excess_mps2=np.where(gaps.added, gaps.sine_mps2, kept))
             result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
             result.notes.append(f"the force balance's braking bound (the brakes only take force away) held the "
                                 f"gradient down on {np.sum(np.isfinite(virtual) & ~np.isfinite(measured))} samples "
@@ -226,9 +225,9 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     if not no_height_source:
         window_bound = _window_braking_bound(forced, vehicle, mass) if mass_kg is None and FORCE_GAPS else None
         _hold_under_braking_bound(result, frame, vehicle, mass, relative, settings.spacing_m, drag, window_bound)
-    if added:
+    if gaps is not None and gaps.added.any():
         result.notes.append(f"the force balance over windows of known force (across gear shifts: the clutch open, no "
-                            f"engine force) on {added} samples the data filter's 1-s window could not take")
+                            f"engine force) on {int(gaps.added.sum())} samples the data filter's 1-s window could not take")
     if offset is not None:
         result.notes.append(f"torque report's offset {offset.offset_nm:+.0f} ± {offset.sigma_nm:.0f} Nm (what it reads above "
                             f"minus the engine's friction, J1939 SPN 514, on {offset.samples} samples braking in gear in "
@@ -281,13 +280,26 @@ readings near its applications (with the truth's mass, the windows' g sin(alpha)
 +0.22 m/s² high one or two samples from a brake reading, +0.05 to +0.08 three, +0.03 four or five)."""
 
 
-def _with_force_gaps(frame, vehicle, mass, virtual, accel, moving_mps):
+@dataclass
+class ForceGaps:
+    """The force balance with its windows of known force (`_with_force_gaps`), per sample."""
+    virtual_mps2: np.ndarray
+    """a + g sin(alpha): the data filter's, or where it left none, a window's."""
+    accel_mps2: np.ndarray
+    """The acceleration each value of ``virtual_mps2`` pairs with."""
+    variance_m2ps4: np.ndarray
+    """The added samples' variance, 0 elsewhere."""
+    excess_mps2: np.ndarray
+    """a_x - dv/dt for the smoother (`sources.imu_excess_mps2` of the filter's samples)."""
+    added: np.ndarray
+    """Where a window stands in for the data filter."""
+    sine_mps2: np.ndarray
+    """Every window's g sin(alpha) (NaN where none)."""
+
+
+def _with_force_gaps(frame, vehicle, mass, virtual, accel, moving_mps) -> ForceGaps:
     """The force balance with `force_gaps.windowed_force_balance` where the data filter left no
-    sample: (virtual [m/s²] as a + g sin(alpha), the acceleration it pairs with [m/s²], the added
-    samples' variance [m²/s⁴], 0 elsewhere, a_x - dv/dt for the smoother [m/s²], how many samples
-    were added, which, and their g sin(alpha) [m/s²]). Where the filter kept a sample all of them are
-    as before (a_x - dv/dt the one the smoother takes from an accelerometer,
-    `sources.imu_excess_mps2`). Windows lie above ``moving_mps``."""
+    sample; where the filter kept one, all is as before. Windows lie above ``moving_mps``."""
     from ..mass.regression import FilterSettings
     from .force_gaps import windowed_force_balance
     time_s = frame["time_s"].to_numpy(dtype=float)
@@ -295,8 +307,8 @@ def _with_force_gaps(frame, vehicle, mass, virtual, accel, moving_mps):
     sine, window_accel, variance = windowed_force_balance(
         frame, vehicle, mass, moving_mps, FilterSettings.min_engine_torque_nm, FORCE_GAPS_MARGIN_S)
     added = ~np.isfinite(kept) & np.isfinite(sine) & np.isfinite(variance)
-    return (np.where(added, sine + window_accel, virtual), np.where(added, window_accel, accel),
-            np.where(added, variance, 0.0), np.where(added, sine, kept), int(added.sum()), added, sine)
+    return ForceGaps(np.where(added, sine + window_accel, virtual), np.where(added, window_accel, accel),
+                     np.where(added, variance, 0.0), np.where(added, sine, kept), added, sine)
 
 
 SCALE_STATE = True
