@@ -44,6 +44,12 @@ def standing(time_s: np.ndarray, speed_mps: np.ndarray, stop_speed_mps: float,
     return stopped
 
 
+def sample_step_s(time_s, default_s: float = 0.1) -> float:
+    """The table's sample period [s]: the median of its positive time steps (``default_s`` with none)."""
+    steps = np.diff(np.asarray(time_s, dtype=float))
+    return float(np.median(steps[steps > 0])) if np.any(steps > 0) else default_s
+
+
 def acceleration_mps2(time_s: np.ndarray, speed_mps: np.ndarray, window_s: float = 1.0) -> np.ndarray:
     """Longitudinal acceleration [m/s²] from speed: centred moving average, then central difference."""
     time = np.asarray(time_s, dtype=float)

@@ -10,3 +10,12 @@ def true_runs(flags) -> list[tuple[int, int]]:
     """(start, end) index pairs of the runs of True in ``flags``, end exclusive, in order."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(flags).astype(np.int8), [0]])))
     return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
+def widened(flags, samples: int) -> np.ndarray:
+    """``flags`` with every True spread ``samples`` either side (a margin around brake applications
+    or shifts that a centred window would otherwise reach into)."""
+    flags = np.asarray(flags, dtype=bool)
+    if samples <= 0:
+        return flags
+    return np.convolve(flags.astype(float), np.ones(2 * samples + 1), "same") > 0

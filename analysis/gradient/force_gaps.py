@@ -28,8 +28,9 @@ import numpy as np
 import pandas as pd
 
 from ..engine_torque import driveline_torque_nm, knows_engine_drag
+from ..kinematics import sample_step_s
 from ..road_load import G_MPS2, aero_force_n, wheel_force_from_torque_n, wheel_torque_from_engine_nm
-from ..runs import true_runs
+from ..runs import true_runs, widened
 from .engine_drag import in_gear
 
 WINDOW_S = 1.0
@@ -106,12 +107,7 @@ def unreported_shift(frame: pd.DataFrame) -> np.ndarray:
 
 def near(mask: np.ndarray, frame: pd.DataFrame, margin_s: float) -> np.ndarray:
     """Samples within ``margin_s`` of a sample of ``mask``."""
-    from scipy.ndimage import binary_dilation
-    time_s = frame["time_s"].to_numpy(dtype=float)
-    steps = np.diff(time_s)
-    dt = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 0.1
-    reach = int(round(margin_s / dt))
-    return binary_dilation(mask, np.ones(2 * reach + 1, bool)) if reach > 0 and mask.any() else mask
+    return widened(mask, int(round(margin_s / sample_step_s(frame["time_s"]))))
 
 
 def windowed_force_balance(frame: pd.DataFrame, vehicle, mass_kg, moving_mps: float, min_engine_torque_nm: float,
@@ -131,8 +127,7 @@ def windowed_force_balance(frame: pd.DataFrame, vehicle, mass_kg, moving_mps: fl
     noise = wheel_speed_noise_mps(speed, moving_mps)
     if not known.any() or not np.isfinite(noise):
         return excess, accel, variance
-    steps = np.diff(time_s)
-    dt = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 0.1
+    dt = sample_step_s(time_s)
     width = max(MIN_SAMPLES, int(round(WINDOW_S / dt)) + 1)
     with np.errstate(invalid="ignore", divide="ignore"):
         net = (force - aero_force_n(speed, vehicle.drag_coefficient, vehicle.frontal_area_m2)) / mass

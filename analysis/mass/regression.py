@@ -12,6 +12,8 @@ import pandas as pd
 from .. import road_load
 from ..engine_torque import driveline_torque_nm
 from ..errors import UserError
+from ..kinematics import sample_step_s
+from ..runs import widened
 
 
 @dataclass(frozen=True)
@@ -80,12 +82,6 @@ def _centred_mean(values: np.ndarray, window: int) -> np.ndarray:
     return pd.Series(values).rolling(window, center=True, min_periods=1).mean().to_numpy()
 
 
-def _widen(mask: np.ndarray, samples: int) -> np.ndarray:
-    if samples <= 0:
-        return mask
-    return np.convolve(mask.astype(float), np.ones(2 * samples + 1), "same") > 0
-
-
 def _column(frame, name):
     return frame[name].to_numpy(dtype=float) if name in frame.columns else None
 
@@ -103,8 +99,7 @@ def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = Fi
     speed, accel = _column(frame, "speed_mps"), _column(frame, "accel_mps2")
     gradient = _column(frame, "gradient_pct")
     engine_rpm, engine_torque = _column(frame, "engine_speed_rpm"), driveline_torque_nm(frame)
-    steps = np.diff(time_s)
-    dt = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 0.1
+    dt = sample_step_s(time_s)
     window = max(1, int(round(settings.smoothing_window_s / dt)))
     margin = max(0, int(round(settings.shift_margin_s / dt)))
 
@@ -161,8 +156,8 @@ def build_regression(frame: pd.DataFrame, vehicle, settings: FilterSettings = Fi
         f"acceleration <= {settings.min_accel_mps2} m/s²": ~(accel > settings.min_accel_mps2),
         f"engine torque <= {settings.min_engine_torque_nm} Nm": ~(_centred_mean(engine_torque, window)
                                                                    > settings.min_engine_torque_nm),
-        "gear shift or open clutch": _widen(shifting, margin + window // 2),
-        "braking": _widen(braking, margin + window // 2),
+        "gear shift or open clutch": widened(shifting, margin + window // 2),
+        "braking": widened(braking, margin + window // 2),
     }
     if np.isfinite(settings.min_regressor_mps2):
         rules[f"regressor phi <= {settings.min_regressor_mps2} m/s²"] = ~(phi > settings.min_regressor_mps2)
