@@ -12,6 +12,14 @@ def true_runs(flags) -> list[tuple[int, int]]:
     return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
 
 
+def equal_runs(flags) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end (exclusive) index arrays of the runs of equal values in a boolean array, True
+    and False runs alike, in order."""
+    flags = np.asarray(flags)
+    edges = np.flatnonzero(np.diff(flags.astype(np.int8))) + 1
+    return np.concatenate([[0], edges]), np.concatenate([edges, [len(flags)]])
+
+
 def widened(flags, samples: int) -> np.ndarray:
     """``flags`` with every True spread ``samples`` either side (a margin around brake applications
     or shifts that a centred window would otherwise reach into)."""

@@ -147,7 +147,7 @@ def test_bad_input_is_a_one_line_user_error():
 
 
 def test_mass_missing_around_stops_is_filled_but_a_trip_without_mass_stays_a_gap():
-    from haulprofile.analysis.markov.counting import mass_at_stops
+    from haulprofile.analysis.stop_mass import mass_at_stops
     nan = np.nan
     speed = np.array([0.0, 0.0, 0.3, 5.0, 5.0, 0.3, 0.0, 0.0, 0.4, 6.0, 0.2, 0.0, 0.0, 0.5, 7.0])
     mass = np.array([nan, nan, nan, 9e3, 9e3, nan, nan, nan, nan, nan, nan, nan, nan, 8e3, nan])

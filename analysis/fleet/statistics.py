@@ -20,8 +20,9 @@ from ..loads.bins import WIDTHS
 from ..loads.collectives import (EQUIVALENT_FREQUENCY_HZ, QUANTITIES, WOEHLER_EXPONENTS, level_crossings,
                                  rainflow_cycles, sample_durations_s)
 from ..markov import ClassWidths, TransitionCounts, count_transitions
-from ..markov.counting import CountingError, with_mass_at_stops
+from ..markov.counting import CountingError
 from ..jsonable import jsonable
+from ..stop_mass import with_mass_at_stops
 from ..vehicle import Vehicle
 from .histograms import SparseHistogram
 from .road_load import SegmentMoments

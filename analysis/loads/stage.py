@@ -12,9 +12,9 @@ import pandas as pd
 
 from ..errors import UserError
 from ..kinematics import acceleration_mps2
-from ..markov.counting import with_mass_at_stops
 from ..signals import CYCLE_SUFFIXES, missing_for, read_signals
 from ..stage import Stage
+from ..stop_mass import with_mass_at_stops
 from . import NEEDED, collectives_of
 from .bins import apply_overrides, default_edges
 from .chapter import TITLE, loads_chapter

@@ -22,8 +22,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .. import kinematics
 from ..errors import UserError
+from ..runs import equal_runs
+from ..stop_mass import mass_at_stops
 from . import classes as cls
 
 QUANTITIES = ("speed_mps", "gradient_pct", "accel_mps2", "mass_kg")
@@ -33,38 +34,6 @@ GAP_S = 2.0
 
 class CountingError(UserError):
     pass
-
-
-def mass_at_stops(time_s: np.ndarray, speed_mps: np.ndarray, mass_kg: np.ndarray,
-                  standing_mps: float = 0.1) -> np.ndarray:
-    """Mass with the gaps a per-segment mass estimator leaves around stops filled: a driving run
-    (between two stops) with some mass takes its median where it has none (slow samples at
-    departure and arrival), and a stop takes the mass of the run before it (the truck arrived with
-    it), or of the run after it when the one before has none. A driving run without any mass
-    stays a gap. A logger's short dropout inside a stop is part of the stop (`kinematics.standing`)."""
-    mass = np.array(mass_kg, dtype=float)
-    standing = kinematics.standing(time_s, speed_mps, standing_mps)
-    starts, ends = _runs(standing)
-    for a, b in zip(starts, ends):
-        run = mass[a:b]
-        if not standing[a] and np.isnan(run).any() and not np.isnan(run).all():
-            run[np.isnan(run)] = np.nanmedian(run)
-    for a, b in zip(starts, ends):
-        run = mass[a:b]
-        if standing[a] and np.isnan(run).any():
-            known = mass[a - 1] if a > 0 else np.nan
-            run[np.isnan(run)] = mass[b] if np.isnan(known) and b < len(mass) else known
-    return mass
-
-
-def with_mass_at_stops(frame: pd.DataFrame) -> pd.DataFrame:
-    """``frame`` with the mass missing at its stops filled (`mass_at_stops`): the drive as the chain
-    counts it, so loads compared with a generated cycle, which stands at its stops, count the
-    measured stops too (docs/cycles.md, "Stops in the load target")."""
-    if "mass_kg" not in frame.columns or not len(frame):
-        return frame
-    return frame.assign(mass_kg=mass_at_stops(frame["time_s"].to_numpy(float), frame["speed_mps"].to_numpy(float),
-                                              frame["mass_kg"].to_numpy(float)))
 
 
 def resample_1hz(signals: pd.DataFrame, gap_s: float = GAP_S) -> pd.DataFrame:
@@ -105,12 +74,6 @@ def resample_1hz(signals: pd.DataFrame, gap_s: float = GAP_S) -> pd.DataFrame:
     return pd.DataFrame(dict(zip(("time_s", "speed_mps", "gradient_pct", "mass_kg", "segment"), joined)))
 
 
-def _runs(flags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Start and end (exclusive) of the runs of equal values in a boolean array."""
-    edges = np.flatnonzero(np.diff(flags.astype(np.int8))) + 1
-    return np.concatenate([[0], edges]), np.concatenate([edges, [len(flags)]])
-
-
 def enforce_physics(speed_class, gradient_class, mass_class):
     """Classes of one segment with no gradient change at standstill and mass changes only at
     standstill (module docstring); returns new (gradient_class, mass_class) arrays."""
@@ -119,7 +82,7 @@ def enforce_physics(speed_class, gradient_class, mass_class):
     moving = np.asarray(speed_class) > 0
     if moving.size == 0:
         return gradient_class, mass_class
-    starts, ends = _runs(moving)
+    starts, ends = equal_runs(moving)
     run_mass = {}
     for i, (a, b) in enumerate(zip(starts, ends)):
         if moving[a]:
@@ -239,7 +202,7 @@ def _merge(from_key, to_key, count):
 def _stops(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """First and last sample index of each standstill run of a segment."""
     standstill = cls.decode(keys)[0] == 0
-    starts, ends = _runs(standstill)
+    starts, ends = equal_runs(standstill)
     stop = standstill[starts]
     return starts[stop], ends[stop] - 1
 

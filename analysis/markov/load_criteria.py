@@ -28,9 +28,9 @@ import pandas as pd
 from .. import road_load
 from ..loads import loads_of, median_step_s, resample_mean
 from ..loads.summary import compute, shared_edges
+from ..stop_mass import with_mass_at_stops
 from ..vehicle import Vehicle
 from .chain import Chain
-from .counting import with_mass_at_stops
 
 EXPONENTS = tuple(range(3, 9))
 POWER_SHARES = (0.05, 0.5, 0.95)
@@ -77,7 +77,7 @@ def measured_loads(signals: pd.DataFrame, vehicle: Vehicle) -> pd.DataFrame:
     their speed, as `loads.collectives_of` compares a drive with a 1 Hz cycle); acceleration from the
     speed where the signals have none.
 
-    The mass missing at stops is filled as the chain's counting fills it (`counting.with_mass_at_stops`):
+    The mass missing at stops is filled as the chain's counting fills it (`stop_mass.with_mass_at_stops`):
     a mass estimator has no estimate at standstill, and without one a stop's seconds would be left
     out of the measured loads while the chain, and so every walk, stands there."""
     frame = with_mass_at_stops(signals)
