@@ -399,10 +399,13 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     c_d A w: the head wind's linear term of the drag, ½ rho c_d A (v + h)² ≈ ½ rho c_d A v² +
     rho c_d A v h with h = -w·u. A wind that is not modelled reads as mass wherever the route
     turns against it (measured: +11 % on one segment of the accuracy matrix). A sample whose row is
-    NaN (no heading: a GPS outage, a track too short) stays in the fit with its wind columns 0: its
-    head wind is one unknown per segment, the fitted wind's component along a heading the log does
+    NaN (no heading: a GPS outage, a track too short) is left out where its segment has
+    ``min_samples`` with a heading: it holds a drag the fit does not model, and in an outage the
+    gradient has no GPS height either. A segment with fewer is fitted with them, their wind columns
+    0: its head wind there is one unknown, the fitted wind's component along a heading the log does
     not give, and its drag's share of the masses is in their covariance
-    (`_headless_wind_covariance`) rather than the segment left to the LS.
+    (`_headless_wind_covariance`), rather than the segment left to the LS of (9), which models no
+    wind, no offset and no road load of the drive at all.
 
     ``offset_regressor`` (n,): the wheel force per unit of engine torque offset, as a fraction of
     the reference torque [N] (`offset_regressor`); given, a constant offset of the torque report
@@ -443,6 +446,8 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
         ok &= np.isfinite(aux_regressor)
     if instrument is not None:
         ok &= np.isfinite(instrument)
+    headed = np.bincount(seg_of[ok & ~headless], minlength=n_seg) >= settings.min_samples
+    ok &= ~(headless & headed[np.clip(seg_of, 0, None)])
     counts = np.bincount(seg_of[ok], minlength=n_seg)
     enough = counts >= settings.min_samples
     ok &= enough[np.clip(seg_of, 0, None)]
