@@ -415,3 +415,32 @@ def test_a_weighing_corrects_only_the_imu_bias_error_its_segments_share(imperfec
     alone = {name: [s["mass_uncertainty_kg"] for s in estimate_mass(frame, vehicle).segments]
              for name, frame in (("own", own), ("shared", shared))}
     np.testing.assert_allclose(alone["own"], alone["shared"], rtol=1e-9)
+
+
+def test_a_segment_driven_in_a_gps_outage_is_fitted_with_its_head_wind_in_sigma():
+    """A 6 m/s wind; the third segment is driven without a GPS fix (no heading, so no wind columns
+    there), in each of 8 directions in turn. Its samples stay in the joint fit (before: none, the
+    segment had no joint mass), its unknown head wind's drag in the masses' σ: every mass's truth
+    inside ±2σ, the outage segment's error no larger than its σ in RMS over the directions."""
+    from haulprofile.analysis.mass.joint import wind_regressors
+    force, excess, cos_angle, aero, time_s, bounds, usable = _drive(aux_fraction=0.0)
+    speed = np.sqrt(aero / 0.6)
+    wind = np.array([0.0, -6.0])
+    outage = slice(*bounds[2])
+    errors, sigmas = [], []
+    for direction in np.radians(np.arange(0, 360, 45)):
+        heading = np.repeat([np.pi / 2, 0.1, direction], bounds[0][1]) + 0.3 * np.sin(time_s / 40)
+        east, north = np.cumsum(speed * np.cos(heading) * 0.1), np.cumsum(speed * np.sin(heading) * 0.1)
+        head = -(wind[0] * np.cos(heading) + wind[1] * np.sin(heading))
+        columns = wind_regressors(speed, east, north, time_s)
+        columns[outage] = np.nan
+        fit = fit_joint(force + CDA * 0.6 * ((speed + head) ** 2 - speed ** 2), excess, cos_angle, aero, time_s,
+                        bounds, usable, VEHICLE, wind_regressors=columns)
+        assert np.all(np.isfinite(fit.masses_kg))
+        assert fit.headless_samples[2] == np.count_nonzero(usable[outage]) and fit.headless_samples[0] < 100
+        errors.append(fit.masses_kg - MASSES)
+        sigmas.append(np.hypot(fit.mass_std_kg, fit.sensitivity_kg))
+        assert fit.sensitivity_kg[2] > 0
+    errors, sigmas = np.array(errors), np.array(sigmas)
+    assert np.all(np.abs(errors) <= 2 * sigmas)
+    assert np.sqrt(np.mean(errors[:, 2] ** 2)) <= np.sqrt(np.mean(sigmas[:, 2] ** 2))

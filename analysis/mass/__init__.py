@@ -331,6 +331,10 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         notes.append(f"an auxiliary power (compressor, fan, alternator) fitted per segment, >= 0 with a "
                      f"{settings.aux_power_sigma_w / 1000:g} kW prior; where the drive cannot tell it from the mass "
                      f"(aux_power_identified false) {held} is in the mass's uncertainty")
+    if chosen.headless_samples is not None and chosen.headless_samples.any():
+        fitted = ", ".join(f"{j} ({n})" for j, n in enumerate(chosen.headless_samples) if n)
+        notes.append(f"segment(s) {fitted} fitted with samples without a GPS heading (an outage; too few with "
+                     f"one): the head wind there is unknown, its drag is in the mass's uncertainty")
     if chosen.outliers:
         notes.append(f"{chosen.outliers} samples got weight 0 in the joint fit: their force balance is broken "
                      f"(auxiliary loads, unflagged braking)")

@@ -120,6 +120,9 @@ class JointFit:
     slope_share: np.ndarray | None = None
     """Per segment, the robust weights' mean slope over their mean (`_biweight_slope_share`), which
     the covariance's normal matrix carries (NaN: not fitted)."""
+    headless_samples: np.ndarray | None = None
+    """Per segment, the used samples without a GPS heading, fitted with their head wind in the
+    covariance (`_headless_wind_covariance`); None: not fitted."""
     mass_covariance_kg2: np.ndarray | None = None
     """The masses' statistical covariance [kg²] (segments x segments; its diagonal is
     ``mass_std_kg``²): the shared parameters' share (c_r, c_d·A, wind, torque offset, gusts) moves
@@ -311,6 +314,30 @@ def _gust_model(theta, cov, n_seg, n_wind, settings):
     return gust_covariance(cda, mean_square, settings.gust_intensity, settings.gust_length_m)
 
 
+def _headless_wind_covariance(theta, cov, n_seg, seg, headless, speed_mps, score_rows, normal, seen):
+    """What the head wind leaves in the parameters' covariance [n_p x n_p] from the samples without
+    a heading (their wind columns 0): per segment one unknown head wind h_j over its headless
+    samples, the fitted mean wind's component along a direction the log does not give, with
+    E h_j² = (|w|² + tr Σ_w) / 2, the mean of (w·u)² over the directions u and the wind's own
+    variance Σ_w from ``cov`` (an unidentified wind keeps its prior's). It is one value over the
+    segment's headless samples (as the gradient's bias: conservative where the road turns in the
+    outage) and independent between segments. It adds ρ c_d A v_k h_j to their force, which moves
+    the fitted parameters by N⁻¹ (Σ_k w_k z_k ρ c_d A v_k) h_j (a "consider" parameter, as a held
+    auxiliary power: ``score_rows`` the samples' w_k z_k, ``normal`` the fit's with its priors,
+    ``seen`` the parameters it solved for)."""
+    cda = theta[n_seg + 1]
+    wind = theta[n_seg + 2:n_seg + 4] / cda
+    mean_square = 0.5 * float(np.sum(wind ** 2) + np.sum(np.nan_to_num(np.diag(cov)[n_seg + 2:n_seg + 4])) / cda ** 2)
+    force_per_mps = np.where(headless, AIR_DENSITY_KGPM3 * cda * speed_mps, 0.0)
+    source = np.zeros((len(theta), n_seg))
+    for a in np.flatnonzero(seen):
+        source[a] = np.bincount(seg, weights=score_rows[:, a] * force_per_mps, minlength=n_seg)
+    response = np.linalg.lstsq(normal[np.ix_(seen, seen)], source[seen], rcond=None)[0]
+    out = np.zeros((len(theta), len(theta)))
+    out[np.ix_(seen, seen)] = mean_square * response @ response.T
+    return out
+
+
 def _solve_positive_aux(data, theta0, free, aux_index, settings, prior, instrument, floor, held=None):
     """`_solve` with every auxiliary power P_j >= 0 (active set: a P_j the unconstrained fit puts
     below 0 is held at 0 and the rest fitted again; ``held`` ones from the start). Returns what
@@ -371,7 +398,14 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     travel (`wind_regressors`); given, the drive's wind (east, north) [m/s] is fitted with them,
     c_d A w: the head wind's linear term of the drag, ½ rho c_d A (v + h)² ≈ ½ rho c_d A v² +
     rho c_d A v h with h = -w·u. A wind that is not modelled reads as mass wherever the route
-    turns against it (measured: +11 % on one segment of the accuracy matrix).
+    turns against it (measured: +11 % on one segment of the accuracy matrix). A sample whose row is
+    NaN (no heading: a GPS outage, a track too short) is left out where its segment has
+    ``min_samples`` with a heading: it holds a drag the fit does not model, and in an outage the
+    gradient has no GPS height either. A segment with fewer is fitted with them, their wind columns
+    0: its head wind there is one unknown, the fitted wind's component along a heading the log does
+    not give, and its drag's share of the masses is in their covariance
+    (`_headless_wind_covariance`), rather than the segment left to the LS of (9), which models no
+    wind, no offset and no road load of the drive at all.
 
     ``offset_regressor`` (n,): the wheel force per unit of engine torque offset, as a fraction of
     the reference torque [N] (`offset_regressor`); given, a constant offset of the torque report
@@ -395,7 +429,12 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     for j, (start, end) in enumerate(bounds):
         seg_of[start:end] = j
     n_wind = 0 if wind_regressors is None else 2
-    columns = [] if wind_regressors is None else [np.asarray(wind_regressors, dtype=float)]
+    headless = np.zeros(len(force), bool)
+    columns = []
+    if wind_regressors is not None:
+        wind_columns = np.asarray(wind_regressors, dtype=float)
+        headless = ~np.isfinite(wind_columns).all(axis=1)
+        columns.append(np.where(headless[:, None], 0.0, wind_columns))
     if offset_regressor is not None:
         columns.append(np.asarray(offset_regressor, dtype=float)[:, None])
     extra_all = np.column_stack(columns) if columns else np.zeros((len(force), 0))
@@ -407,6 +446,8 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
         ok &= np.isfinite(aux_regressor)
     if instrument is not None:
         ok &= np.isfinite(instrument)
+    headed = np.bincount(seg_of[ok & ~headless], minlength=n_seg) >= settings.min_samples
+    ok &= ~(headless & headed[np.clip(seg_of, 0, None)])
     counts = np.bincount(seg_of[ok], minlength=n_seg)
     enough = counts >= settings.min_samples
     ok &= enough[np.clip(seg_of, 0, None)]
@@ -512,6 +553,13 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
         cov = statistical.copy()
         cov[np.ix_(seen, seen)] += (response * width ** 2) @ response.T
         cov[held, held] = width ** 2
+    if n_wind and headless[ok].any():
+        seen = free & ~unidentified
+        plain, _ = _normal_equations(x, x if z is None else z, c, q, ex, aux, seg, theta, m, weights, residual)
+        cov = cov + _headless_wind_covariance(theta, cov, m, seg, headless[ok], speed,
+                                              _score_rows(m, seg, weights, row, theta, c, q, ex, aux),
+                                              plain + np.diag(precision), seen)
+    result.headless_samples = np.bincount(seg_of[ok & headless], minlength=n_seg)
     scale = np.sqrt(np.abs(np.diag(normal)))
     informative = scale > 0  # a segment without a single usable sample has an empty row
     condition = float(np.linalg.cond(normal[np.ix_(informative, informative)]

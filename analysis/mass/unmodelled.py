@@ -1,7 +1,8 @@
 """What the LS of (9) leaves out of a segment's mass that the joint fit models, as 1-sigma [kg].
 
-Where the joint fit has too few samples for a segment (a GPS outage takes its wind columns, so
-its samples), the LS stands in (`mass._joint`). It takes the vehicle file's c_r and c_d·A, no
+Where the joint fit has too few samples for a segment (too few pass its filter at all: a GPS
+outage no longer takes them, `joint.fit_joint` fits them with their head wind in σ), the LS stands
+in (`mass._joint`). It takes the vehicle file's c_r and c_d·A, no
 wind, no torque offset and no auxiliary power, so its statistical error (jackknife, gradient
 bias) is not all its error: each of those is one unknown of the drive, fully correlated over the
 segment, and moves the LS mass by dm = Σ φ ΔF / Σ φ² (φ the LS regressor, ΔF the force it leaves
