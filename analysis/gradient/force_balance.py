@@ -151,6 +151,8 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
     if "accel_x_mps2" in frame.columns and frame["accel_x_mps2"].notna().any():
         raise UserError("gradient: the log has an accelerometer (accel_x_mps2); the force balance is for logs without")
     first_grid_std = None
+    # both passes: the first pass's gradient gives the masses
+    settings = replace(settings, smoother=replace(settings.smoother, gps_multipath_share=True))
     try:
         first_pass = estimate_gradient(frame, dem, settings)
         samples = first_pass.samples

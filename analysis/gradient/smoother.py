@@ -16,7 +16,7 @@ from scipy.ndimage import median_filter, uniform_filter1d
 from scipy.stats import chi2
 
 from ..road_load import G_MPS2
-from . import kalman
+from . import gps_altitude, kalman
 
 CHI2_MEDIAN_1DOF = 0.454936
 KNOWN_BIAS_MPS2 = 0.05
@@ -77,6 +77,10 @@ class SmootherSettings:
     gps_sigma_factor: float = 3.0
     """GPS altitude sigma = factor * v_acc: its errors are correlated over tens of seconds, so it is
     taken weakly."""
+    gps_multipath_share: bool = False
+    """Scale the receiver's stated variance above its open-sky level (multipath in a street
+    canyon) by how much of it GPS altitude's own residual shows (`gps_altitude.multipath_share`,
+    `GradientSmoother.estimate`); set where the force balance stands in for the accelerometer."""
     terrain_cross_slope: float = 0.1
     """DEM height error per metre of horizontal GPS error [-] (terrain slope next to the road)."""
     dem_white_fraction: float = 0.2
@@ -291,6 +295,11 @@ class GradientSmoother:
         self.offset_psd = settings.offset_psd or 0.0
         self.bias_psd = settings.bias_psd
         self.imu_noise_factor = 1.0
+        self.gps_multipath_share: float | None = None
+        """The share of the receiver's excess variance taken (`estimate`; None: the stated accuracy)."""
+        self.open_sky_m: float | None = None
+        self.final_height: tuple[np.ndarray, np.ndarray] | None = None
+        """The last run's smoothed height and its variance per grid point."""
         self.offset_steps = np.zeros(n, bool)
         self.bias_drift_sigma_mps2 = 0.0
         self.imu_scale_var = (np.nan_to_num(measurements.imu_scale_var) if measurements.imu_scale_var is not None
@@ -366,6 +375,28 @@ class GradientSmoother:
         return step
 
     def estimate(self) -> SmootherResult:
+        """The smoothed profile; with `SmootherSettings.gps_multipath_share` estimated again from the
+        start with GPS altitude's variance above the receiver's open-sky level scaled by the share
+        of it the first estimate's residual shows (`gps_altitude.multipath_share`: one
+        expectation-maximisation step from the stated accuracy), so that the noise levels, the
+        curvature and the map's model are chosen with it."""
+        result = self._estimate()
+        m = self.m
+        if not (self.s.gps_multipath_share and np.isfinite(m.z[:, kalman.GPS]).any()):
+            return result
+        open_sky = gps_altitude.open_sky_accuracy_m(m.v_acc_m, m.spacing_m)
+        height, height_var = self.final_height
+        share = gps_altitude.multipath_share(m.z[:, kalman.GPS] - height, height_var, m.v_acc_m, open_sky)
+        if share is None:
+            return result
+        again = GradientSmoother(m, self.s)
+        again.open_sky_m, again.gps_multipath_share = open_sky, share
+        result = again._estimate()
+        result.notes.append(f"GPS altitude: of the receiver's stated variance above its open-sky {open_sky:.1f} m "
+                            f"(multipath in towns) its residual shows {share:.2f}; taken so")
+        return result
+
+    def _estimate(self) -> SmootherResult:
         m, s = self.m, self.s
         z, count = m.z, m.count
         have = np.isfinite(z).any(axis=0)
@@ -376,7 +407,9 @@ class GradientSmoother:
         if have[kalman.IMU]:
             r[:, kalman.IMU] = 0.5 ** 2 * imu_scale
         if have[kalman.GPS]:
-            r[:, kalman.GPS] = (s.gps_sigma_factor * np.fmax(m.v_acc_m, 1.0)) ** 2
+            r[:, kalman.GPS] = gps_altitude.altitude_variance_m2(
+                m.v_acc_m, s.gps_sigma_factor, self.open_sky_m,
+                1.0 if self.gps_multipath_share is None else self.gps_multipath_share)
         # the road's curvature PSD first (needs no IMU noise level), then pass 1 without the map:
         # the reference the map is checked against, and the IMU's noise from its residual
         reference = None
@@ -424,6 +457,7 @@ class GradientSmoother:
             h_acc = np.nan_to_num(m.h_acc_m, nan=10.0)
             r[:, kalman.DEM] = np.where(self.gated, np.nan, white ** 2 + (s.terrain_cross_slope * h_acc) ** 2)
         x, p, nu, var = self.run(r)
+        self.final_height = (x[:, kalman.H], p[:, kalman.H, kalman.H])
         shared = self._bias_shared_std(r, p) if have[kalman.IMU] and not self.scaled else None
         if self.rate_possible:
             x, p = self._averaged_over_the_rate(r, x, p, innovation_log_likelihood(nu, var))
