@@ -193,7 +193,9 @@ def refine_walk(path, row_ptr, dest, count, cum_count, start_state, start_cum, e
     n = path.shape[0]
     rng = np.empty(1, np.uint64)
     rng[0] = mix(np.uint64(seed) ^ mix(np.uint64(stream) + GOLDEN + GOLDEN))
-    mark = np.full(speed.shape[0], -1, np.int64)
+    mark = np.empty(speed.shape[0], np.int64)
+    for state in range(mark.shape[0]):  # not np.full: numba compiles its helper on a first run's way
+        mark[state] = -1
     proposal = np.empty(n + 2 * max_window + 2, np.int64)
     stats = np.empty((4, 4))
     kin = np.empty(q_index.shape[0])
