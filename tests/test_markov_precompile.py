@@ -37,11 +37,6 @@ chain = build_chain(counts)
 ending = walk_ending(chain, 600.0)
 needed = precompile.needed()
 child = precompile.start(chain, counts, ending, 600.0, False, fork=sys.argv[1] == "fork", n_pool=POOL, seed=5)
-if child is not None:  # as the selection does while the child compiles
-    from haulprofile.analysis.markov.converge import _load_arrays
-    from haulprofile.analysis.markov.load_criteria import LOAD_ALLOWANCE
-    from haulprofile.analysis.markov.refine import compile_load_objective
-    compile_load_objective(*_load_arrays(chain, None)[-2:], LOAD_ALLOWANCE)
 refine(chain, counts, np.full(2, chain.start_state[0]), None, 0, 0, 0, ending=ending)
 if child is not None:
     child.until(None)  # a fork not stopped draws the whole pool
@@ -73,7 +68,6 @@ def test_the_second_process_leaves_the_objective_the_moves_and_batch_in_the_cach
     assert first["needed"] and first["started"] and first["exit"] == 0
     assert first["lines"] == [precompile.OBJECTIVE_CACHED, precompile.MOVES_CACHED]
     assert "refine_walk" in first["compiled"] and not AHEAD & set(first["compiled"])
-    assert first["compiled"].count("load_objective") == 1  # compiled ahead for refine_walk's types
     assert not first["after_child"] and "batch" not in first["compiled"]
     if mode == "fork":  # not stopped, it draws every candidate, each as this process draws it
         assert first["drawn"] == 601 and first["drawn_as_here"]

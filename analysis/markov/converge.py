@@ -27,7 +27,7 @@ from .criteria import ALLOWANCE, IS_MASS, deviations, evaluate, scores
 from .ending import Ending
 from .generate import cycle_frame, run_batch, walk_ending
 from .load_criteria import LOAD_ALLOWANCE, N_LOADS, LoadTarget, evaluate_loads
-from .refine import compile_load_objective, kinematic_arrays, refine_walk
+from .refine import kinematic_arrays, refine_walk
 from .score_kernels import KINEMATIC_PENALTY
 from .select import BATCH, Selection
 
@@ -161,8 +161,6 @@ def select_refined(counts: TransitionCounts, duration_s: float = 1800.0, seed: i
     compiling = precompile.start(chain, counts, ending, duration_s, update_counts, n_pool=n_pool, seed=seed)
     try:
         if compiling is not None:  # the refinement's kernel here while the pool's compiles beside
-            *_, load_measured, load_scale = _load_arrays(chain, target)
-            compile_load_objective(load_measured, load_scale, LOAD_ALLOWANCE)
             refine(chain, counts, np.full(2, chain.start_state[0]), target, 0, seed, 0, ending=ending)
     finally:
         drawn = precompile.wait(compiling)

@@ -141,15 +141,6 @@ def compile_objective(chain: Chain, counts: TransitionCounts) -> None:
     kinematic_objective.compile((vector, kin_allowance))
 
 
-def compile_load_objective(load_measured, load_scale, load_allowance) -> None:
-    """Compile `load_objective` for the argument types `refine_walk` gives it, without compiling
-    `refine_walk`: a first run's selection does so while the second process compiles
-    `OBJECTIVE_KERNELS`, which `refine_walk`'s compile reaches (and waits for) before it
-    (`precompile`)."""
-    load_objective.compile((numba.typeof(np.empty(0)), *(numba.typeof(a) for a in (load_measured, load_scale,
-                                                                                     load_allowance))))
-
-
 def compile_moves(row_ptr, dest, count, cum_count, ending) -> None:
     """Compile `MOVE_KERNELS` for the argument types `refine_walk` gives them (through `_propose`),
     for a chain's arrays and ``ending`` (`ending.Ending.as_tuple`), without compiling `refine_walk`:
