@@ -5,6 +5,7 @@ import numpy as np
 from haulprofile.analysis.markov import ClassWidths, TransitionCounts, build_chain, count_transitions, generate
 from haulprofile.analysis.markov import classes as cls
 from haulprofile.analysis.markov.counting import closures, physically_possible
+from haulprofile.testing.drives import synthetic_drive
 
 WIDTHS = ClassWidths()
 
@@ -71,3 +72,72 @@ def test_one_way_drive_keeps_its_start_and_drops_its_censored_final_stop():
         candidate = generate(chain, 1800, 1, seed=0, end_at_stop=end_at_stop)
         assert candidate.frame(0)["speed_mps"].iloc[-600:-120].min() > 0
     assert chain.keys[candidate.paths[0, -1]] == final_stop, "the drive's own end: its final stop"
+
+
+def _random_graph(rng, n):
+    n_edges = int(rng.integers(0, 4 * n))
+    return rng.integers(0, n, n_edges), rng.integers(0, n, n_edges)
+
+
+def test_strong_components_are_scipys_partition():
+    """The chain's own strongly connected parts (no graph library on a first run's way) are the
+    partition scipy's finds, on random graphs with self-loops, isolated nodes and no edges."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from haulprofile.analysis.markov.chain import _strong_components
+
+    rng = np.random.default_rng(29)
+    for n in list(range(1, 8)) + [20, 60, 200] * 5:
+        src, dst = _random_graph(rng, n)
+        ours = _strong_components(n, src, dst)
+        graph = coo_matrix((np.ones(len(src)), (src, dst)), shape=(n, n)).tocsr()
+        n_parts, theirs = connected_components(graph, directed=True, connection="strong")
+        assert ours.max() + 1 == n_parts
+        same = (ours[:, None] == ours[None, :]) == (theirs[:, None] == theirs[None, :])
+        assert same.all()
+
+
+def test_parking_is_a_closed_part_of_standstill_states_only():
+    """`_parking` on the standstill states' own graph marks what the definition on the whole graph
+    marks: a used part with standstill states only that no transition leaves (scipy's parts)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from haulprofile.analysis.markov.chain import _parking
+
+    rng = np.random.default_rng(4)
+    marked = 0
+    for n in [2, 5, 12, 40, 120] * 8:
+        src, dst = _random_graph(rng, n)
+        standstill = rng.random(n) < rng.choice([0.3, 0.7, 1.0])
+        graph = coo_matrix((np.ones(len(src)), (src, dst)), shape=(n, n)).tocsr()
+        n_parts, label = connected_components(graph, directed=True, connection="strong")
+        leaves = np.ones(n_parts, bool)
+        leaves[label[src[label[src] != label[dst]]]] = False
+        moving = np.zeros(n_parts, bool)
+        moving[label[~standstill]] = True
+        used = np.zeros(n_parts, bool)
+        used[label[src]] = True
+        expected = leaves[label] & ~moving[label] & used[label]
+        np.testing.assert_array_equal(_parking(src, dst, n, standstill), expected)
+        marked += expected.sum()
+    assert marked > 0
+
+
+def test_ending_weights_are_the_sparse_products_bit_for_bit():
+    """The ending's backward steps (`ending._step_back`) equal scipy's CSR product exactly."""
+    from scipy.sparse import csr_matrix
+
+    from haulprofile.analysis.markov.ending import _step_back
+
+    counts = count_transitions(synthetic_drive(1800, seed=3, kind="urban"))
+    chain = build_chain(counts)
+    rows = np.repeat(np.arange(chain.n_states), np.diff(chain.row_ptr))
+    probability = chain.count / np.add.reduceat(chain.count, chain.row_ptr[:-1]).astype(float)[rows]
+    matrix = csr_matrix((probability, chain.dest, chain.row_ptr), shape=(chain.n_states, chain.n_states))
+    h = np.random.default_rng(0).random(chain.n_states)
+    for _ in range(20):
+        ours, theirs = _step_back(probability, rows, chain.dest, h, chain.n_states), matrix @ h
+        assert ours.tobytes() == theirs.tobytes()
+        h = ours / ours.max()

@@ -18,8 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from ..errors import UserError
 from . import classes as cls
@@ -73,17 +71,75 @@ class Chain:
         return len(self.keys)
 
 
+def _strong_components(n: int, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Label of each of ``n`` nodes' strongly connected component in the graph of edges
+    ``src`` → ``dst`` (Tarjan's algorithm, without recursion)."""
+    order = np.argsort(src, kind="stable")
+    target = dst[order].tolist()
+    first = np.searchsorted(src[order], np.arange(n + 1)).tolist()
+    index, low, label = [-1] * n, [0] * n, [-1] * n
+    on_stack = [False] * n
+    stack: list[int] = []
+    visited = n_parts = 0
+    for root in range(n):
+        if index[root] >= 0:
+            continue
+        index[root] = low[root] = visited
+        visited += 1
+        stack.append(root)
+        on_stack[root] = True
+        work = [[root, first[root]]]
+        while work:
+            frame = work[-1]
+            v, i = frame
+            if i < first[v + 1]:
+                frame[1] = i + 1
+                w = target[i]
+                if index[w] < 0:
+                    index[w] = low[w] = visited
+                    visited += 1
+                    stack.append(w)
+                    on_stack[w] = True
+                    work.append([w, first[w]])
+                elif on_stack[w]:
+                    low[v] = min(low[v], index[w])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[v])
+            if low[v] == index[v]:
+                while True:
+                    w = stack.pop()
+                    on_stack[w] = False
+                    label[w] = n_parts
+                    if w == v:
+                        break
+                n_parts += 1
+    return np.array(label, dtype=np.int64)
+
+
 def _parking(src: np.ndarray, dst: np.ndarray, n: int, standstill: np.ndarray) -> np.ndarray:
-    """States in a closed set of standstill states only (a stop the data never left)."""
-    graph = coo_matrix((np.ones(len(src)), (src, dst)), shape=(n, n)).tocsr()
-    n_parts, label = connected_components(graph, directed=True, connection="strong")
-    leaves = np.ones(n_parts, bool)
-    leaves[label[src[label[src] != label[dst]]]] = False
-    moving_part = np.zeros(n_parts, bool)
-    moving_part[label[~standstill]] = True
+    """States in a closed set of standstill states only (a stop the data never left): the strongly
+    connected parts of the graph of standstill states alone that no transition leaves and some
+    transition starts in. (A part of the whole graph with standstill states only is one of these,
+    and one of these that no transition leaves is a part of the whole graph.) The standstill
+    states are few: this is cheap without a graph library."""
+    still_state = np.flatnonzero(standstill)
+    compact = np.full(n, -1, np.int64)
+    compact[still_state] = np.arange(len(still_state))
+    both = standstill[src] & standstill[dst]
+    still_label = _strong_components(len(still_state), compact[src[both]], compact[dst[both]])
+    label = np.full(n, -1, np.int64)
+    label[still_state] = still_label
+    n_parts = int(still_label.max()) + 1 if len(still_label) else 0
+    from_still = standstill[src]
+    closed = np.ones(n_parts, bool)
+    closed[label[src[from_still & (label[src] != label[dst])]]] = False
     used = np.zeros(n_parts, bool)
-    used[label[src]] = True
-    return leaves[label] & ~moving_part[label] & used[label]
+    used[label[src[from_still]]] = True
+    parking = np.zeros(n, bool)
+    parking[still_state] = (closed & used)[still_label]
+    return parking
 
 
 def _prune(src: np.ndarray, dst: np.ndarray, n: int, standstill: np.ndarray) -> np.ndarray:

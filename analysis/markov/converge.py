@@ -72,14 +72,17 @@ def kinematic_objective(deviation: np.ndarray) -> np.ndarray:
     return ratio.mean(axis=-1) + KINEMATIC_PENALTY * np.clip(ratio - 1.0, 0.0, None).sum(axis=-1)
 
 
-def _pool(chain, counts, duration_s, n_pool, seed, update_counts, ending, progress):
+def _pool(chain, counts, duration_s, n_pool, seed, update_counts, ending, progress, drawn=None):
+    """Scores, kinematic objectives and validity of the ``n_pool`` candidates of ``seed``; ``drawn``
+    the statistics of the first of them if another process drew them (`precompile.wait`)."""
     measured = counts.statistics
     all_scores, objective = np.empty(n_pool), np.empty(n_pool)
     valid, valid_without_mass = np.empty(n_pool, bool), np.empty(n_pool, bool)
-    firsts = list(range(0, n_pool, BATCH))
+    n_drawn = 0 if drawn is None else len(drawn)
+    firsts = list(range(n_drawn, n_pool, BATCH))
 
-    def score(i, stats):
-        first, size = firsts[i], len(stats)
+    def score(first, stats):
+        size = len(stats)
         deviation = deviations(stats, measured, counts.widths)
         all_scores[first:first + size] = scores(deviation)
         objective[first:first + size] = kinematic_objective(deviation)
@@ -89,8 +92,10 @@ def _pool(chain, counts, duration_s, n_pool, seed, update_counts, ending, progre
         if progress:
             progress("pool", first + size, n_pool, float(all_scores[:first + size].min()))
 
+    for first in range(0, n_drawn, BATCH):
+        score(first, drawn[first:first + BATCH])
     _side_by_side(lambda first: run_batch(chain, duration_s, min(BATCH, n_pool - first), seed, first, update_counts,
-                                          ending=ending)[0], firsts, score)
+                                          ending=ending)[0], firsts, lambda i, stats: score(firsts[i], stats))
     return all_scores, objective, valid, valid_without_mass
 
 
@@ -153,14 +158,14 @@ def select_refined(counts: TransitionCounts, duration_s: float = 1800.0, seed: i
     ending = walk_ending(chain, duration_s, end_at_stop)
     n_chains = max(n_chains or CHAINS, n_cycles)
     n_pool = max(int(n_pool), n_chains)
-    compiling = precompile.start(chain, counts, ending, duration_s, update_counts)
+    compiling = precompile.start(chain, counts, ending, duration_s, update_counts, n_pool=n_pool, seed=seed)
     try:
         if compiling is not None:  # the refinement's kernel here while the pool's compiles beside
             refine(chain, counts, np.full(2, chain.start_state[0]), target, 0, seed, 0, ending=ending)
     finally:
-        precompile.wait(compiling)
+        drawn = precompile.wait(compiling)
     all_scores, objective, valid, valid_without_mass = _pool(chain, counts, duration_s, n_pool, seed, update_counts,
-                                                             ending, progress)
+                                                             ending, progress, drawn)
     starts = _starts(chain, counts, duration_s, seed, update_counts, objective, target, n_chains, ending)
     first_moves = n_moves if not survivors else n_moves // 4
     keep = max(int(survivors), n_cycles) if survivors else 0

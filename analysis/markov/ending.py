@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csr_matrix
 
 from .chain import Chain
 
@@ -85,6 +84,13 @@ def _steps_to(target: np.ndarray, rows: np.ndarray, dest: np.ndarray) -> np.ndar
         steps[fresh] = level
 
 
+def _step_back(probability: np.ndarray, rows: np.ndarray, dest: np.ndarray, h: np.ndarray, n: int) -> np.ndarray:
+    """The transition matrix (``probability`` of each transition ``rows`` → ``dest``) times ``h``:
+    each row's products summed in their order from 0, as a CSR product sums them (bit for bit
+    what scipy's gives), without importing scipy on the cycle's way (0.17 s of a first run)."""
+    return np.bincount(rows, weights=probability * h[dest], minlength=n)
+
+
 def ending_for(chain: Chain, n_steps: int, window_s: int = WINDOW_S) -> Ending:
     """The ending of walks of ``n_steps`` states through ``chain``; a free one when the chain has
     no stop (a drive that never stood for two seconds cannot end standing)."""
@@ -98,13 +104,12 @@ def ending_for(chain: Chain, n_steps: int, window_s: int = WINDOW_S) -> Ending:
     np.maximum.at(reach_max, rows[drawn], steps[chain.dest[drawn]])
     reach_max[chain.free_end == chain.row_ptr[:-1]] = UNREACHABLE
     total = np.add.reduceat(chain.count, chain.row_ptr[:-1]).astype(float)
-    transition = csr_matrix((chain.count / total[rows], chain.dest, chain.row_ptr),
-                            shape=(chain.n_states, chain.n_states))
+    probability = chain.count / total[rows]
     window = int(max(min(window_s, n_steps - 1), 0))
     weight = np.empty((window, chain.n_states))
     if window:
         weight[0] = target
         for r in range(1, window):
-            h = transition @ weight[r - 1]
+            h = _step_back(probability, rows, chain.dest, weight[r - 1], chain.n_states)
             weight[r] = h / h.max()
     return Ending(chain.free_end, steps, reach_max, weight)

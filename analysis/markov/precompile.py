@@ -16,16 +16,23 @@ Where the system can, the second process is a fork of this one (`os.fork`): it n
 and no numba set-up of its own (about a second of CPU on a first run, docs/cycles.md), and it
 compiles for the selection's own chain. Elsewhere it is a new interpreter that compiles on the
 chain of a four-minute synthetic drive (`compile_in_child`), with the same types.
+
+A fork finishes ``batch`` before the selection finishes ``refine_walk``; until the selection
+wants its pool it then draws the pool's first candidates (`SharedPool`) instead of idling. Each
+candidate is drawn from its own seed stream, so which process drew it changes no number.
 """
 
 from __future__ import annotations
 
+import mmap
 import os
 import select
 import signal
 import subprocess
 import sys
 from collections.abc import Callable
+
+import numpy as np
 
 OBJECTIVE_CACHED = "objective"
 """The child's line once the objective's kernels are in the cache."""
@@ -51,16 +58,54 @@ another thread of the parent held when it was forked. The selection then compile
 the kernels are the same either way."""
 
 
+POOL_CHUNK = 250
+"""Candidates a fork draws between two looks at whether the selection wants the pool back (about
+7 ms here: the longest the selection waits for it)."""
+
+
+class SharedPool:
+    """Pool statistics (``n_pool``, 4, 4) in memory a fork shares with its parent: the child draws
+    candidates 0, 1, … in chunks of `POOL_CHUNK` until the parent says `stop`; ``done`` counts
+    those whose statistics are complete (written after each chunk is)."""
+
+    def __init__(self, n_pool: int):
+        self._memory = mmap.mmap(-1, 16 + max(n_pool, 1) * 16 * 8)
+        self._header = np.frombuffer(self._memory, np.int64, 2)
+        self.stats = np.frombuffer(self._memory, np.float64, n_pool * 16, 16).reshape(n_pool, 4, 4)
+
+    @property
+    def done(self) -> int:
+        return int(self._header[1])
+
+    def stop(self) -> None:
+        self._header[0] = 1
+
+    def draw(self, draw_stats: Callable[[int, int], np.ndarray]) -> None:
+        """In the child: ``draw_stats(first, n)`` for chunks in order, until stopped or full."""
+        n_pool = self.stats.shape[0]
+        while not self._header[0] and self.done < n_pool:
+            first = self.done
+            size = min(POOL_CHUNK, n_pool - first)
+            self.stats[first:first + size] = draw_stats(first, size)
+            self._header[1] = first + size
+
+    def drawn(self) -> np.ndarray:
+        """In the parent, once the child has ended: the statistics of the candidates it drew."""
+        return self.stats[:self.done].copy()
+
+
 class Child:
     """The second process, and how far it has come: the lines it wrote on the pipe ``fd``, read
     as they are needed; ``reap()`` waits for its end and returns its exit status, ``kill()`` ends
-    it."""
+    it; ``pool`` the candidates it draws (a fork only)."""
 
-    def __init__(self, fd: int, reap: Callable[[], int], kill: Callable[[], None], silence_s: float = SILENCE_S):
+    def __init__(self, fd: int, reap: Callable[[], int], kill: Callable[[], None], silence_s: float = SILENCE_S,
+                 pool: SharedPool | None = None):
         self.fd = fd
         self.reap = reap
         self.kill = kill
         self.silence_s = silence_s
+        self.pool = pool
         self.lines: list[str] = []
         self._partial = b""
         self.ended = False
@@ -142,12 +187,14 @@ def _spawn() -> Child | None:
     return Child(os.dup(process.stdout.fileno()), reap, process.kill)
 
 
-def start(chain, counts, ending, duration_s: float, update_counts: bool, fork: bool | None = None) -> Child | None:
+def start(chain, counts, ending, duration_s: float, update_counts: bool, fork: bool | None = None,
+          n_pool: int = 0, seed: int = 0) -> Child | None:
     """The compile ahead in a second process, if `needed` (at normal priority: the selection waits
     for it), for the selection's chain, counts, ending, duration [s] and ``update_counts``; the
     refinement's compile waits for each kernel the child compiles where it needs it. ``fork``:
     a fork of this process (None: where the system has ``os.fork`` and is not macOS, whose system
-    libraries are not safe to use in a fork) or a new interpreter."""
+    libraries are not safe to use in a fork) or a new interpreter. A fork then draws the first of
+    the ``n_pool`` candidates of ``seed`` until `wait`."""
     if not needed():
         return None
     from .refine import MOVE_KERNELS, OBJECTIVE_KERNELS
@@ -156,7 +203,10 @@ def start(chain, counts, ending, duration_s: float, update_counts: bool, fork: b
         fork = hasattr(os, "fork") and sys.platform != "darwin"
     if fork:
         _prepare_compiler()
-        child = _fork(lambda tell: compile_ahead(chain, counts, ending, duration_s, update_counts, tell))
+        pool = SharedPool(n_pool) if n_pool > 0 else None
+        child = _fork(lambda tell: compile_ahead(chain, counts, ending, duration_s, update_counts, tell, pool, seed))
+        if child is not None:
+            child.pool = pool
     else:
         child = _spawn()
     if child is None:
@@ -167,17 +217,23 @@ def start(chain, counts, ending, duration_s: float, update_counts: bool, fork: b
     return child
 
 
-def wait(child: Child | None) -> None:
-    """Until the second process has left its kernels in the cache (or failed)."""
-    if child is not None:
-        child.finish()
+def wait(child: Child | None) -> np.ndarray | None:
+    """Until the second process has left its kernels in the cache (or failed), after telling it to
+    stop drawing the pool; the statistics of the pool's first candidates, which it drew (None if
+    it drew none)."""
+    if child is None:
+        return None
+    if child.pool is not None:
+        child.pool.stop()
+    child.finish()
+    return child.pool.drawn() if child.pool is not None and child.pool.done else None
 
 
 def compile_ahead(chain, counts, ending, duration_s: float, update_counts: bool,
-                  tell: Callable[[str], None]) -> None:
+                  tell: Callable[[str], None], pool: SharedPool | None = None, seed: int = 0) -> None:
     """The objective's kernels, the moves' kernels and ``batch``, for the types a selection with
     these arguments gives them; ``tell`` the lines `OBJECTIVE_CACHED` and `MOVES_CACHED` after the
-    first two groups."""
+    first two groups; then the first candidates of ``seed`` into ``pool``, if given."""
     from .generate import run_batch
     from .refine import MOVE_KERNELS, OBJECTIVE_KERNELS, compile_moves, compile_objective
 
@@ -188,6 +244,8 @@ def compile_ahead(chain, counts, ending, duration_s: float, update_counts: bool,
     compile_moves(chain.row_ptr, chain.dest, chain.count, chain.cum_count, ending.as_tuple())
     tell(MOVES_CACHED)
     run_batch(chain, duration_s, 1, 0, 0, update_counts, ending=ending)
+    if pool is not None:
+        pool.draw(lambda first, size: run_batch(chain, duration_s, size, seed, first, update_counts, ending=ending)[0])
 
 
 def compile_in_child() -> None:

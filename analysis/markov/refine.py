@@ -158,8 +158,11 @@ def _propose(current, n, row_ptr, dest, count, cum_count, start_state, start_cum
              proposal):
     """A re-drawn window, tail or head of ``current[:n]`` into ``proposal[:n]``; False if the
     re-drawn part found no way back into the walk."""
+    # the kernel's own numba helpers are compiled apart from the helpers' (other options): min,
+    # max and int() are written out here, so a first run compiles theirs once (issue 29)
+    last = n - 1
     move = uniform(rng)
-    window = 2 + int(uniform(rng) * (max_window - 1))
+    window = 2 + np.int64(uniform(rng) * (max_window - 1))
     if move < HEAD_SHARE:
         u = uniform(rng) * start_cum[-1]
         j = 0
@@ -167,19 +170,21 @@ def _propose(current, n, row_ptr, dest, count, cum_count, start_state, start_cum
             j += 1
         proposal[0] = start_state[j]
         head = np.int64(0)  # not the literal 0: one compiled _rejoin, not two
-        return _rejoin(current, n, head, min(window, n - 1), head, start_state[j], row_ptr, dest, count, cum_count,
-                       ending, rng, window + window // 2, mark, proposal)
+        return _rejoin(current, n, head, window if window < last else last, head, start_state[j], row_ptr, dest,
+                       count, cum_count, ending, rng, window + window // 2, mark, proposal)
     if move < HEAD_SHARE + TAIL_SHARE:
-        a = max(n - 2 - int(uniform(rng) * min(max_window, n - 1)), 0)
+        a = n - 2 - np.int64(uniform(rng) * (max_window if max_window < last else last))
+        if a < 0:
+            a = 0
         for k in range(a + 1):
             proposal[k] = current[k]
-        _continue(current, n, a, n - 1, row_ptr, dest, count, cum_count, ending, rng, proposal)
+        _continue(current, n, a, last, row_ptr, dest, count, cum_count, ending, rng, proposal)
         return True
-    a = int(uniform(rng) * (n - 1))
+    a = np.int64(uniform(rng) * last)
     for k in range(a + 1):
         proposal[k] = current[k]
-    return _rejoin(current, n, a + 1, min(a + window, n - 1), a, current[a], row_ptr, dest, count, cum_count,
-                   ending, rng, window + window // 2, mark, proposal)
+    return _rejoin(current, n, a + 1, a + window if a + window < last else last, a, current[a], row_ptr, dest, count,
+                   cum_count, ending, rng, window + window // 2, mark, proposal)
 
 
 @kernel
@@ -193,7 +198,9 @@ def refine_walk(path, row_ptr, dest, count, cum_count, start_state, start_cum, e
     n = path.shape[0]
     rng = np.empty(1, np.uint64)
     rng[0] = mix(np.uint64(seed) ^ mix(np.uint64(stream) + GOLDEN + GOLDEN))
-    mark = np.full(speed.shape[0], -1, np.int64)
+    mark = np.empty(speed.shape[0], np.int64)
+    for state in range(mark.shape[0]):  # not np.full: numba compiles its helper on a first run's way
+        mark[state] = -1
     proposal = np.empty(n + 2 * max_window + 2, np.int64)
     stats = np.empty((4, 4))
     kin = np.empty(q_index.shape[0])
@@ -215,7 +222,7 @@ def refine_walk(path, row_ptr, dest, count, cum_count, start_state, start_cum, e
     walk = path.copy()
     current = value_of(walk, np.inf)
     best = current
-    cooling = 0.001 ** (1.0 / max(n_moves, 1))
+    cooling = 0.001 ** (1.0 / (n_moves if n_moves > 1 else 1))
     t = temperature
     for m in range(n_moves):
         if (_propose(walk, n, row_ptr, dest, count, cum_count, start_state, start_cum, ending, max_window, mark,
