@@ -222,14 +222,17 @@ def _sensor_set_columns(base, dem_dir: Path, set_name: str, virtual):
     if "gps" not in sensors_present(frame):
         given = np.interp(frame["time_s"], virtual.truth["time_s"], virtual.truth["mass_kg"])
         frame = frame.assign(**{METHODS[FLAT]: np.zeros(len(frame))})
+    from haulprofile.analysis.gradient.posterior import ATTRS_KEY
     try:
         if given is None:
-            samples = estimate_gradient_for_log(frame, open_dem(dem_dir), vehicle=virtual.vehicle).samples
+            result = estimate_gradient_for_log(frame, open_dem(dem_dir), vehicle=virtual.vehicle)
         else:
-            samples = estimate_gradient_force_balance(frame, open_dem(dem_dir), virtual.vehicle, mass_kg=given).samples
+            result = estimate_gradient_force_balance(frame, open_dem(dem_dir), virtual.vehicle, mass_kg=given)
     except UserError:
         return frame
+    samples = result.samples
     frame = frame.assign(**samples)
+    frame.attrs[ATTRS_KEY] = result.posteriors
     return frame.assign(**{METHODS["fusion"]: samples["gradient_paper_pct"]})
 
 
