@@ -6,8 +6,9 @@ a weighted sum of the gradient's errors over the segment (`mass.gradient_regress
 Its variance is wᵀ P w with P the gradient's n × n posterior covariance, which the RTS smoother
 holds in its gains and smoothed covariances (`kalman.smoother_gains`, `kalman.weighted_sum_covariance`):
 the estimator's own correlation of its errors along the road, no length assumed. The signals table
-carries it in ``DataFrame.attrs[ATTRS_KEY]`` (a tuple: a log whose gradient rests on a first pass has
-that pass's too), each one naming the gradient samples it describes.
+carries it in ``DataFrame.attrs[ATTRS_KEY]`` (a tuple), each one naming the gradient samples it
+describes. Not for the gradient `gps+can` fits its mass on (`force_balance`: GPS altitude's first
+pass), whose errors hold a bias this posterior does not state.
 """
 
 from __future__ import annotations
