@@ -163,7 +163,6 @@ def test_the_mass_sigma_from_the_posterior_holds_the_gradient_regressors_effect_
 def test_the_mass_takes_only_the_posterior_of_the_gradient_it_fits_on():
     import pandas as pd
 
-    from haulprofile.analysis.gradient.posterior import ATTRS_KEY
     from haulprofile.analysis.mass import _gradient_posterior
     rng = np.random.default_rng(2)
     _, z, r = _gps_road(rng, 30)
@@ -172,10 +171,9 @@ def test_the_mass_takes_only_the_posterior_of_the_gradient_it_fits_on():
     gradient = 100 * np.interp(distance, np.arange(30) * SPACING_M, x[:, kalman.GAMMA])
     posterior = gradient_posterior(gains, p[:, :, kalman.GAMMA], distance, SPACING_M, gradient)
     frame = pd.DataFrame({"gradient_pct": gradient})
-    frame.attrs[ATTRS_KEY] = (posterior,)
-    assert _gradient_posterior(frame) is posterior
-    assert _gradient_posterior(frame.assign(gradient_pct=gradient + 0.1)) is None
-    assert _gradient_posterior(pd.DataFrame({"gradient_pct": gradient})) is None
+    assert _gradient_posterior(frame, (posterior,)) is posterior
+    assert _gradient_posterior(frame.assign(gradient_pct=gradient + 0.1), (posterior,)) is None
+    assert _gradient_posterior(frame, ()) is None
     # a sample on a grid point weighs that point alone, one between two splits linearly
     weights = np.zeros((100, 1))
     weights[[0, 50]] = 1.0

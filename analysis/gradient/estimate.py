@@ -70,8 +70,8 @@ class GradientResult:
     """The sensors the log held (`sensor_sets.sensor_set`), set by the gradient stage."""
     posteriors: tuple[GradientPosterior, ...] = ()
     """The smoother's posterior of the gradient errors along the grid, where its σ is that
-    posterior's own (`posterior`), each naming the gradient samples it describes; for the
-    signals table's ``attrs`` (`posterior.ATTRS_KEY`)."""
+    posterior's own (`posterior`), each naming the gradient samples it describes; for
+    `mass.estimate_mass`'s ``gradient_posteriors``."""
 
     def __post_init__(self):
         if self.smoother is None:

@@ -5,10 +5,10 @@ The mass fit without an accelerometer uses the estimated gradient as a regressor
 a weighted sum of the gradient's errors over the segment (`mass.gradient_regressor_covariance_kg2`).
 Its variance is wᵀ P w with P the gradient's n × n posterior covariance, which the RTS smoother
 holds in its gains and smoothed covariances (`kalman.smoother_gains`, `kalman.weighted_sum_covariance`):
-the estimator's own correlation of its errors along the road, no length assumed. The signals table
-carries it in ``DataFrame.attrs[ATTRS_KEY]`` (a tuple), each one naming the gradient samples it
-describes. Not for the gradient `gps+can` fits its mass on (`force_balance`: GPS altitude's first
-pass), whose errors hold a bias this posterior does not state.
+the estimator's own correlation of its errors along the road, no length assumed. The gradient's
+result carries it (`GradientResult.posteriors`, which the mass stage hands to `estimate_mass`), each
+one naming the gradient samples it describes. Not for the gradient `gps+can` fits its mass on
+(`force_balance`: GPS altitude's first pass), whose errors hold a bias this posterior does not state.
 """
 
 from __future__ import annotations
@@ -18,9 +18,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kalman
-
-ATTRS_KEY = "gradient_posteriors"
-
 
 @dataclass(frozen=True, eq=False)
 class GradientPosterior:
@@ -34,9 +31,6 @@ class GradientPosterior:
     """Per sample, its share of the grid point above (the samples are linear between grid points)."""
     gradient_pct: np.ndarray
     """Per sample, the gradient [%] this is the posterior of."""
-
-    def __deepcopy__(self, memo):
-        return self  # read-only: a table's copy shares it
 
     def describes(self, gradient_pct) -> bool:
         """Whether ``gradient_pct`` (per sample) is the gradient this is the posterior of."""

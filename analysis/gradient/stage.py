@@ -15,7 +15,6 @@ from .chapter import TITLE, gradient_chapter
 from .estimate import GradientResult, GradientSettings
 from .figure import draw_sources
 from .force_balance import estimate_gradient_for_log
-from .posterior import ATTRS_KEY
 from .sensor_sets import describe, sensor_set
 
 
@@ -92,7 +91,6 @@ def gradient_stage(ctx) -> GradientResult | FlatRoad | None:
         ctx.say(f"gradient: {note}")
     for name, values in result.samples.items():
         frame[name] = values
-    frame.attrs[ATTRS_KEY] = result.posteriors
     result.settings = options.settings
     result.sensor_set = sensor_set(frame)
     return result

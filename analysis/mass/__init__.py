@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ..engine_torque import REPORTED, driveline_torque_nm, parasitic_torque_nm, torque_used
-from ..gradient.posterior import ATTRS_KEY, GradientPosterior
+from ..gradient.posterior import GradientPosterior
 from ..road_load import G_MPS2
 from . import calibration
 from .joint import JointFit, JointSettings, aux_power_regressor, fit_joint, offset_regressor, wind_regressors
@@ -63,10 +63,12 @@ class MassResult:
 
 def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings = FilterSettings(),
                   segment_settings: SegmentSettings = SegmentSettings(),
-                  joint_settings: JointSettings = JointSettings(), known_masses: dict[int, float] | None = None
-                  ) -> MassResult:
+                  joint_settings: JointSettings = JointSettings(), known_masses: dict[int, float] | None = None,
+                  gradient_posteriors: tuple[GradientPosterior, ...] = ()) -> MassResult:
     """Per-segment masses [kg] of a signals table (see `MassResult`); ``known_masses`` {segment
-    index from 0: kg} calibrates the torque gain. UserError if columns are missing.
+    index from 0: kg} calibrates the torque gain; ``gradient_posteriors`` the gradient stage's
+    (`GradientResult.posteriors`): the one of the gradient fitted on gives the gradient regressor's
+    share of the masses' covariance. UserError if columns are missing.
 
     Where ``gradient_pct`` itself rests on a mass (the force balance standing in for a missing
     IMU, `gradient.force_balance`), the gradient stage also writes ``gradient_mass_pct``, the
@@ -119,7 +121,8 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     aux_prior = _aux_prior_w(frame, regression, bounds, joint_settings) if aux is not None else None
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
                               columns, max_mass, notes, segment_settings, wind,
-                              offset, aux, aux_prior, speed, _gradient_posterior(frame))
+                              offset, aux, aux_prior, speed,
+                              _gradient_posterior(frame, gradient_posteriors))
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint, engine_torque=engine_torque)
 
@@ -138,10 +141,10 @@ def _with_gradient_std(frame: pd.DataFrame) -> pd.DataFrame:
     return frame.assign(gradient_std_pct=std)
 
 
-def _gradient_posterior(frame: pd.DataFrame) -> GradientPosterior | None:
-    """The smoother's posterior of the errors of the table's ``gradient_pct`` along the road
-    (`gradient.posterior`), None where the table holds none for that gradient."""
-    for posterior in frame.attrs.get(ATTRS_KEY, ()):
+def _gradient_posterior(frame: pd.DataFrame, posteriors) -> GradientPosterior | None:
+    """Of ``posteriors`` (`gradient.posterior`), the one of the table's ``gradient_pct``; None where
+    none is that gradient's."""
+    for posterior in posteriors:
         if posterior.describes(frame["gradient_pct"].to_numpy(dtype=float)):
             return posterior
     return None
@@ -154,6 +157,8 @@ def gradient_regressor_covariance_kg2(fit: JointFit, posterior: GradientPosterio
     and the sums' covariance is the smoother's own posterior over the grid, wᵀ P w
     (`GradientPosterior.sum_covariance`): the gradient's errors change sign along a segment, which
     one error fully correlated over it does not hold. 0 for a segment without a mass."""
+    if fit.regressor_response is None:  # no segment was fitted
+        return np.zeros((len(fit.masses_kg), len(fit.masses_kg)))
     cube = np.nan_to_num(np.asarray(cos_angle, dtype=float), nan=1.0) ** 3
     sensitivity = np.nan_to_num(fit.regressor_response) * (G_MPS2 * cube)[:, None]
     sensitivity[:, ~np.isfinite(fit.masses_kg)] = 0.0
