@@ -13,6 +13,7 @@ from ..errors import UserError
 from ..geodesy import local_east_north_m
 from . import grid as distance_grid
 from . import kalman, sources, standstill_bias
+from .posterior import GradientPosterior, gradient_posterior
 from .smoother import (KNOWN_BIAS_MPS2, GradientSmoother, Measurements, SmootherSettings, bin_times, clock_times,
                        standstill_bins)
 
@@ -67,6 +68,10 @@ class GradientResult:
     """The settings it was estimated with."""
     sensor_set: str | None = None
     """The sensors the log held (`sensor_sets.sensor_set`), set by the gradient stage."""
+    posteriors: tuple[GradientPosterior, ...] = ()
+    """The smoother's posterior of the gradient errors along the grid, where its σ is that
+    posterior's own (`posterior`), each naming the gradient samples it describes; for
+    `mass.estimate_mass`'s ``gradient_posteriors``."""
 
     def __post_init__(self):
         if self.smoother is None:
@@ -251,7 +256,9 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
         on_grid = distance_grid.bin_mean(index, step_offset, n_bins)
         have = np.isfinite(on_grid)
         out["imu_bias_mps2"] += np.interp(np.arange(n_bins), np.flatnonzero(have), on_grid[have])
-    return GradientResult(grid=out, samples=samples, notes=notes, map_sigma_m=map_sigma,
+    posteriors = () if smoothed.gradient_posterior is None else (
+        gradient_posterior(*smoothed.gradient_posterior, distance, spacing, samples["gradient_smooth_pct"]),)
+    return GradientResult(grid=out, samples=samples, notes=notes, map_sigma_m=map_sigma, posteriors=posteriors,
                           smoother={"method": settings.gradient_method, **smoothed.noise,
                                     "imu_bias_mps2": (float(np.median(out["imu_bias_mps2"]))
                                                       if imu_excess is not None else None),

@@ -340,18 +340,20 @@ def _store(x, p, xs, ps, i):
             ps[i, a, b] = p[a, b]
 
 
-def covariance_with_mean(p_filt, p_smooth, dt, step, params, state, clock=None):
-    """Per grid point i, the smoothed covariance of one state's error there with that state's error
-    averaged over the grid, (1/n) Σ_j Cov(x_i, x_j | all data): how much of a point's error it
-    shares with the whole drive. ``p_filt``: the forward filter's covariances (`smooth` with
-    ``backward=False``), ``p_smooth`` the smoothed ones, the rest as `smooth_reference`. The
-    cross-covariances are those of the RTS smoother, Cov(x_i, x_j) = C_i … C_{j-1} P_j (i < j),
-    summed by one backward and one forward recursion (no n × n matrix)."""
+def smoother_gains(p_filt, dt, step, params, clock=None):
+    """The RTS smoother's gains C_i = P_filt,i F_{i+1}^T P_pred,i+1^-1 per grid point, (n, ns, ns), the
+    last zero: the smoothed error is the backward Markov chain e_i = C_i e_{i+1} + own_i, so the
+    smoothed cross-covariances are Cov(x_i, x_j | all data) = C_i … C_{j-1} P_j (i < j). ``p_filt``:
+    the forward filter's covariances (`smooth` with ``backward=False``), the rest as
+    `smooth_reference`. One stacked solve, no n × n matrix."""
     spacing, q_c, q_r, q_b, dem_sigma, dem_corr, g, q_bdot = params
     n, ns = len(dt), p_filt.shape[1]
     phi = np.exp(-spacing / dem_corr)
     clock = dt if clock is None else clock
     resets = np.zeros(n, bool) if ns <= SCALE else step[:, SCALE] > 0
+    gains = np.zeros((n, ns, ns))
+    if n < 2:
+        return gains
     f = np.array([_transition(spacing, dt[i], phi, ns, resets[i], clock[i]) for i in range(1, n)])
     q = np.array([_process_noise(spacing, dt[i], q_c, q_r, q_b, dem_sigma ** 2, phi, ns, q_bdot, clock[i])
                   for i in range(1, n)])
@@ -362,8 +364,19 @@ def covariance_with_mean(p_filt, p_smooth, dt, step, params, state, clock=None):
     # which leaves its gains zero, as `smooth_reference` leaves them
     pinned = np.diagonal(predicted, axis1=1, axis2=2) <= 0
     predicted[:, range(ns), range(ns)] += pinned
-    gains = np.zeros((n, ns, ns))
     gains[:-1] = np.swapaxes(np.linalg.solve(predicted, ahead), 1, 2)
+    return gains
+
+
+def covariance_with_mean(p_filt, p_smooth, dt, step, params, state, clock=None):
+    """Per grid point i, the smoothed covariance of one state's error there with that state's error
+    averaged over the grid, (1/n) Σ_j Cov(x_i, x_j | all data): how much of a point's error it
+    shares with the whole drive. ``p_filt``: the forward filter's covariances (`smooth` with
+    ``backward=False``), ``p_smooth`` the smoothed ones, the rest as `smooth_reference`. The
+    cross-covariances are those of the RTS smoother (`smoother_gains`), summed by one backward and
+    one forward recursion (no n × n matrix)."""
+    n, ns = len(dt), p_filt.shape[1]
+    gains = smoother_gains(p_filt, dt, step, params, clock)
     later = np.zeros((n, ns))  # Σ_{j >= i} Cov(x_i, x_j[state])
     later[-1] = p_smooth[-1][:, state]
     for i in range(n - 2, -1, -1):
@@ -376,3 +389,29 @@ def covariance_with_mean(p_filt, p_smooth, dt, step, params, state, clock=None):
         total[i] = later[i][state] + row @ p_smooth[i][:, state]
         row = (row + unit) @ gains[i]
     return total / n
+
+
+def weighted_sum_covariance(gains, p_column, state, weights):
+    """Covariance (k, k) of k weighted sums Σ_i W[i, a] e_i of one state's smoothed error e over the
+    grid, W = ``weights`` (n, k): Wᵀ P W with P that state's n × n posterior covariance, from the RTS
+    cross-covariances (``gains``, `smoother_gains`) and ``p_column`` (n, ns), the smoothed
+    covariances' column of ``state``, P_i[:, state]. One backward recursion,
+    L_i = P_i[:, state] W_i + C_i L_{i+1} = Σ_{j >= i} Cov(x_i, e_j) W_j, gives the upper triangle
+    with its diagonal, U = Σ_i W_iᵀ L_i[state]; Wᵀ P W = U + Uᵀ - Σ_i P_i[state, state] W_iᵀ W_i.
+    O(n ns² k), no n × n matrix; only the grid points from the first weighted one on are visited."""
+    weights = np.asarray(weights, dtype=float)
+    if weights.ndim == 1:
+        weights = weights[:, None]
+    k = weights.shape[1]
+    used = np.flatnonzero(np.any(weights != 0, axis=1))
+    if len(used) == 0:
+        return np.zeros((k, k))
+    first, last = used[0], used[-1]
+    later = p_column[last][:, None] * weights[last][None, :]
+    upper = np.outer(weights[last], later[state])
+    for i in range(last - 1, first - 1, -1):
+        later = p_column[i][:, None] * weights[i][None, :] + gains[i] @ later
+        upper += np.outer(weights[i], later[state])
+    part = weights[first:last + 1]
+    diagonal = (part * p_column[first:last + 1, state][:, None]).T @ part
+    return upper + upper.T - diagonal

@@ -184,6 +184,11 @@ class SmootherResult:
     the whole drive's (`GradientSmoother._bias_shared_std`), signed: where the error runs against
     the drive's mean it is negative; the rest, sqrt(std² - shared²), is the point's own. None
     without an IMU."""
+    gradient_posterior: tuple[np.ndarray, np.ndarray] | None = None
+    """The RTS gains (n, ns, ns) and the smoothed covariances' gradient column (n, ns) whose
+    cross-covariances are the gradient's errors' along the grid (`posterior.GradientPosterior`);
+    only where ``gradient_std`` is that posterior's own: without an accelerometer (with one, σ
+    holds the bias's drift between blocks and the rate models' mixture too). None otherwise."""
 
 
 def bin_times(index: np.ndarray, speed_mps: np.ndarray, n_bins: int, spacing_m: float) -> np.ndarray:
@@ -471,6 +476,12 @@ class GradientSmoother:
                               f"{moved:+.3f} m/s² over the drive (rate {60e3 * x[0, kalman.BIAS_RATE]:+.2f} mm/s² "
                               f"per minute at the start, {60e3 * x[-1, kalman.BIAS_RATE]:+.2f} at the end)")
         weights = self._weights(r, p, have)
+        posterior = None
+        if not have[kalman.IMU]:
+            _, p_filt, _, _ = self.run(r, backward=False)
+            clock = self.m.clock_s if self.rated else None
+            posterior = (kalman.smoother_gains(p_filt, self.m.dt_s, self._steps(), self._params(), clock),
+                         np.ascontiguousarray(p[:, :, kalman.GAMMA]))
         ramp = self._standstill_ramp_sigma(x[:, kalman.BIAS]) if self.rate_possible else 0.0
         # the bias's drift that the near-constant bias state does not follow, in the share of the
         # gradient the accelerometer carries
@@ -494,7 +505,8 @@ class GradientSmoother:
             notes=self.notes, imu_bias_ramp_std_mps2=ramp,
             imu_bias_shared_std_mps2=(None if shared is None else
                                       np.clip(shared, -np.sqrt(p[:, kalman.BIAS, kalman.BIAS]),
-                                              np.sqrt(p[:, kalman.BIAS, kalman.BIAS]))))
+                                              np.sqrt(p[:, kalman.BIAS, kalman.BIAS]))),
+            gradient_posterior=posterior)
 
     def _bias_shared_std(self, r, p_smooth) -> np.ndarray:
         """Per grid point, how much [m/s², signed] of the bias's error it shares with the drive:

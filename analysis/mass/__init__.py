@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ..engine_torque import REPORTED, driveline_torque_nm, parasitic_torque_nm, torque_used
+from ..gradient.posterior import GradientPosterior
 from ..road_load import G_MPS2
 from . import calibration
 from .joint import JointFit, JointSettings, aux_power_regressor, fit_joint, offset_regressor, wind_regressors
@@ -62,10 +63,12 @@ class MassResult:
 
 def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings = FilterSettings(),
                   segment_settings: SegmentSettings = SegmentSettings(),
-                  joint_settings: JointSettings = JointSettings(), known_masses: dict[int, float] | None = None
-                  ) -> MassResult:
+                  joint_settings: JointSettings = JointSettings(), known_masses: dict[int, float] | None = None,
+                  gradient_posteriors: tuple[GradientPosterior, ...] = ()) -> MassResult:
     """Per-segment masses [kg] of a signals table (see `MassResult`); ``known_masses`` {segment
-    index from 0: kg} calibrates the torque gain. UserError if columns are missing.
+    index from 0: kg} calibrates the torque gain; ``gradient_posteriors`` the gradient stage's
+    (`GradientResult.posteriors`): the one of the gradient fitted on gives the gradient regressor's
+    share of the masses' covariance. UserError if columns are missing.
 
     Where ``gradient_pct`` itself rests on a mass (the force balance standing in for a missing
     IMU, `gradient.force_balance`), the gradient stage also writes ``gradient_mass_pct``, the
@@ -118,7 +121,8 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     aux_prior = _aux_prior_w(frame, regression, bounds, joint_settings) if aux is not None else None
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
                               columns, max_mass, notes, segment_settings, wind,
-                              offset, aux, aux_prior, speed)
+                              offset, aux, aux_prior, speed,
+                              _gradient_posterior(frame, gradient_posteriors))
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint, engine_torque=engine_torque)
 
@@ -135,6 +139,30 @@ def _with_gradient_std(frame: pd.DataFrame) -> pd.DataFrame:
                               frame["gradient_smooth_pct"].to_numpy(dtype=float), equal_nan=True)
         std = frame["gradient_smooth_std_pct"] if same else np.nan
     return frame.assign(gradient_std_pct=std)
+
+
+def _gradient_posterior(frame: pd.DataFrame, posteriors) -> GradientPosterior | None:
+    """Of ``posteriors`` (`gradient.posterior`), the one of the table's ``gradient_pct``; None where
+    none is that gradient's."""
+    for posterior in posteriors:
+        if posterior.describes(frame["gradient_pct"].to_numpy(dtype=float)):
+            return posterior
+    return None
+
+
+def gradient_regressor_covariance_kg2(fit: JointFit, posterior: GradientPosterior, cos_angle) -> np.ndarray:
+    """Covariance [kg²] (segments × segments) of the masses' errors from the gradient regressor's:
+    a gradient error e_k (tan α) at sample k moves the regressor by g cos³α e_k and every mass by
+    the fit's response to it (`JointFit.regressor_response`: through c_r, c_d·A and the wind too),
+    and the sums' covariance is the smoother's own posterior over the grid, wᵀ P w
+    (`GradientPosterior.sum_covariance`): the gradient's errors change sign along a segment, which
+    one error fully correlated over it does not hold. 0 for a segment without a mass."""
+    if fit.regressor_response is None:  # no segment was fitted
+        return np.zeros((len(fit.masses_kg), len(fit.masses_kg)))
+    cube = np.nan_to_num(np.asarray(cos_angle, dtype=float), nan=1.0) ** 3
+    sensitivity = np.nan_to_num(fit.regressor_response) * (G_MPS2 * cube)[:, None]
+    sensitivity[:, ~np.isfinite(fit.masses_kg)] = 0.0
+    return posterior.sum_covariance(sensitivity)
 
 
 def regressor_bias_kg(fit: JointFit, regressor_std, bounds) -> np.ndarray:
@@ -222,10 +250,11 @@ def _aux_power(fit: JointFit, j: int, gain: float) -> dict:
 
 
 def _joint(regression, time_s, bounds, vehicle, settings, known, segments, columns, max_mass, notes,
-           segment_settings, wind=None, offset=None, aux=None, aux_prior=None, speed=None):
+           segment_settings, wind=None, offset=None, aux=None, aux_prior=None, speed=None, posterior=None):
     """Joint fit with the IMU regressor (else the gradient one), calibration, and per segment the
     chosen ``mass_kg`` and its total ``mass_uncertainty_kg``; the gradient-based joint fit too,
-    for comparison."""
+    for comparison. ``posterior``: the gradient's (`gradient.posterior`), for the gradient
+    regressor's share of the masses' covariance; None: its stated σ as one error of each segment."""
     fits = {}
     if regression.excess_imu is not None:
         fits["imu"] = fit_joint(regression.force, regression.excess_imu, regression.cos_angle,
@@ -251,6 +280,12 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
             regressor_std = np.nan_to_num(regression.excess_gradient_std, nan=gradient_bias)
         else:
             regressor_std = np.full(len(time_s), gradient_bias)
+        if name == "gradient" and posterior is not None:
+            # the smoother's own correlation of the gradient's errors, within and between segments
+            regressor_kg2 = gradient_regressor_covariance_kg2(fit, posterior, regression.cos_angle)
+            covariances[name] = fit.mass_covariance_kg2 + np.diag(fit.sensitivity_kg ** 2) + regressor_kg2
+            fit.sensitivity_kg = np.sqrt(fit.sensitivity_kg ** 2 + np.clip(np.diag(regressor_kg2), 0.0, None))
+            continue
         bias_kg = regressor_bias_kg(fit, regressor_std, bounds)
         shared_kg = bias_kg
         if name == "imu" and regression.excess_imu_shared_std is not None:

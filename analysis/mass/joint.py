@@ -123,6 +123,9 @@ class JointFit:
     headless_samples: np.ndarray | None = None
     """Per segment, the used samples without a GPS heading, fitted with their head wind in the
     covariance (`_headless_wind_covariance`); None: not fitted."""
+    regressor_response: np.ndarray | None = None
+    """(samples, segments) how each segment's mass moves per unit error of the mass regressor at
+    each sample [kg per m/s²], through the whole fit (`_regressor_response`); 0 for samples not used."""
     mass_covariance_kg2: np.ndarray | None = None
     """The masses' statistical covariance [kg²] (segments x segments; its diagonal is
     ``mass_std_kg``²): the shared parameters' share (c_r, c_d·A, wind, torque offset, gusts) moves
@@ -244,6 +247,22 @@ def _solve(force, excess, cos_angle, aero, extra, aux, seg, n_seg, theta, free, 
     c_r = theta[n_seg]
     residual = _residual(force, excess, cos_angle, aero, extra, aux, seg, theta, n_seg)
     return theta, weights, normal, residual, excess + G_MPS2 * c_r * cos_angle, instrument + G_MPS2 * c_r * cos_angle
+
+
+def _regressor_response(data, theta, weights, residual, row, instrument, precision, moving):
+    """Per used sample k, how each segment's mass moves per unit error of the mass regressor there
+    [kg per m/s²] (n_used, segments): an error δφ_k changes the residual by -m_j δφ_k, and the
+    converged fit's estimating equations Σ w z r = 0 (with the priors) answer with
+    δθ = -N⁻¹ w_k z_k m_j δφ_k over the parameters that move (``moving``: not held, not at a
+    bound), so c_r, c_d·A, the wind and the offset carry a regressor error from one segment to
+    every other."""
+    f, x, c, q, ex, aux, seg, m = data
+    plain, _ = _normal_equations(x, x if instrument is None else instrument, c, q, ex, aux, seg, theta, m, weights,
+                                 residual)
+    normal = (plain + np.diag(precision))[np.ix_(moving, moving)]
+    rows = _score_rows(m, seg, weights, row, theta, c, q, ex, aux)[:, moving]
+    masses = np.linalg.lstsq(normal, np.eye(len(normal))[:, :m], rcond=None)[0]  # N⁻¹'s mass columns
+    return -(rows @ masses) * theta[:m][seg][:, None]
 
 
 def _informed_inverse(normal: np.ndarray) -> np.ndarray:
@@ -564,6 +583,11 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     informative = scale > 0  # a segment without a single usable sample has an empty row
     condition = float(np.linalg.cond(normal[np.ix_(informative, informative)]
                                      / np.outer(scale[informative], scale[informative])))
+    at_bound = np.zeros(len(theta), bool)
+    at_bound[aux_index] = theta[aux_index] == 0  # held at 0 (P >= 0): a small change leaves it there
+    result.regressor_response = np.zeros((len(force), n_seg))
+    result.regressor_response[np.ix_(np.flatnonzero(ok), kept)] = _regressor_response(
+        data, theta, weights, residual, row, z, precision, free & ~unidentified & ~at_bound)
     reasons = {}
     for index, name in ((m, COEFFICIENTS[0]), (m + 1, COEFFICIENTS[1])):
         std = float(np.sqrt(cov[index, index]))

@@ -79,8 +79,9 @@ def mass_stage(ctx) -> MassResult | GivenMass | None:
         ctx.skip("mass", "needs a vehicle file")
         return None
     try:
+        gradient = ctx.results.get("gradient")
         result = estimate_mass(frame, ctx.vehicle, options.filter, options.segments, options.joint,
-                               dict(options.weighed_masses_kg))
+                               dict(options.weighed_masses_kg), getattr(gradient, "posteriors", ()))
     except UserError as exc:
         ctx.skip("mass", str(exc))
         return None

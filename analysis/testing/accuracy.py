@@ -139,7 +139,7 @@ def _scored_segments(segments, truth):
         yield j, segment, float(mass[inside][0])
 
 
-def mass_errors(signals, truth, vehicle, column: str) -> dict:
+def mass_errors(signals, truth, vehicle, column: str, gradient_posteriors=()) -> dict:
     """Relative errors of each confident segment's mass when the gradient is ``column``: LS and
     RLS where the LS is ``ok``; ``mass_kg`` (the joint estimate, else LS) wherever it is given,
     and in ``mass_kg_within_2_sigma`` whether the truth lies inside its stated ±2σ, in ``mass_kg_z``
@@ -150,7 +150,7 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
     frame = signals.assign(gradient_pct=signals[column])
     if column != METHODS["smoother"] and "gradient_mass_pct" in frame.columns:
         frame = frame.drop(columns=[c for c in ("gradient_mass_pct", "gradient_mass_std_pct") if c in frame.columns])
-    result = estimate_mass(frame, vehicle)
+    result = estimate_mass(frame, vehicle, gradient_posteriors=gradient_posteriors)
     out = {key: [] for key in MASS_KEYS} | {"mass_kg_within_2_sigma": [], "mass_kg_z": [], "mass_kg_weighed": [],
                                            "mass_kg_weighed_within_2_sigma": [], "mass_kg_weighed_z": []}
     scored = list(_scored_segments(result.segments, truth))
@@ -168,7 +168,7 @@ def mass_errors(signals, truth, vehicle, column: str) -> dict:
                and segment.get(f"mass_{segment.get('mass_regressor')}_kg") is not None]
     if len(scored) >= 2 and weighed:
         first, known = weighed[0]
-        calibrated = estimate_mass(frame, vehicle, known_masses={first: known})
+        calibrated = estimate_mass(frame, vehicle, known_masses={first: known}, gradient_posteriors=gradient_posteriors)
         for j, segment, true in _scored_segments(calibrated.segments, truth):
             sigma = segment.get("mass_uncertainty_kg")
             if j == first or segment.get("mass_kg") is None or sigma is None or not np.isfinite(sigma):
@@ -212,7 +212,8 @@ def _sensor_set_columns(base, dem_dir: Path, set_name: str, virtual):
     gradient columns the estimator makes of them as the gradient stage does (the force balance as
     the accelerometer where there is neither IMU nor barometer; ``gradient_pct`` = the paper's fusion (8) where it can
     run). A log with no height source (``can-only``) is given the true mass per sample, as a
-    weighing at every load change would give it, and scored against the flat road too."""
+    weighing at every load change would give it, and scored against the flat road too. Returns the
+    signals and the gradient's posteriors (`GradientResult.posteriors`)."""
     from haulprofile.analysis.dem import open_dem
     from haulprofile.analysis.errors import UserError
     from haulprofile.analysis.gradient.force_balance import estimate_gradient_for_log, estimate_gradient_force_balance
@@ -224,16 +225,17 @@ def _sensor_set_columns(base, dem_dir: Path, set_name: str, virtual):
         frame = frame.assign(**{METHODS[FLAT]: np.zeros(len(frame))})
     try:
         if given is None:
-            samples = estimate_gradient_for_log(frame, open_dem(dem_dir), vehicle=virtual.vehicle).samples
+            result = estimate_gradient_for_log(frame, open_dem(dem_dir), vehicle=virtual.vehicle)
         else:
-            samples = estimate_gradient_force_balance(frame, open_dem(dem_dir), virtual.vehicle, mass_kg=given).samples
+            result = estimate_gradient_force_balance(frame, open_dem(dem_dir), virtual.vehicle, mass_kg=given)
     except UserError:
-        return frame
+        return frame, ()
+    samples = result.samples
     frame = frame.assign(**samples)
-    return frame.assign(**{METHODS["fusion"]: samples["gradient_paper_pct"]})
+    return frame.assign(**{METHODS["fusion"]: samples["gradient_paper_pct"]}), result.posteriors
 
 
-def score(signals, virtual, vehicles, mass: bool = True) -> dict:
+def score(signals, virtual, vehicles, mass: bool = True, gradient_posteriors=()) -> dict:
     """Gradient errors (and the per-bin σ's coverage) and mass errors of every method present
     (no mass errors where the mass was given)."""
     methods = {name: column for name, column in METHODS.items() if column in signals.columns}
@@ -241,7 +243,7 @@ def score(signals, virtual, vehicles, mass: bool = True) -> dict:
         "gradient": {name: gradient_errors(signals, virtual, column) for name, column in methods.items()},
         "gradient_within_2_sigma": {name: gradient_coverage(signals, virtual, METHODS[name], std)
                                     for name, std in STD_COLUMNS.items() if std in signals.columns},
-        "mass": {kind: {name: mass_errors(signals, virtual.truth, vehicle, column) for name, column in methods.items()}
+        "mass": {kind: {name: mass_errors(signals, virtual.truth, vehicle, column, gradient_posteriors) for name, column in methods.items()}
                  for kind, vehicle in vehicles.items()} if mass else {},
     }
 
@@ -276,10 +278,10 @@ def run_case(case: Case, sensor_sets: tuple[str, ...] = SENSOR_SETS) -> dict:
         base = ctx.signals.drop(columns=[c for c in ctx.results.gradient.samples if c in ctx.signals.columns])
         for set_name in sensor_sets:
             if set_name == "full":
-                signals = _gradient_columns(ctx.signals, root / "dem")
+                signals, posteriors = _gradient_columns(ctx.signals, root / "dem"), ctx.results.gradient.posteriors
             else:
-                signals = _sensor_set_columns(base, root / "dem", set_name, virtual)
-            scores[set_name] = score(signals, virtual, vehicles, mass=set_name != "can-only")
+                signals, posteriors = _sensor_set_columns(base, root / "dem", set_name, virtual)
+            scores[set_name] = score(signals, virtual, vehicles, mass=set_name != "can-only", gradient_posteriors=posteriors)
     grid = truth_grid(virtual)
     full = scores.get("full", {"gradient": {}, "gradient_within_2_sigma": {}, "mass": {}})
     return {
