@@ -142,7 +142,7 @@ def test_the_mass_sigma_from_the_posterior_holds_the_gradient_regressors_effect_
         for name, angle in (("true", true_angle), ("estimated", np.arctan(estimate))):
             excess = accel + G_MPS2 * np.sin(angle)
             fits[name] = fit_joint(force, excess, np.cos(angle), aero, time_s, bounds, usable, VEHICLE,
-                                   JointSettings(), "gradient")
+                                   JointSettings(), "gradient", regressor_response=True)
         posterior = gradient_posterior(gains, p[:, :, kalman.GAMMA], distance, SPACING_M, 100 * estimate)
         fit = fits["estimated"]
         sigma = np.sqrt(np.diag(gradient_regressor_covariance_kg2(fit, posterior, np.cos(np.arctan(estimate)))))

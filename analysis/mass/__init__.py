@@ -267,7 +267,7 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
     fits["gradient"] = fit_joint(regression.force, regression.excess_gradient, regression.cos_angle,
                                  regression.aero_per_cda, time_s, bounds, regression.usable, vehicle, settings, "gradient",
                                  wind_regressors=wind, offset_regressor=offset, aux_regressor=aux,
-                                 aux_prior_w=aux_prior)
+                                 aux_prior_w=aux_prior, regressor_response=posterior is not None)
     chosen = fits.get("imu", fits["gradient"])
     gradient_bias = G_MPS2 * np.sin(np.arctan(segment_settings.gradient_bias_pct / 100))
     covariances = {}

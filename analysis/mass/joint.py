@@ -407,7 +407,7 @@ def _biweight_slope_share(residual, weights, seg, n_seg, tuning):
 
 def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, settings: JointSettings = JointSettings(),
               regressor_name: str = "", instrument=None, wind_regressors=None, offset_regressor=None,
-              aux_regressor=None, aux_prior_w=None) -> JointFit:
+              aux_regressor=None, aux_prior_w=None, regressor_response: bool = False) -> JointFit:
     """Masses of the segments ``bounds`` ([start, end) index pairs) and the shared c_r, c_d·A from
     the samples in ``usable`` (see the module docstring). Coefficients the drive cannot identify
     (relative std above ``max_relative_std``, a non-physical value, or a singular system) are fixed
@@ -442,7 +442,11 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     force still holds where the drive cannot resolve it, for the covariance of a power held at 0
     (default ``aux_power_sigma_w``, the whole accessories' load): where the log's own estimate of
     the accessories' torque was taken off the force, what is left is that estimate's error. The fit
-    and which powers it resolves keep ``aux_power_sigma_w``, so no estimate moves."""
+    and which powers it resolves keep ``aux_power_sigma_w``, so no estimate moves.
+
+    ``regressor_response``: also return how each mass moves per unit regressor error at each sample
+    (`JointFit.regressor_response`, samples x segments: some 200 MB for a day at 10 Hz and 30
+    segments, so only where a gradient posterior will use it)."""
     n_seg = len(bounds)
     seg_of = np.full(len(force), -1)
     for j, (start, end) in enumerate(bounds):
@@ -583,11 +587,12 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
     informative = scale > 0  # a segment without a single usable sample has an empty row
     condition = float(np.linalg.cond(normal[np.ix_(informative, informative)]
                                      / np.outer(scale[informative], scale[informative])))
-    at_bound = np.zeros(len(theta), bool)
-    at_bound[aux_index] = theta[aux_index] == 0  # held at 0 (P >= 0): a small change leaves it there
-    result.regressor_response = np.zeros((len(force), n_seg))
-    result.regressor_response[np.ix_(np.flatnonzero(ok), kept)] = _regressor_response(
-        data, theta, weights, residual, row, z, precision, free & ~unidentified & ~at_bound)
+    if regressor_response:
+        at_bound = np.zeros(len(theta), bool)
+        at_bound[aux_index] = theta[aux_index] == 0  # held at 0 (P >= 0): a small change leaves it there
+        result.regressor_response = np.zeros((len(force), n_seg))
+        result.regressor_response[np.ix_(np.flatnonzero(ok), kept)] = _regressor_response(
+            data, theta, weights, residual, row, z, precision, free & ~unidentified & ~at_bound)
     reasons = {}
     for index, name in ((m, COEFFICIENTS[0]), (m + 1, COEFFICIENTS[1])):
         std = float(np.sqrt(cov[index, index]))
