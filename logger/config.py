@@ -127,6 +127,9 @@ class GpsSection:
     baudrate: int = 9600
     configure_rate: bool = False
     rate_hz: float = 10.0
+    request_accuracy: bool = True
+    """Send UBX-CFG-MSG for GST at start: without it a u-blox states no accuracy and the gradient
+    cannot weigh GPS altitude."""
 
 
 @dataclass

@@ -86,7 +86,8 @@ class Devices:
         if config.gps.enabled:
             from .sources.gps import GpsSource
             gps = GpsSource(queue, clock, self.gps_port(config), config.gps.baudrate,
-                            config.gps.rate_hz if config.gps.configure_rate else None, say, privacy)
+                            config.gps.rate_hz if config.gps.configure_rate else None, say, privacy,
+                            config.gps.request_accuracy)
             try:
                 gps.open()
                 sources.append(gps)

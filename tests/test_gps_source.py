@@ -19,7 +19,7 @@ from haulprofile.contract.nmea import nmea_checksum_ok
 from haulprofile.logger.sources.gps import GpsSource, ubx_cfg_rate
 
 
-def through_pty(data: bytes, configure_rate_hz: float | None = None):
+def through_pty(data: bytes, configure_rate_hz: float | None = None, request_accuracy: bool = False):
     """Feed ``data`` through a pty into a GpsSource; returns (source, items, bytes the source wrote)."""
     master, slave = os.openpty()
     tty.setraw(slave)
@@ -28,7 +28,7 @@ def through_pty(data: bytes, configure_rate_hz: float | None = None):
 
     async def main():
         queue = asyncio.Queue(10_000)
-        source = GpsSource(queue, Clock(), port, 9600, configure_rate_hz)
+        source = GpsSource(queue, Clock(), port, 9600, configure_rate_hz, request_accuracy=request_accuracy)
         source.open()
         task = asyncio.create_task(source.run())
         await asyncio.sleep(0.05)
@@ -196,3 +196,64 @@ def test_unplugged_receiver_is_one_error_and_a_reopen_loop_not_a_busy_loop():
     assert source.stats.state == "port lost"
     assert source.stats.errors == 1 and len(said) == 1 and "reopening" in said[0]
     assert source.stats.extra["lines"] == 1
+
+
+def test_the_source_asks_a_u_blox_for_gst_which_it_sends_only_from_then_on():
+    """A u-blox 7 sends no GST by default (`tests/data/real-gps`'s u-blox 7 at power-up: TXT, RMC,
+    VTG, GGA, GSA, GSV, GLL), so the fixes had no vertical accuracy and the gradient no GPS
+    altitude: the source asks for it with UBX-CFG-MSG at opening; the emulated receiver, as the
+    real one, sends GST only once asked, and forgets it when unplugged."""
+    import time
+
+    import numpy as np
+
+    from haulprofile.logger.emulators.gps import GpsEmulator, gst_rate
+    from haulprofile.logger.emulators.signals import TimeSeries
+    from haulprofile.logger.sources.gps import NMEA_GST, ubx_cfg_msg
+
+    pyubx2 = pytest.importorskip("pyubx2")
+    message = pyubx2.UBXReader.parse(ubx_cfg_msg(*NMEA_GST, 1))
+    # the 3-byte form sets the rate on the port it arrives on (pyubx2 names that field rateDDC)
+    assert message.identity == "CFG-MSG" and (message.msgClass, message.msgID, message.rateDDC) == (0xF0, 0x07, 1)
+    assert gst_rate(b"") == 0 and gst_rate(ubx_cfg_msg(*NMEA_GST, 1)) == 1
+    assert gst_rate(ubx_cfg_msg(*NMEA_GST, 1) + ubx_cfg_msg(*NMEA_GST, 0)) == 0
+    _, _, written = through_pty(b"", request_accuracy=True)
+    assert written == ubx_cfg_msg(*NMEA_GST, 1)
+
+    clock = Clock()
+    signals = TimeSeries({"time_s": np.array([0.0, 100.0]), "v_acc_m": np.array([3.5, 3.5]),
+                          "h_acc_m": np.array([2.0, 2.0])})
+    emulator = GpsEmulator(signals, clock, clock.monotonic_ns(), rate_hz=20.0).start()
+    try:
+        deadline = time.monotonic() + 10.0
+        while len(emulator.sent) < 12 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert emulator.sent and not any("GST" in s for s in emulator.sent)
+        fixes = []
+
+        async def main():
+            queue = asyncio.Queue(10_000)
+            source = GpsSource(queue, Clock(), emulator.port, 9600, request_accuracy=True)
+            source.open()
+            task = asyncio.create_task(source.run())
+            for _ in range(300):
+                await asyncio.sleep(0.02)
+                while not queue.empty():
+                    item = queue.get_nowait()
+                    if item.topic is contract.GPS_FIX:
+                        fixes.append(json.loads(item.payload))
+                if sum(1 for fix in fixes if fix["v_acc_m"] is not None) >= 3:
+                    break
+            task.cancel()
+            await asyncio.gather(task, return_exceptions=True)
+            await source.close()
+
+        asyncio.run(main())
+        accuracies = [fix["v_acc_m"] for fix in fixes]
+        assert accuracies.count(3.5) >= 3
+        emulator.unplug()
+        emulator.replug()
+        assert gst_rate(bytes(emulator.received[emulator._configured_from:])) == 0
+    finally:
+        emulator.stop()
+        emulator.close()

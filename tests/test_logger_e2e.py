@@ -144,7 +144,10 @@ def test_every_gps_sentence_and_fix(logged):
             expected.append((msg.latitude, msg.longitude, float(msg.altitude)))
     fixes = arrays.json["/gps/fix"]
     assert [(f["latitude"], f["longitude"], f["altitude"]) for f in fixes] == expected
-    assert all(f["position_covariance_type"] == 2 for f in fixes)
+    # the receiver sends GST (the covariance) only once the logger's UBX-CFG-MSG has reached it
+    known = [f["position_covariance_type"] == 2 for f in fixes]
+    assert known == sorted(known) and known[-1]
+    assert known.count(True) == sum(1 for s in devices.gps.sent if s[3:6] == "GST" and ",,,,,,,*" not in s)
 
 
 def test_diagnostics_and_time_sync_every_second(logged):

@@ -1,8 +1,11 @@
-"""A u-blox-7-like GPS writing NMEA 0183 (RMC, VTG, GGA, GSA, GST) into a pseudo-terminal.
+"""A u-blox-7-like GPS writing NMEA 0183 (RMC, VTG, GGA, GSA) into a pseudo-terminal, and GST once
+asked for it.
 
 The serial source opens ``emulator.port`` (the pty's slave path) exactly as it opens
 ``/dev/ttyACM0`` on the truck. Every sentence written is kept in ``sent``; bytes the logger
-writes to the receiver (UBX configuration) are collected in ``received``.
+writes to the receiver (UBX configuration) are collected in ``received``. As a u-blox 7, it sends
+no GST (the fix's error estimates) until a UBX-CFG-MSG turns it on, and forgets that when it is
+unplugged (its configuration is not saved).
 """
 
 from __future__ import annotations
@@ -39,16 +42,26 @@ def _lon(deg: float) -> tuple[str, str]:
     return f"{d:03d}{(a - d) * 60:08.5f}", "E" if deg >= 0 else "W"
 
 
-def epoch_sentences(utc: dt.datetime, values: dict) -> list[str]:
+CFG_MSG_GST = bytes([0xB5, 0x62, 0x06, 0x01, 0x03, 0x00, 0xF0, 0x07])
+"""A UBX-CFG-MSG frame for NMEA GST up to its rate byte (`..sources.gps.ubx_cfg_msg`)."""
+
+
+def gst_rate(received: bytes) -> int:
+    """The GST rate the last UBX-CFG-MSG for it in ``received`` set (0: none asked for, or off)."""
+    at = received.rfind(CFG_MSG_GST)
+    return received[at + len(CFG_MSG_GST)] if 0 <= at and at + len(CFG_MSG_GST) < len(received) else 0
+
+
+def epoch_sentences(utc: dt.datetime, values: dict, gst: bool = True) -> list[str]:
     """The NMEA sentences of one epoch from ``latitude_deg, longitude_deg, altitude_m, speed_mps,
-    course_deg, h_acc_m, v_acc_m`` [deg, m, m/s]."""
+    course_deg, h_acc_m, v_acc_m`` [deg, m, m/s]; GST only if ``gst``."""
     hms = utc.strftime("%H%M%S") + f".{utc.microsecond // 10000:02d}"
     date = utc.strftime("%d%m%y")
     if not values.get("fix_quality", 1) or not math.isfinite(values.get("latitude_deg", math.nan)):
         return [with_checksum(f"GPRMC,{hms},V,,,,,,,{date},,,N"), with_checksum("GPVTG,,T,,M,,N,,K,N"),
                 with_checksum(f"GPGGA,{hms},,,,,0,00,99.99,,,,,,"),
-                with_checksum("GPGSA,A,1,,,,,,,,,,,,,99.99,99.99,99.99"),
-                with_checksum(f"GPGST,{hms},,,,,,,")]
+                with_checksum("GPGSA,A,1,,,,,,,,,,,,,99.99,99.99,99.99")] + (
+                    [with_checksum(f"GPGST,{hms},,,,,,,")] if gst else [])
     lat, ns = _lat(values["latitude_deg"])
     lon, ew = _lon(values["longitude_deg"])
     knots = values.get("speed_mps", 0.0) / KNOT_MPS
@@ -61,8 +74,7 @@ def epoch_sentences(utc: dt.datetime, values: dict) -> list[str]:
         with_checksum(f"GPVTG,{course:.2f},T,,M,{knots:.3f},N,{knots * 1.852:.3f},K,A"),
         with_checksum(f"GPGGA,{hms},{lat},{ns},{lon},{ew},1,09,{hdop:.2f},{values['altitude_m']:.1f},M,47.0,M,,"),
         with_checksum(f"GPGSA,A,3,02,05,07,09,13,16,20,23,30,,,,{hdop * 1.6:.2f},{hdop:.2f},{hdop * 1.3:.2f}"),
-        with_checksum(f"GPGST,{hms},{h_acc:.2f},,,,{axis_err:.2f},{axis_err:.2f},{v_acc:.2f}"),
-    ]
+    ] + ([with_checksum(f"GPGST,{hms},{h_acc:.2f},,,,{axis_err:.2f},{axis_err:.2f},{v_acc:.2f}")] if gst else [])
 
 
 class GpsEmulator:
@@ -83,6 +95,8 @@ class GpsEmulator:
         self._open_pty()
         self.sent: list[str] = []
         self.received = bytearray()
+        self._configured_from = 0
+        """Where in ``received`` the receiver now plugged in began to listen."""
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -114,6 +128,7 @@ class GpsEmulator:
         """The receiver is back on a new tty; ``link`` points at it."""
         with self._fd_lock:
             self._open_pty()
+            self._configured_from = len(self.received)
             self.unplugged = False
 
     def start(self) -> "GpsEmulator":
@@ -139,7 +154,7 @@ class GpsEmulator:
                 continue
             t_s = k / self.rate_hz
             utc = self.start_utc + dt.timedelta(seconds=round(t_s, 2))
-            sentences = epoch_sentences(utc, self.values(t_s))
+            sentences = epoch_sentences(utc, self.values(t_s), gst_rate(bytes(self.received[self._configured_from:])) > 0)
             k += 1
             with self._fd_lock:
                 if self.unplugged:

@@ -39,6 +39,17 @@ def ubx_message(msg_class: int, msg_id: int, payload: bytes) -> bytes:
     return b"\xb5\x62" + body + bytes([ck_a, ck_b])
 
 
+NMEA_GST = (0xF0, 0x07)
+"""UBX class and id of NMEA GxGST, the fix's error estimates (the vertical accuracy the gradient
+weighs GPS altitude by): a u-blox 7 sends TXT, RMC, VTG, GGA, GSA, GSV and GLL by default, not GST."""
+
+
+def ubx_cfg_msg(msg_class: int, msg_id: int, rate: int) -> bytes:
+    """UBX-CFG-MSG for the port it arrives on: message ``msg_class``/``msg_id`` once every ``rate``
+    navigation solutions (0: off)."""
+    return ubx_message(0x06, 0x01, bytes([msg_class, msg_id, rate]))
+
+
 def ubx_cfg_rate(rate_hz: float) -> bytes:
     """UBX-CFG-RATE: measurement period [ms], one navigation solution per measurement, GPS time."""
     return ubx_message(0x06, 0x08, struct.pack("<HHH", int(round(1000.0 / rate_hz)), 1, 1))
@@ -50,7 +61,7 @@ class GpsSource(Source):
     name = "gps"
 
     def __init__(self, queue, clock, port: str, baudrate: int = 9600, configure_rate_hz: float | None = None,
-                 say=None, privacy=None):
+                 say=None, privacy=None, request_accuracy: bool = False):
         super().__init__(queue, clock, say)
         self.privacy = privacy if privacy is not None and privacy.active else None
         self._pending: list[tuple[str, int]] = []
@@ -62,6 +73,8 @@ class GpsSource(Source):
         self.port_path = port
         self.baudrate = baudrate
         self.configure_rate_hz = configure_rate_hz
+        self.request_accuracy = request_accuracy
+        """Ask the receiver for GST at every opening (a replugged receiver has forgotten it)."""
         self.serial = None
         self._buffer = bytearray()
         self._raw: list[str] = []
@@ -81,6 +94,8 @@ class GpsSource(Source):
         self.serial = serial.Serial(self.port_path, self.baudrate, timeout=0)
         if self.configure_rate_hz:
             self.serial.write(ubx_cfg_rate(self.configure_rate_hz))
+        if self.request_accuracy:
+            self.serial.write(ubx_cfg_msg(*NMEA_GST, 1))
 
     def feed(self, data: bytes, t_mono_ns: int) -> None:
         """Split received bytes into lines and handle each complete one."""
