@@ -172,7 +172,7 @@ def test_the_bias_covariance_with_the_drives_mean_is_the_rts_cross_covariances(r
         step = np.column_stack([step, np.zeros(len(dt))])
     _, p_smooth, _, _ = kalman.smooth(z, r, dt, step, params, x0, p0, True, None, clock)
     _, p_filt, _, _ = kalman.smooth(z, r, dt, step, params, x0, p0, False, None, clock)
-    got = kalman.covariance_with_mean(p_filt, p_smooth, dt, step, params, kalman.BIAS, clock)
+    got = kalman.covariance_with_mean(kalman.smoother_gains(p_filt, dt, step, params, clock), p_smooth, kalman.BIAS)
     full = _cross_covariances(p_filt, p_smooth, dt, step, params, clock, kalman.BIAS)
     np.testing.assert_allclose(got, full.mean(axis=1), rtol=1e-6, atol=1e-15)
 

@@ -368,15 +368,13 @@ def smoother_gains(p_filt, dt, step, params, clock=None):
     return gains
 
 
-def covariance_with_mean(p_filt, p_smooth, dt, step, params, state, clock=None):
+def covariance_with_mean(gains, p_smooth, state):
     """Per grid point i, the smoothed covariance of one state's error there with that state's error
     averaged over the grid, (1/n) Σ_j Cov(x_i, x_j | all data): how much of a point's error it
-    shares with the whole drive. ``p_filt``: the forward filter's covariances (`smooth` with
-    ``backward=False``), ``p_smooth`` the smoothed ones, the rest as `smooth_reference`. The
-    cross-covariances are those of the RTS smoother (`smoother_gains`), summed by one backward and
-    one forward recursion (no n × n matrix)."""
-    n, ns = len(dt), p_filt.shape[1]
-    gains = smoother_gains(p_filt, dt, step, params, clock)
+    shares with the whole drive. ``gains``: the RTS smoother's (`smoother_gains`), ``p_smooth`` its
+    smoothed covariances; the cross-covariances summed by one backward and one forward recursion
+    (no n × n matrix)."""
+    n, ns = p_smooth.shape[:2]
     later = np.zeros((n, ns))  # Σ_{j >= i} Cov(x_i, x_j[state])
     later[-1] = p_smooth[-1][:, state]
     for i in range(n - 2, -1, -1):

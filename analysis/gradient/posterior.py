@@ -19,6 +19,7 @@ import numpy as np
 
 from . import kalman
 
+
 @dataclass(frozen=True, eq=False)
 class GradientPosterior:
     gains: np.ndarray

@@ -478,10 +478,7 @@ class GradientSmoother:
         weights = self._weights(r, p, have)
         posterior = None
         if not have[kalman.IMU]:
-            _, p_filt, _, _ = self.run(r, backward=False)
-            clock = self.m.clock_s if self.rated else None
-            posterior = (kalman.smoother_gains(p_filt, self.m.dt_s, self._steps(), self._params(), clock),
-                         np.ascontiguousarray(p[:, :, kalman.GAMMA]))
+            posterior = (self._smoother_gains(r), np.ascontiguousarray(p[:, :, kalman.GAMMA]))
         ramp = self._standstill_ramp_sigma(x[:, kalman.BIAS]) if self.rate_possible else 0.0
         # the bias's drift that the near-constant bias state does not follow, in the share of the
         # gradient the accelerometer carries
@@ -508,6 +505,13 @@ class GradientSmoother:
                                               np.sqrt(p[:, kalman.BIAS, kalman.BIAS]))),
             gradient_posterior=posterior)
 
+    def _smoother_gains(self, r) -> np.ndarray:
+        """The RTS smoother's gains of this model with measurement variances ``r``
+        (`kalman.smoother_gains`, from a forward pass): its smoothed errors' cross-covariances."""
+        _, p_filt, _, _ = self.run(r, backward=False)
+        clock = self.m.clock_s if self.rated else None
+        return kalman.smoother_gains(p_filt, self.m.dt_s, self._steps(), self._params(), clock)
+
     def _bias_shared_std(self, r, p_smooth) -> np.ndarray:
         """Per grid point, how much [m/s², signed] of the bias's error it shares with the drive:
         its smoothed covariance with the error of the bias averaged over the drive, over that
@@ -518,10 +522,7 @@ class GradientSmoother:
         `typical` seed 5: +4 and −2.5 mm/s² against a stated 2.4). A weighing of one stretch
         corrects the shared part of another's, not its own (`mass.calibration`). ``p_smooth``
         are this model's smoothed covariances."""
-        _, p_filt, _, _ = self.run(r, backward=False)
-        clock = self.m.clock_s if self.rated else None
-        with_mean = kalman.covariance_with_mean(p_filt, p_smooth, self.m.dt_s, self._steps(), self._params(),
-                                                kalman.BIAS, clock)
+        with_mean = kalman.covariance_with_mean(self._smoother_gains(r), p_smooth, kalman.BIAS)
         mean_var = float(np.mean(with_mean))
         return with_mean / np.sqrt(mean_var) if mean_var > 0 else np.zeros(len(with_mean))
 
