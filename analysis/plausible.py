@@ -37,6 +37,8 @@ RANGES = {
     "gps_altitude_m": Range(-500.0, 9000.0, "m", "a road's height"),
     "gps_h_acc_m": Range(0.0, 10_000.0, "m", "a GNSS accuracy"),
     "gps_v_acc_m": Range(0.0, 10_000.0, "m", "a GNSS accuracy"),
+    "gps_hdop": Range(0.0, 100.0, "", "a dilution of precision"),
+    "gps_vdop": Range(0.0, 100.0, "", "a dilution of precision"),
     "engine_speed_rpm": Range(0.0, 6000.0, "rpm", "a truck engine's speed"),
     "engine_torque_nm": Range(-5000.0, 10_000.0, "Nm", "a truck engine's torque (drag to peak)"),
     "accel_x_mps2": Range(-50.0, 50.0, "m/s^2", "a vehicle's acceleration (5 g)"),

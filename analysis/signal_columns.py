@@ -12,6 +12,8 @@ OPTIONAL = {
     "gps_altitude_m": "GPS altitude [m]",
     "gps_h_acc_m": "GPS horizontal accuracy [m]",
     "gps_v_acc_m": "GPS vertical accuracy [m]",
+    "gps_hdop": "GPS horizontal dilution of precision (GGA)",
+    "gps_vdop": "GPS vertical dilution of precision (GSA; where the receiver sent no GST)",
     "pressure_pa": "barometric pressure [Pa]",
     "air_temperature_c": "air temperature [degC]",
     "accel_x_mps2": "longitudinal IMU acceleration [m/s^2]",

@@ -14,7 +14,8 @@ SUFFIX_UNITS = {
     "_kwh": "kWh", "_lph": "l/h", "_l": "l", "_t": "T", "_m2": "m²",
 }
 """Name suffix → unit, the glossary every column name follows (`analysis.signals`)."""
-DIMENSIONLESS = {"valid", "current_gear", "brake_switch", "satellites", "fix_quality", "hdop"}
+DIMENSIONLESS = {"valid", "current_gear", "brake_switch", "satellites", "fix_quality", "hdop",
+                 "gps_hdop", "gps_vdop"}
 UNITS_KEY = "units"
 """``DataFrame.attrs`` key of the units that no name tells (DBC signals): column → unit."""
 PARQUET_UNIT = b"unit"

@@ -100,6 +100,10 @@ def test_ublox7_power_up_stream(data_dir):
     rmc = next(m for m in parsed if getattr(m, "sentence_type", "") == "RMC")
     assert fixes[0]["speed_mps"] == pytest.approx(float(rmc.spd_over_grnd) * 1852 / 3600)
     assert fixes[0]["gps_time_utc_ns"] is not None
+    # no GST at power-up: the fix keeps the geometry the analysis takes an accuracy from
+    gsa = next(m for m in parsed if getattr(m, "sentence_type", "") == "GSA")
+    assert fixes[0]["v_acc_m"] is None
+    assert (fixes[0]["hdop"], fixes[0]["vdop"]) == (float(gga[0].horizontal_dil), float(gsa.vdop)) == (1.16, 2.05)
     assert len(_raw(items)) == sum(1 for line in data.split(b"\n") if b"$" in line)
     assert source.stats.extra["bad_checksum"] == bad == 0
 

@@ -233,6 +233,22 @@ def test_gps_altitude_alone_gives_a_gradient_with_an_honest_uncertainty(drive):
     assert np.isnan(grid["gradient_paper_pct"]).all()
 
 
+def test_gps_altitude_with_only_its_dilution_of_precision_is_weighed_by_it(drive):
+    """A receiver never asked for GST (a u-blox 7's default) states VDOP, not v_acc: the gradient
+    takes VDOP times the datasheet's range error as the accuracy (before: "needs ... GPS altitude
+    with its accuracy"), the same estimate as a receiver stating that accuracy."""
+    from haulprofile.analysis.gnss_accuracy import DATASHEET_RANGE_SIGMA_M
+
+    rng = np.random.default_rng(7)
+    base = drive.drop(columns=["pressure_pa", "accel_x_mps2", "gps_v_acc_m", "gps_h_acc_m"], errors="ignore").assign(
+        gps_altitude_m=drive["true_height_m"] + np.convolve(rng.normal(0, 4.0, len(drive)), np.ones(50) / 50, "same"))
+    stated = estimate_gradient(base.assign(gps_v_acc_m=4.0), None)
+    from_dop = estimate_gradient(base.assign(gps_vdop=4.0 / DATASHEET_RANGE_SIGMA_M), None)
+    assert any("dilution of precision" in note for note in from_dop.notes)
+    assert np.allclose(from_dop.grid["gradient_pct"], stated.grid["gradient_pct"])
+    assert np.allclose(from_dop.grid["gradient_smooth_std_pct"], stated.grid["gradient_smooth_std_pct"])
+
+
 def test_imu_gradient_is_reported(drive, dem):
     grid = estimate_gradient(drive, dem).grid
     assert "gradient_imu_pct" in grid and np.isfinite(grid["gradient_imu_pct"]).mean() > 0.9

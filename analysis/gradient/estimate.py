@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
-from .. import checks, kinematics
+from .. import checks, gnss_accuracy, kinematics
 from ..errors import UserError
 from ..geodesy import local_east_north_m
 from . import grid as distance_grid
@@ -123,6 +123,9 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
     if isinstance(settings.smoother, dict):
         settings = replace(settings, smoother=SmootherSettings(**settings.smoother))
     notes: list[str] = []
+    frame, dop_note = gnss_accuracy.with_dop_accuracy(frame)
+    if dop_note:
+        notes.append(dop_note)
     time_s = frame["time_s"].to_numpy(dtype=float)
     speed = frame["speed_mps"].to_numpy(dtype=float)
     distance = _column(frame, "distance_m")

@@ -125,7 +125,8 @@ def build_table(ingest) -> tuple[pd.DataFrame, dict]:
     columns["reported_mass_kg"] = mass if mass is not None else c.axle_sum()
     for column, key in (("latitude_deg", "gps:latitude"), ("longitude_deg", "gps:longitude"),
                         ("gps_altitude_m", "gps:altitude"), ("gps_h_acc_m", "gps:h_acc_m"),
-                        ("gps_v_acc_m", "gps:v_acc_m"), ("relative_humidity_pct", "hum:relative_humidity_pct"),
+                        ("gps_v_acc_m", "gps:v_acc_m"), ("gps_hdop", "gps:hdop"), ("gps_vdop", "gps:vdop"),
+                        ("relative_humidity_pct", "hum:relative_humidity_pct"),
                         ("accel_x_mps2", "accel_x_mps2"), ("accel_y_mps2", "accel_y_mps2"),
                         ("accel_z_mps2", "accel_z_mps2")):
         columns[column] = c.pick(column, None, key)

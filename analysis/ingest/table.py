@@ -209,7 +209,7 @@ def _loads(payload: bytes):
 JSON_FIELDS = {
     contract.BAROMETER.name: ("pressure_pa", "temperature_c"),
     contract.HUMIDITY.name: ("relative_humidity_pct", "temperature_c"),
-    contract.GPS_FIX.name: ("latitude", "longitude", "altitude", "h_acc_m", "v_acc_m", "speed_mps",
+    contract.GPS_FIX.name: ("latitude", "longitude", "altitude", "h_acc_m", "v_acc_m", "hdop", "vdop", "speed_mps",
                             "gps_time_utc_ns", "fix_quality"),
     contract.TIME_SYNC.name: ("t_realtime_ns", "gps_time_utc_ns"),
 }

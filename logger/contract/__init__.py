@@ -292,6 +292,7 @@ GPS_FIX = Topic(
             "fix_quality": _INT,
             "satellites": _INT,
             "hdop": _NULLABLE_NUM,
+            "vdop": _NULLABLE_NUM,
         },
         required=["timestamp", "frame_id", "latitude", "longitude", "altitude", "position_covariance",
                   "position_covariance_type", "t_mono_ns"],

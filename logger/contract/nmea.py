@@ -1,7 +1,9 @@
 """NMEA 0183 sentences of a GPS receiver → ``/gps/fix`` records, one per receiver epoch.
 
 RMC, GGA, GSA, GST and VTG of one epoch (same UTC time of day) are merged into one
-``foxglove.LocationFix``-compatible fix, with the horizontal and vertical accuracy from GST. Bad
+``foxglove.LocationFix``-compatible fix, with the horizontal and vertical accuracy from GST. A
+receiver that sends no GST (a u-blox 7 unless asked) still states its geometry: GGA's HDOP and
+GSA's VDOP go into the fix, from which the analysis takes an accuracy (`analysis.gnss_accuracy`). Bad
 checksums, proprietary sentences and sentences pynmea2 cannot parse are counted and skipped. The
 logger's GPS source parses its serial port with this, and the analysis a receiver's log file, so
 both give the same fixes from the same bytes.
@@ -23,7 +25,8 @@ FIX_TYPES = {"RMC", "GGA", "GSA", "GST", "VTG", "GLL", "GNS"}
 """Sentences of an epoch; GLL and GNS add nothing to the fix but belong to their epoch by their
 time, so the logger's privacy judges their positions with it."""
 FALLBACK_TYPES = {"VTG", "GSA"}
-"""Sentences only needed when RMC (speed) or GGA (HDOP) left a field empty: parsed only then."""
+"""Sentences only needed when RMC (speed), GGA (HDOP) or GST (the accuracy, for which GSA's VDOP
+stands in) left a field empty: parsed only then."""
 
 
 def nmea_checksum_ok(sentence: str) -> bool:
@@ -96,12 +99,14 @@ class Epoch:
             f["v_acc_m"] = alt_err
         elif kind == "GSA":
             f["hdop"] = f.get("hdop") or _float(msg.hdop)
+            f["vdop"] = _float(msg.vdop)
 
     def add_fallbacks(self) -> int:
-        """Parse the VTG/GSA kept aside if RMC or GGA left their field empty; returns parse errors."""
+        """Parse the VTG/GSA kept aside if RMC, GGA or GST left their field empty; returns parse errors."""
         f, errors = self.fields, 0
         for text in self.fallbacks:
-            if (text[3:6] == "VTG" and "speed_mps" not in f) or (text[3:6] == "GSA" and not f.get("hdop")):
+            if (text[3:6] == "VTG" and "speed_mps" not in f) or (
+                    text[3:6] == "GSA" and (not f.get("hdop") or f.get("v_acc_m") is None)):
                 try:
                     self.add(pynmea2.parse(text))
                 except (pynmea2.ParseError, ValueError, TypeError, AttributeError):
@@ -120,7 +125,7 @@ class Epoch:
             self.t_mono_ns, gps_ns if gps_ns is not None else wall_time_ns, f["latitude"], f["longitude"],
             f["altitude"], f.get("h_acc_m"), f.get("v_acc_m"), f.get("east_north_sigma_m"), gps_time_utc_ns=gps_ns,
             speed_mps=f.get("speed_mps"), course_deg=f.get("course_deg"), fix_quality=f["fix_quality"],
-            satellites=f.get("satellites", 0), hdop=f.get("hdop"))
+            satellites=f.get("satellites", 0), hdop=f.get("hdop"), vdop=f.get("vdop"))
 
 
 class EpochFixes:
