@@ -589,7 +589,7 @@ def scale_error_mps2(frame, virtual, relative, vehicle, mass_kg=None) -> np.ndar
     the force balance divides by the mass, F_wheel - F_aero: k (a + g sin alpha + g c_r). With the
     mass given (``mass_kg``), k is the torque report's and the driveline's gain, which scales the
     wheel force alone: k F_wheel / m = k (a + g sin alpha + g c_r + F_aero / m), the air drag the
-    engine pulls against included (at 20 m/s on a 12 t truck as large as g c_r)."""
+    engine pulls against included (at 20 m/s on a 12.6 t rigid truck 1.5 times g c_r)."""
     specific = np.asarray(virtual, dtype=float) + G_MPS2 * vehicle.rolling_resistance_coefficient
     if mass_kg is not None:
         speed = frame["speed_mps"].to_numpy(dtype=float)
