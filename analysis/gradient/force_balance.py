@@ -236,7 +236,8 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
                             f"{offset.applications} brake applications) taken off the force balance")
     if scaled:
         _report_scale(result, frame, mass)
-    _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m)
+    _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m,
+                          None if mass_kg is None else mass)
     if no_height_source:
         _add_road_load_uncertainty(result, frame, virtual, vehicle, mass, settings.spacing_m,
                                    None if offset is None else offset.sigma_nm)
@@ -582,13 +583,27 @@ def _height_sources_sigma_in_gaps(result: GradientResult, frame, virtual, first_
                         f"({rms:.1f} %-pt over {length * spacing_m:.0f} m)")
 
 
-def _add_mass_uncertainty(result: GradientResult, frame, virtual, relative, vehicle, spacing_m):
-    """Widen the gradient's sigma by what the mass's (or the torque gain's) relative error k does to
-    the force balance where it carries the gradient: k (a + g sin alpha + g c_r) / g, a systematic
-    error over a segment that the smoother, taking the force balance as an unbiased accelerometer,
-    cannot see."""
-    specific = np.abs(virtual + G_MPS2 * vehicle.rolling_resistance_coefficient) * np.nan_to_num(relative)
-    _widen_where_measured(result, frame, specific, spacing_m)
+def scale_error_mps2(frame, virtual, relative, vehicle, mass_kg=None) -> np.ndarray:
+    """1-sigma [m/s²] per sample of the force balance's error from a relative error ``relative`` of
+    what scales it (NaN where ``virtual`` does not measure). A first pass's mass error k scales what
+    the force balance divides by the mass, F_wheel - F_aero: k (a + g sin alpha + g c_r). With the
+    mass given (``mass_kg``), k is the torque report's and the driveline's gain, which scales the
+    wheel force alone: k F_wheel / m = k (a + g sin alpha + g c_r + F_aero / m), the air drag the
+    engine pulls against included (at 20 m/s on a 12.6 t rigid truck 1.5 times g c_r)."""
+    specific = np.asarray(virtual, dtype=float) + G_MPS2 * vehicle.rolling_resistance_coefficient
+    if mass_kg is not None:
+        speed = frame["speed_mps"].to_numpy(dtype=float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            specific = specific + aero_force_n(speed, vehicle.drag_coefficient, vehicle.frontal_area_m2) / mass_kg
+    return np.abs(specific) * np.nan_to_num(relative)
+
+
+def _add_mass_uncertainty(result: GradientResult, frame, virtual, relative, vehicle, spacing_m, mass_kg=None):
+    """Widen the gradient's sigma by what the mass's (or, with ``mass_kg`` given, the torque gain's)
+    relative error does to the force balance where it carries the gradient (`scale_error_mps2`), a
+    systematic error over a segment that the smoother, taking the force balance as an unbiased
+    accelerometer, cannot see."""
+    _widen_where_measured(result, frame, scale_error_mps2(frame, virtual, relative, vehicle, mass_kg), spacing_m)
 
 
 def _widen_where_measured(result: GradientResult, frame, specific_mps2, spacing_m):
