@@ -444,3 +444,66 @@ def test_a_segment_driven_in_a_gps_outage_is_fitted_with_its_head_wind_in_sigma(
     errors, sigmas = np.array(errors), np.array(sigmas)
     assert np.all(np.abs(errors) <= 2 * sigmas)
     assert np.sqrt(np.mean(errors[:, 2] ** 2)) <= np.sqrt(np.mean(sigmas[:, 2] ** 2))
+
+
+def _gusty_drive(seed, gust_mps=3.0, gust_length_m=150.0, n_per=4000):
+    """Three segments of a truck whose driver holds a speed profile against gusts (a P controller
+    on speed over a feed-forward of the road load without them): a head-wind gust h(s), first-order
+    Gauss-Markov over distance, decelerates the truck until the driver answers, so dv/dt, in the
+    regressor and in its instrument alike, moves with the gusts' force. Returns the fit's inputs,
+    the true masses and the gusts' force [N]."""
+    rng = np.random.default_rng(seed)
+    dt, n = 0.1, n_per * len(MASSES)
+    time_s = np.arange(n) * dt
+    target = 15 + 7 * np.sin(time_s / 60) + 3 * np.sin(time_s / 17)
+    target_accel = np.gradient(target, time_s)
+    angle = np.arctan(0.03 * np.sin(time_s / 45) + 0.01 * np.sin(time_s / 11))
+    mass = np.repeat(MASSES, n_per)
+    drag = 0.5 * 1.2 * CDA
+    grid = np.arange(int(30 * n * dt) + 2, dtype=float)
+    phi = np.exp(-1.0 / gust_length_m)
+    gust_grid = np.empty(len(grid))
+    state = rng.standard_normal()
+    for k, noise in enumerate(rng.standard_normal(len(grid)) * np.sqrt(1 - phi * phi)):
+        state = phi * state + noise
+        gust_grid[k] = gust_mps * state
+    speed, accel, force, gust_force = (np.empty(n) for _ in range(4))
+    v, s = target[0], 0.0
+    for k in range(n):
+        h = np.interp(s, grid, gust_grid)
+        load = mass[k] * G_MPS2 * (C_R * np.cos(angle[k]) + np.sin(angle[k]))
+        force[k] = mass[k] * (target_accel[k] + (target[k] - v) / 3.0) + load + drag * v * v
+        gust_force[k] = drag * ((v + h) * abs(v + h) - v * v)
+        accel[k] = (force[k] - load - drag * v * v - gust_force[k]) / mass[k]
+        speed[k] = v
+        v, s = v + dt * accel[k], s + dt * v
+    excess = accel + G_MPS2 * np.sin(angle)
+    bounds = [(j * n_per, (j + 1) * n_per) for j in range(len(MASSES))]
+    measured = force + rng.normal(0, 300, n)
+    regressor, instrument = excess + rng.normal(0, 0.01, n), excess + rng.normal(0, 0.01, n)
+    return (measured, regressor, np.cos(angle), 0.5 * 1.2 * speed ** 2, time_s, bounds,
+            excess + G_MPS2 * C_R > 0.05, instrument, mass, gust_force)
+
+
+def test_gusts_the_driver_answers_do_not_bias_the_instrumented_masses():
+    """The gusts' force decelerates the truck, so dv/dt in the regressor and in its instrument is
+    correlated with a force the fit does not model (an endogeneity): its bias on a mass is
+    cov(z, f_gust) / cov(z, x). Over drives of the same process it averages 0, and so do the masses'
+    errors: the gusts are a spread of the masses, not a bias (on the virtual truck 0.00 ± 0.03 % over
+    41 segments, docs/estimation.md)."""
+    errors, endogenous = [], []
+    settings = JointSettings(aux_power_sigma_w=0, fit_torque_offset=False)
+    for seed in range(8):
+        force, x, cos_angle, aero, time_s, bounds, usable, z, mass, gust_force = _gusty_drive(seed)
+        fit = fit_joint(force, x, cos_angle, aero, time_s, bounds, usable, VEHICLE, settings, instrument=z)
+        errors.append(fit.masses_kg / np.array(MASSES) - 1)
+        for j, (start, end) in enumerate(bounds):
+            used = usable[start:end] & (fit.weights[start:end] > 0)
+            zs, xs, fs = z[start:end][used], x[start:end][used], gust_force[start:end][used]
+            endogenous.append(np.sum((zs - zs.mean()) * (fs - fs.mean())) / np.sum((zs - zs.mean()) * xs) / MASSES[j])
+    errors, endogenous = np.array(errors), np.array(endogenous)
+    spread = errors.std(axis=0, ddof=1)
+    assert np.all(spread > 0)
+    assert np.all(np.abs(errors.mean(axis=0)) < 3 * spread / np.sqrt(len(errors)) + 1e-3)
+    # per drive the gusts' slow part meets the excitation by chance; what is systematic is its mean
+    assert abs(endogenous.mean()) < 3 * endogenous.std(ddof=1) / np.sqrt(len(endogenous))

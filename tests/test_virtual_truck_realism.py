@@ -157,3 +157,27 @@ def test_wind_enters_the_road_load_and_the_kernel_matches_its_reference(scenario
     drag = 0.5 * road_load.AIR_DENSITY_KGPM3 * vehicle.drag_coefficient * vehicle.frontal_area_m2
     expected = calm + drag * (air * np.abs(air) - v * v)
     assert np.allclose(expected, compiled["wheel_force_n"].to_numpy()[moving], rtol=1e-6, atol=1e-3)
+
+
+def test_the_gusts_redrawn_alone_keep_the_mean_wind_and_every_other_draw(scenario, typical):
+    from haulprofile.analysis.virtual_truck.disturbances import GUST_LENGTH_M, _gusts, head_wind_mps
+    level, road = realism_level("typical"), typical.road
+    own, own_sizes = head_wind_mps(road, level, rng := np.random.default_rng(7))
+    after_own = rng.standard_normal(5)
+    other, other_sizes = head_wind_mps(road, level, rng := np.random.default_rng(7), np.random.default_rng(1))
+    assert other_sizes == own_sizes and np.array_equal(rng.standard_normal(5), after_own)
+    # what differs is the gusts alone: each series less its own gusts is the same mean head wind
+    phi = np.exp(-(road.distance_m[1] - road.distance_m[0]) / GUST_LENGTH_M)
+    drawn = np.random.default_rng(7)
+    drawn.uniform(size=2)
+    own_gusts = _gusts(road.distance_m.size, phi, drawn)
+    other_gusts = _gusts(road.distance_m.size, phi, np.random.default_rng(1))
+    assert not np.allclose(own_gusts, other_gusts)
+    assert np.allclose(own - level.wind_gust_mps * own_gusts, other - level.wind_gust_mps * other_gusts, atol=1e-12)
+    redrawn = drive(scenario, seed=2, realism="typical", gust_seed=1)
+    assert redrawn.injected["gust_seed"] == 1
+    for name in ("wind_speed_mps", "wind_towards_deg", "torque_report_gain", "torque_report_offset_pct",
+                 "wheel_speed_scale", "imu_mount_pitch_deg"):
+        assert redrawn.injected[name] == typical.injected[name], name
+    assert not np.allclose(redrawn.states["head_wind_mps"].to_numpy()[:1000],
+                           typical.states["head_wind_mps"].to_numpy()[:1000])

@@ -19,9 +19,13 @@ GUST_LENGTH_M = 150.0
 """Gusts change over about this distance of travel."""
 
 
-def head_wind_mps(road: Road, level: Realism, rng: np.random.Generator) -> tuple[np.ndarray, dict]:
+def head_wind_mps(road: Road, level: Realism, rng: np.random.Generator,
+                  gust_rng: np.random.Generator | None = None) -> tuple[np.ndarray, dict]:
     """Wind component against the direction of travel [m/s] on the road's 1 m grid: a mean wind
-    of random direction seen along the curving road, plus gusts (Gauss-Markov over distance)."""
+    of random direction seen along the curving road, plus gusts (Gauss-Markov over distance).
+    ``gust_rng``: the gusts drawn from it instead, the mean wind and every later draw of ``rng``
+    as without it (the same drive under another draw of its gusts: their bias told from their
+    spread)."""
     if level.wind_mps <= 0 and level.wind_gust_mps <= 0:
         return np.zeros(road.distance_m.shape), {}
     speed = level.wind_mps * rng.uniform(0.5, 1.5)
@@ -29,14 +33,22 @@ def head_wind_mps(road: Road, level: Realism, rng: np.random.Generator) -> tuple
     heading = np.arctan2(np.gradient(road.north_m), np.gradient(road.east_m))
     head = -speed * np.cos(towards - heading)
     phi = np.exp(-(road.distance_m[1] - road.distance_m[0]) / GUST_LENGTH_M)
-    noise = rng.standard_normal(road.distance_m.size) * np.sqrt(1 - phi * phi)
+    gust = _gusts(road.distance_m.size, phi, rng)
+    if gust_rng is not None:
+        gust = _gusts(road.distance_m.size, phi, gust_rng)
+    return head + level.wind_gust_mps * gust, {"wind_speed_mps": speed, "wind_towards_deg": float(np.degrees(towards)),
+                                               "wind_gust_sigma_mps": level.wind_gust_mps}
+
+
+def _gusts(size: int, phi: float, rng: np.random.Generator) -> np.ndarray:
+    """A unit-variance first-order Gauss-Markov series of ``size`` steps, ``phi`` per step."""
+    noise = rng.standard_normal(size) * np.sqrt(1 - phi * phi)
     gust = np.empty_like(noise)
     state = rng.standard_normal()
     for k in range(noise.size):  # ~1e5 steps, once per drive
         state = phi * state + noise[k]
         gust[k] = state
-    return head + level.wind_gust_mps * gust, {"wind_speed_mps": speed, "wind_towards_deg": float(np.degrees(towards)),
-                                               "wind_gust_sigma_mps": level.wind_gust_mps}
+    return gust
 
 
 def trailer_change(after_kg: np.ndarray, stop_duration_s: np.ndarray, curb_kg: float, max_payload_kg: float | None,

@@ -118,11 +118,13 @@ def simulate(scenario: Scenario, vehicle: Vehicle, road: Road, kernel=simulate_k
 
 
 def drive(scenario: Scenario, vehicle: Vehicle | None = None, seed: int = 0,
-          realism: str | Realism | None = None) -> VirtualDrive:
+          realism: str | Realism | None = None, gust_seed: int | None = None) -> VirtualDrive:
     """Drive a scenario: deterministic for a seed (same seed, byte-identical outputs).
 
     ``realism``: a level name (``ideal``, ``typical``, ``harsh``) or a `Realism`; None takes the
-    scenario's ``[realism]`` (ideal unless the file says otherwise)."""
+    scenario's ``[realism]`` (ideal unless the file says otherwise). ``gust_seed``: the wind's
+    gusts drawn from their own seed, everything else the drive ``seed`` draws (mean wind, trailer,
+    accessories, sensor errors) as without it; None: from ``seed`` like the rest."""
     vehicle = vehicle if vehicle is not None else scenario_vehicle(scenario)
     level = scenario.realism if realism is None else make_realism(realism)
     road = build_road(scenario, seed, level)
@@ -130,7 +132,7 @@ def drive(scenario: Scenario, vehicle: Vehicle | None = None, seed: int = 0,
     if level.is_ideal:
         states = simulate(scenario, vehicle, road)
     else:
-        states, more = _realistic_states(scenario, vehicle, road, level, seed)
+        states, more = _realistic_states(scenario, vehicle, road, level, seed, gust_seed)
         injected.update(more)
     distance = states["distance_m"].to_numpy()
     east, north = road.at(road.east_m, distance), road.at(road.north_m, distance)
@@ -152,13 +154,18 @@ def drive(scenario: Scenario, vehicle: Vehicle | None = None, seed: int = 0,
     return VirtualDrive(scenario, vehicle, seed, road, states, truth, streams, level, injected)
 
 
-def _realistic_states(scenario: Scenario, vehicle: Vehicle, road: Road, level: Realism, seed: int):
+def _realistic_states(scenario: Scenario, vehicle: Vehicle, road: Road, level: Realism, seed: int,
+                      gust_seed: int | None = None):
     """States with wind, a trailer change and the driveline's and auxiliaries' torque; and the sizes.
 
     Two passes: the first, without accessories, gives the times they run (the fan's "hot" rule
     reads its load); the second drives with them between engine and gearbox, and is the truth."""
     rng = np.random.default_rng(np.random.SeedSequence([scenario.terrain.seed, seed, 0x3EA1]))
-    wind, injected = head_wind_mps(road, level, rng)
+    gust_rng = None if gust_seed is None else np.random.default_rng(
+        np.random.SeedSequence([scenario.terrain.seed, seed, gust_seed, 0x6057]))
+    wind, injected = head_wind_mps(road, level, rng, gust_rng)
+    if gust_seed is not None:
+        injected["gust_seed"] = gust_seed
     after = None
     if level.trailer_change:
         _, after = _masses(scenario, vehicle, len(road.stop_distance_m))
