@@ -203,7 +203,9 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
             first.assign(gradient_pct=np.nan_to_num(second), gradient_std_pct=second_std), vehicle)
         if np.isfinite(refit).any():
             mass, mass_sigma = _with_unknown_masses(refit, refit_sigma)
-            relative, segment = mass_sigma / mass, refit_segment
+            # the refit is fitted on a gradient that carried the first pass's masses, so its error
+            # holds part of theirs, which its own sigma does not see: at least the first pass's width
+            relative, segment = np.fmax(mass_sigma / mass, relative), refit_segment
             mass_gradient, mass_gradient_std = second, second_std
             frame, virtual, gaps, result = _force_balance_pass(log, forced, dem, vehicle, settings, mass, relative,
                                                                segment if scaled else None, True)
