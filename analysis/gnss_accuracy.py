@@ -18,7 +18,8 @@ DATASHEET_RANGE_SIGMA_M = 3.0
 """u-blox 7 (the logger's receiver class): 2.5 m CEP horizontal in open sky (datasheet); a CEP is
 1.1774 σ of each axis, so a 2D RMS of 2.5 · √2 / 1.1774 = 3.0 m at an open sky's HDOP of about 1."""
 MIN_FIXES_FOR_DRIVE_RANGE = 30
-"""Fixes stating both HDOP and h_acc needed to take σ_range from the drive (30 s at 1 Hz)."""
+"""Samples stating both HDOP and h_acc needed to take σ_range from the drive (the signals table's
+rows: 3 s of fixes at its 10 Hz, 30 s of a 1 Hz receiver's own log)."""
 DOP_COLUMNS = {"gps_h_acc_m": "gps_hdop", "gps_v_acc_m": "gps_vdop"}
 
 
@@ -27,8 +28,8 @@ def _column(frame: pd.DataFrame, name: str) -> np.ndarray | None:
 
 
 def range_sigma_m(frame: pd.DataFrame) -> tuple[float, str]:
-    """σ_range [m] and where it came from: the median of h_acc / HDOP over the drive's fixes with
-    both, else the datasheet's."""
+    """σ_range [m] and where it came from: the median of h_acc / HDOP over the drive's samples
+    with both, else the datasheet's."""
     h_acc, hdop = _column(frame, "gps_h_acc_m"), _column(frame, "gps_hdop")
     if h_acc is not None and hdop is not None:
         both = np.isfinite(h_acc) & np.isfinite(hdop) & (hdop > 0)
