@@ -65,6 +65,7 @@ def with_dop_accuracy(frame: pd.DataFrame) -> tuple[pd.DataFrame, str | None]:
         accuracy[missing] = dop[missing] * sigma
         out[accuracy_name] = accuracy
     share = max(int(m.sum()) for m, _ in fill.values()) / max(int(np.isfinite(altitude).sum()), 1)
+    percent = f"{100 * share:.0f}" if share >= 0.01 else f"{100 * share:.1g}"
     names = " and ".join({"gps_h_acc_m": "horizontal", "gps_v_acc_m": "vertical"}[n] for n in fill)
-    return out, (f"GPS {names} accuracy on {100 * share:.0f} % of the fixes from the receiver's dilution of "
+    return out, (f"GPS {names} accuracy on {percent} % of the fixes from the receiver's dilution of "
                  f"precision (it sent no GST) times a range error of {sigma:.1f} m from {source}")

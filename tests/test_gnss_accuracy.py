@@ -37,6 +37,9 @@ def test_the_range_error_comes_from_the_drives_own_fixes_that_state_both():
     assert np.allclose(filled["gps_v_acc_m"][:150], 4.0) and np.allclose(filled["gps_v_acc_m"][150:], 1.6 * 2.5)
     assert np.allclose(filled["gps_h_acc_m"], frame["gps_h_acc_m"])
     assert "25 %" in note and "the drive's fixes" in note
+    # a receiver's first epochs before it was asked for GST: a share under 1 % is not said as 0 %
+    first = frame.assign(gps_vdop=np.where(np.arange(n) < 1, 1.6, np.nan), gps_v_acc_m=np.where(np.arange(n) < 1, np.nan, 4.0))
+    assert "0.5 % of the fixes" in with_dop_accuracy(first)[1]
     few = frame.iloc[:10].assign(gps_v_acc_m=np.nan, gps_vdop=1.6)
     assert range_sigma_m(few)[0] == DATASHEET_RANGE_SIGMA_M
 
