@@ -249,20 +249,17 @@ def _solve(force, excess, cos_angle, aero, extra, aux, seg, n_seg, theta, free, 
     return theta, weights, normal, residual, excess + G_MPS2 * c_r * cos_angle, instrument + G_MPS2 * c_r * cos_angle
 
 
-def _regressor_response(data, theta, weights, residual, row, instrument, precision, moving):
+def _regressor_response(plain, score_rows, theta, seg, n_seg, precision, moving):
     """Per used sample k, how each segment's mass moves per unit error of the mass regressor there
     [kg per m/s²] (n_used, segments): an error δφ_k changes the residual by -m_j δφ_k, and the
     converged fit's estimating equations Σ w z r = 0 (with the priors) answer with
     δθ = -N⁻¹ w_k z_k m_j δφ_k over the parameters that move (``moving``: not held, not at a
     bound), so c_r, c_d·A, the wind and the offset carry a regressor error from one segment to
-    every other."""
-    f, x, c, q, ex, aux, seg, m = data
-    plain, _ = _normal_equations(x, x if instrument is None else instrument, c, q, ex, aux, seg, theta, m, weights,
-                                 residual)
+    every other. ``plain``: the fit's normal matrix without its priors, ``score_rows`` its samples'
+    w_k z_k (`_score_rows`)."""
     normal = (plain + np.diag(precision))[np.ix_(moving, moving)]
-    rows = _score_rows(m, seg, weights, row, theta, c, q, ex, aux)[:, moving]
-    masses = np.linalg.lstsq(normal, np.eye(len(normal))[:, :m], rcond=None)[0]  # N⁻¹'s mass columns
-    return -(rows @ masses) * theta[:m][seg][:, None]
+    masses = np.linalg.lstsq(normal, np.eye(len(normal))[:, :n_seg], rcond=None)[0]  # N⁻¹'s mass columns
+    return -(score_rows[:, moving] @ masses) * theta[:n_seg][seg][:, None]
 
 
 def _informed_inverse(normal: np.ndarray) -> np.ndarray:
@@ -555,6 +552,13 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
             break
         unidentified[wide] = True
     statistical = cov
+    headless_used = bool(n_wind and headless[ok].any())
+    # the converged fit's normal matrix without its priors and its samples' score rows, for what the
+    # held powers, the headless samples' wind and the regressor's errors leave in the masses
+    plain = (_normal_equations(x, x if z is None else z, c, q, ex, aux, seg, theta, m, weights, residual)[0]
+             if unidentified.any() or headless_used or regressor_response else None)
+    score_rows = (_score_rows(m, seg, weights, row, theta, c, q, ex, aux)
+                  if headless_used or regressor_response else None)
     if unidentified.any():
         # like the torque gain, an auxiliary power the drive cannot resolve is a systematic term of
         # the mass's uncertainty, not a want of excitation: out of the statistical covariance
@@ -570,18 +574,14 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
         held = np.flatnonzero(unidentified)
         width = np.full(m, np.nan) if aux_prior_w is None else np.asarray(aux_prior_w, dtype=float)[kept]
         width = np.where(np.isfinite(width), width, settings.aux_power_sigma_w)[held - aux_index[0]]
-        plain, _ = _normal_equations(x, x if z is None else z, c, q, ex, aux, seg, theta, m, weights, residual)
         response = np.linalg.lstsq((plain + np.diag(precision))[np.ix_(seen, seen)], plain[np.ix_(seen, unidentified)],
                                    rcond=None)[0]
         cov = statistical.copy()
         cov[np.ix_(seen, seen)] += (response * width ** 2) @ response.T
         cov[held, held] = width ** 2
-    if n_wind and headless[ok].any():
-        seen = free & ~unidentified
-        plain, _ = _normal_equations(x, x if z is None else z, c, q, ex, aux, seg, theta, m, weights, residual)
-        cov = cov + _headless_wind_covariance(theta, cov, m, seg, headless[ok], speed,
-                                              _score_rows(m, seg, weights, row, theta, c, q, ex, aux),
-                                              plain + np.diag(precision), seen)
+    if headless_used:
+        cov = cov + _headless_wind_covariance(theta, cov, m, seg, headless[ok], speed, score_rows,
+                                              plain + np.diag(precision), free & ~unidentified)
     result.headless_samples = np.bincount(seg_of[ok & headless], minlength=n_seg)
     scale = np.sqrt(np.abs(np.diag(normal)))
     informative = scale > 0  # a segment without a single usable sample has an empty row
@@ -592,7 +592,7 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
         at_bound[aux_index] = theta[aux_index] == 0  # held at 0 (P >= 0): a small change leaves it there
         result.regressor_response = np.zeros((len(force), n_seg))
         result.regressor_response[np.ix_(np.flatnonzero(ok), kept)] = _regressor_response(
-            data, theta, weights, residual, row, z, precision, free & ~unidentified & ~at_bound)
+            plain, score_rows, theta, seg, m, precision, free & ~unidentified & ~at_bound)
     reasons = {}
     for index, name in ((m, COEFFICIENTS[0]), (m + 1, COEFFICIENTS[1])):
         std = float(np.sqrt(cov[index, index]))
