@@ -51,20 +51,16 @@ def with_dop_accuracy(frame: pd.DataFrame) -> tuple[pd.DataFrame, str | None]:
         if dop is None:
             continue
         accuracy = _column(frame, accuracy_name)
-        stated = np.zeros(len(frame), bool) if accuracy is None else np.isfinite(accuracy)
-        missing = np.isfinite(altitude) & ~stated & np.isfinite(dop) & (dop > 0)
+        accuracy = np.full(len(frame), np.nan) if accuracy is None else accuracy
+        missing = np.isfinite(altitude) & ~np.isfinite(accuracy) & np.isfinite(dop) & (dop > 0)
         if missing.any():
-            fill[accuracy_name] = (missing, dop)
+            fill[accuracy_name] = (missing, dop, accuracy)
     if not fill:
         return frame, None
     sigma, source = range_sigma_m(frame)
-    out = frame.copy()
-    for accuracy_name, (missing, dop) in fill.items():
-        accuracy = _column(frame, accuracy_name)
-        accuracy = np.full(len(frame), np.nan) if accuracy is None else accuracy.copy()
-        accuracy[missing] = dop[missing] * sigma
-        out[accuracy_name] = accuracy
-    share = max(int(m.sum()) for m, _ in fill.values()) / max(int(np.isfinite(altitude).sum()), 1)
+    out = frame.assign(**{name: np.where(missing, dop * sigma, accuracy)
+                          for name, (missing, dop, accuracy) in fill.items()})
+    share = max(int(missing.sum()) for missing, _, _ in fill.values()) / max(int(np.isfinite(altitude).sum()), 1)
     percent = f"{100 * share:.0f}" if share >= 0.01 else f"{100 * share:.1g}"
     names = " and ".join({"gps_h_acc_m": "horizontal", "gps_v_acc_m": "vertical"}[n] for n in fill)
     return out, (f"GPS {names} accuracy on {percent} % of the fixes from the receiver's dilution of "
