@@ -656,15 +656,15 @@ class GradientSmoother:
         inside = np.flatnonzero(measured)
         if len(inside) < 2:
             return None
-        gaps = np.array([end - start for start, end in true_runs(~measured[inside[0]:inside[-1] + 1])])
+        gap = np.zeros(len(z), bool)
+        gap[inside[0]:inside[-1] + 1] = ~measured[inside[0]:inside[-1] + 1]
+        gaps = np.array([end - start for start, end in true_runs(gap)])
         if len(gaps) == 0:
             return None
         length = max(int(round(np.sum(gaps ** 2) / np.sum(gaps))), 1)
         shift = 2 * length
         if shift >= len(z):
             return None
-        gap = np.zeros(len(z), bool)
-        gap[inside[0]:inside[-1] + 1] = ~measured[inside[0]:inside[-1] + 1]
         # the gaps moved forwards and backwards by twice their length: stretches of their lengths a
         # gap's length clear of them, each direction run apart
         folds = [np.concatenate([np.zeros(shift, bool), gap[:-shift]]) & measured,
