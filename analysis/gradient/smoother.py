@@ -183,7 +183,8 @@ class SmootherResult:
     imu_bias_ramp_std_mps2: float = 0.0
     """1-sigma [m/s²] of the IMU bias's departure from the smoother's bias that its standstills show
     (`GradientSmoother._standstill_ramp_sigma`); not in ``imu_bias_std_mps2``: it is not one
-    error of the drive but one of each stretch between stops."""
+    error of the drive but one of each stretch between stops. In ``gradient_std`` in the share of
+    the gradient the accelerometer carries."""
     imu_bias_shared_std_mps2: np.ndarray | None = None
     """Per grid point, the part [m/s²] of ``imu_bias_std_mps2`` that the bias's error shares with
     the whole drive's (`GradientSmoother._bias_shared_std`), signed: where the error runs against
@@ -490,9 +491,9 @@ class GradientSmoother:
         if not have[kalman.IMU]:
             posterior = (self._smoother_gains(r), np.ascontiguousarray(p[:, :, kalman.GAMMA]))
         ramp = self._standstill_ramp_sigma(x[:, kalman.BIAS]) if self.rate_possible else 0.0
-        # the bias's drift that the near-constant bias state does not follow, in the share of the
-        # gradient the accelerometer carries
-        drift = self.bias_drift_sigma_mps2 / G_MPS2 * weights["imu"]
+        # the bias's drift that the near-constant bias state does not follow (between blocks, and
+        # over the standstills), in the share of the gradient the accelerometer carries
+        drift = np.hypot(self.bias_drift_sigma_mps2, ramp) / G_MPS2 * weights["imu"]
         return SmootherResult(
             height_m=x[:, kalman.H], gradient=x[:, kalman.GAMMA],
             gradient_std=np.sqrt(p[:, kalman.GAMMA, kalman.GAMMA] + drift ** 2),
@@ -562,7 +563,7 @@ class GradientSmoother:
         sigma = float(np.sqrt(worst))
         if sigma > 0:
             self.notes.append(f"no barometer: the IMU's bias moved over a standstill by {sigma:.4f} m/s² more or less "
-                              f"than the smoother's (imu_bias_ramp_std_mps2, in the mass's uncertainty)")
+                              f"than the smoother's (imu_bias_ramp_std_mps2, in the gradient's and the mass's uncertainty)")
         return sigma
 
     def _offset_steps(self, r) -> bool:
