@@ -10,9 +10,8 @@ correlated over half the length), so the term comes from the gusts' physics:
 
     cov(r_k, r_l) = (rho c_d A I)² E|w|² v_k v_l exp(-|s_k - s_l| / L)
 
-with I the turbulence intensity sigma_u / U near the ground, E|w|² the fitted mean wind's
-square plus its variance (an unidentified wind keeps its prior's width) and v the speed through the
-air, the ground speed plus the fitted wind's head component (``joint._airspeed``).
+with I the turbulence intensity sigma_u / U near the ground and E|w|² the fitted mean wind's
+square plus its variance (an unidentified wind keeps its prior's width).
 """
 
 from __future__ import annotations

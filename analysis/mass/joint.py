@@ -330,18 +330,6 @@ def _gust_model(theta, cov, n_seg, n_wind, settings):
     return gust_covariance(cda, mean_square, settings.gust_intensity, settings.gust_length_m)
 
 
-def _airspeed(speed_mps, extra, theta, n_seg, n_wind):
-    """Each sample's speed through the air [m/s], |v + h| with h the fitted mean wind's head
-    component (the wind columns are rho v h per unit c_d A w; 0 without a heading): a gust g adds
-    ½ rho c_d A ((v + h + g)² - (v + h)²) ≈ rho c_d A (v + h) g to the drag, not rho c_d A v g."""
-    cda = theta[n_seg + 1]
-    if not n_wind or not cda > 0:
-        return speed_mps
-    force = extra[:, :n_wind] @ theta[n_seg + 2:n_seg + 2 + n_wind]
-    head = force / (AIR_DENSITY_KGPM3 * cda * np.maximum(speed_mps, 0.1))
-    return np.abs(speed_mps + head)
-
-
 def _headless_wind_covariance(theta, cov, n_seg, seg, headless, speed_mps, score_rows, normal, seen):
     """What the head wind leaves in the parameters' covariance [n_p x n_p] from the samples without
     a heading (their wind columns 0): per segment one unknown head wind h_j over its headless
@@ -552,7 +540,7 @@ def fit_joint(force, excess, cos_angle, aero, time_s, bounds, usable, vehicle, s
                                      residual)
         blocks_only = _block_covariance(bread + np.diag(precision), np.flatnonzero(free), m, seg, block, weights,
                                         residual, row, theta, c, q, ex, aux, extra_meat=noise_var * np.diag(precision))
-        gusts = (_airspeed(speed, ex, theta, m, n_wind), distance, _gust_model(theta, blocks_only, m, n_wind, settings),
+        gusts = (speed, distance, _gust_model(theta, blocks_only, m, n_wind, settings),
                  _score_rows(m, seg, share[seg], regressor, theta, c, q, ex, aux))
         cov = _block_covariance(bread + np.diag(precision), np.flatnonzero(free), m, seg, block, weights, residual,
                                 row, theta, c, q, ex, aux, extra_meat=noise_var * np.diag(precision), gusts=gusts)
