@@ -260,8 +260,7 @@ def estimate_gradient(frame: pd.DataFrame, dem=None, settings: GradientSettings 
         have = np.isfinite(on_grid)
         out["imu_bias_mps2"] += np.interp(np.arange(n_bins), np.flatnonzero(have), on_grid[have])
     posteriors = () if smoothed.gradient_posterior is None else (
-        gradient_posterior(*smoothed.gradient_posterior[:2], distance, spacing, samples["gradient_smooth_pct"],
-                           *smoothed.gradient_posterior[2:]),)
+        gradient_posterior(*smoothed.gradient_posterior, distance, spacing, samples["gradient_smooth_pct"]),)
     return GradientResult(grid=out, samples=samples, notes=notes, map_sigma_m=map_sigma, posteriors=posteriors,
                           smoother={"method": settings.gradient_method, **smoothed.noise,
                                     "imu_bias_mps2": (float(np.median(out["imu_bias_mps2"]))

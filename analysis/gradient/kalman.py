@@ -413,35 +413,3 @@ def weighted_sum_covariance(gains, p_column, state, weights):
     part = weights[first:last + 1]
     diagonal = (part * p_column[first:last + 1, state][:, None]).T @ part
     return upper + upper.T - diagonal
-
-
-def sum_cross_covariance(gains, p_column, p_row, state, row, weights):
-    """Per grid point i, the covariance (n, k) of state ``row``'s smoothed error there with k
-    weighted sums Σ_j W[j, a] e_j of state ``state``'s, Σ_j Cov(x_i[row], x_j[state]) W_j over
-    the whole grid, before i and after. ``p_column`` (n, ns) is P_j[:, state], ``p_row`` (n, ns)
-    P_i[row, :] of the smoothed covariances, ``gains`` the RTS smoother's (`smoother_gains`).
-    From i on, the backward recursion of `weighted_sum_covariance`, L_i = P_i[:, state] W_i +
-    C_i L_{i+1}, gives L_i[row]; before i, Cov(x_i, x_j) = P_i C_{i-1}ᵀ … C_jᵀ gives P_i[row, :] M_i
-    with M_{i+1} = C_iᵀ (M_i + e_state W_i). O(n ns² k), no n × n matrix."""
-    weights = np.asarray(weights, dtype=float)
-    if weights.ndim == 1:
-        weights = weights[:, None]
-    n, k = weights.shape
-    ns = p_column.shape[1]
-    out = np.zeros((n, k))
-    used = np.flatnonzero(np.any(weights != 0, axis=1))
-    if len(used) == 0:
-        return out
-    first, last = used[0], used[-1]
-    later = p_column[last][:, None] * weights[last][None, :]
-    out[last] = later[row]
-    for i in range(last - 1, -1, -1):
-        later = p_column[i][:, None] * weights[i][None, :] + gains[i] @ later
-        out[i] = later[row]
-    earlier = np.zeros((ns, k))
-    unit = np.zeros((ns, 1))
-    unit[state] = 1.0
-    for i in range(first, n):
-        out[i] += p_row[i] @ earlier
-        earlier = gains[i].T @ (earlier + unit * weights[i][None, :])
-    return out

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kalman
-from .gps_correlation import CorrelatedGpsError
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,11 +32,6 @@ class GradientPosterior:
     """Per sample, its share of the grid point above (the samples are linear between grid points)."""
     gradient_pct: np.ndarray
     """Per sample, the gradient [%] this is the posterior of."""
-    height_row: np.ndarray | None = None
-    """(n, ns) the smoothed covariances' height row, P_i[H, :] (with ``gps_error``)."""
-    gps_error: CorrelatedGpsError | None = None
-    """GPS altitude's correlated error, in the sums' covariance (`gps_correlation`); None: the
-    smoother's white error as it is."""
 
     def describes(self, gradient_pct) -> bool:
         """Whether ``gradient_pct`` (per sample) is the gradient this is the posterior of."""
@@ -57,18 +51,10 @@ class GradientPosterior:
         np.add.at(on_grid, self.lower[ok], weights[ok] * (1 - self.fraction[ok])[:, None])
         above = ok & (self.fraction > 0)
         np.add.at(on_grid, self.lower[above] + 1, weights[above] * self.fraction[above][:, None])
-        covariance = kalman.weighted_sum_covariance(self.gains, self.gradient_column, kalman.GAMMA, on_grid)
-        if self.gps_error is None or self.height_row is None:
-            return covariance
-        with_height = kalman.sum_cross_covariance(self.gains, self.gradient_column, self.height_row, kalman.GAMMA,
-                                                  kalman.H, on_grid)
-        variance = self.gps_error.model_variance_m2
-        influence = np.where(variance[:, None] > 0, with_height / np.where(variance > 0, variance, 1.0)[:, None], 0.0)
-        return covariance + self.gps_error.extra_covariance(influence)
+        return kalman.weighted_sum_covariance(self.gains, self.gradient_column, kalman.GAMMA, on_grid)
 
 
-def gradient_posterior(gains, gradient_column, distance_m, spacing_m: float, gradient_pct, height_row=None,
-                       gps_error: CorrelatedGpsError | None = None) -> GradientPosterior:
+def gradient_posterior(gains, gradient_column, distance_m, spacing_m: float, gradient_pct) -> GradientPosterior:
     """The posterior over the grid of spacing ``spacing_m`` [m] with samples at ``distance_m`` [m]
     (NaN: none) linear between the grid points, as `estimate_gradient`'s ``np.interp`` puts them."""
     distance = np.asarray(distance_m, dtype=float)
@@ -80,5 +66,4 @@ def gradient_posterior(gains, gradient_column, distance_m, spacing_m: float, gra
     fraction = np.zeros(len(distance))
     fraction[inside] = position[inside] - lower[inside]
     return GradientPosterior(gains=gains, gradient_column=gradient_column, lower=lower, fraction=fraction,
-                             gradient_pct=np.asarray(gradient_pct, dtype=float).copy(), height_row=height_row,
-                             gps_error=gps_error)
+                             gradient_pct=np.asarray(gradient_pct, dtype=float).copy())

@@ -17,7 +17,7 @@ from scipy.stats import chi2
 
 from ..road_load import G_MPS2
 from ..runs import true_runs
-from . import gps_altitude, gps_correlation, kalman
+from . import gps_altitude, kalman
 
 CHI2_MEDIAN_1DOF = 0.454936
 KNOWN_BIAS_MPS2 = 0.05
@@ -189,9 +189,8 @@ class SmootherResult:
     the whole drive's (`GradientSmoother._bias_shared_std`), signed: where the error runs against
     the drive's mean it is negative; the rest, sqrt(std² - shared²), is the point's own. None
     without an IMU."""
-    gradient_posterior: tuple | None = None
-    """The RTS gains (n, ns, ns), the smoothed covariances' gradient column (n, ns), their height
-    row (n, ns) and GPS altitude's correlated error (`gps_correlation.CorrelatedGpsError` or None), whose
+    gradient_posterior: tuple[np.ndarray, np.ndarray] | None = None
+    """The RTS gains (n, ns, ns) and the smoothed covariances' gradient column (n, ns) whose
     cross-covariances are the gradient's errors' along the grid (`posterior.GradientPosterior`);
     only where ``gradient_std`` is that posterior's own: without an accelerometer (with one, σ
     holds the bias's drift between blocks and the rate models' mixture too). None otherwise."""
@@ -489,8 +488,7 @@ class GradientSmoother:
         weights = self._weights(r, p, have)
         posterior = None
         if not have[kalman.IMU]:
-            posterior = (self._smoother_gains(r), np.ascontiguousarray(p[:, :, kalman.GAMMA]),
-                         np.ascontiguousarray(p[:, kalman.H, :]), self._gps_error(r, x, p))
+            posterior = (self._smoother_gains(r), np.ascontiguousarray(p[:, :, kalman.GAMMA]))
         ramp = self._standstill_ramp_sigma(x[:, kalman.BIAS]) if self.rate_possible else 0.0
         # the bias's drift that the near-constant bias state does not follow, in the share of the
         # gradient the accelerometer carries
@@ -516,17 +514,6 @@ class GradientSmoother:
                                       np.clip(shared, -np.sqrt(p[:, kalman.BIAS, kalman.BIAS]),
                                               np.sqrt(p[:, kalman.BIAS, kalman.BIAS]))),
             gradient_posterior=posterior)
-
-    def _gps_error(self, r, x, p):
-        """GPS altitude's correlated error as its residuals against this smoothed height show it
-        (`gps_correlation.estimate_gps_error`); None without GPS altitude."""
-        z = self.m.z[:, kalman.GPS]
-        if not np.isfinite(z).any():
-            return None
-        time_s = np.cumsum(self.m.clock_s if self.m.clock_s is not None else self.m.dt_s)
-        used = np.isfinite(z) & np.isfinite(r[:, kalman.GPS]) & (r[:, kalman.GPS] > 0)
-        return gps_correlation.estimate_gps_error(z - x[:, kalman.H], p[:, kalman.H, kalman.H], self.m.v_acc_m,
-                                                  time_s, np.where(used, r[:, kalman.GPS], 0.0))
 
     def _smoother_gains(self, r) -> np.ndarray:
         """The RTS smoother's gains of this model with measurement variances ``r``
