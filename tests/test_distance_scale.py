@@ -65,7 +65,7 @@ def test_no_track_no_scale():
 
 def test_the_mass_on_the_smoothers_gradient_takes_it_over_the_tracks_distance(monkeypatch):
     """Where the gradient is the smoother's (its posterior describes it) the regression gets it
-    times (1 + ε); any other gradient is taken as it is."""
+    times (1 + ε), the speed and the acceleration over (1 + ε); elsewhere the log as it is."""
     from haulprofile.analysis import mass
 
     class Built(Exception):
@@ -74,7 +74,7 @@ def test_the_mass_on_the_smoothers_gradient_takes_it_over_the_tracks_distance(mo
     seen = []
 
     def build_regression(frame, vehicle, settings):
-        seen.append(frame["gradient_pct"].to_numpy().copy())
+        seen.append(frame[["gradient_pct", "speed_mps", "accel_mps2"]].to_numpy().copy())
         raise Built
 
     class Posterior:
@@ -82,10 +82,12 @@ def test_the_mass_on_the_smoothers_gradient_takes_it_over_the_tracks_distance(mo
             return True
 
     monkeypatch.setattr(mass, "build_regression", build_regression)
-    log = _log(0.02).assign(gradient_pct=2.0, gradient_std_pct=0.1)
+    log = _log(0.02).assign(gradient_pct=2.0, gradient_std_pct=0.1, accel_mps2=0.3)
     for posteriors in ((Posterior(),), ()):
         with pytest.raises(Built):
             mass.estimate_mass(log, vehicle=None, gradient_posteriors=posteriors)
-    assert seen[0] == pytest.approx(2.0 * (1 + wheel_distance_scale(log)))
-    assert wheel_distance_scale(log) == pytest.approx(0.02, abs=1e-3)
-    np.testing.assert_array_equal(seen[1], 2.0)
+    scale = 1 + wheel_distance_scale(log)
+    assert scale == pytest.approx(1.02, abs=1e-3)
+    np.testing.assert_allclose(seen[0], np.c_[np.full(len(log), 2.0 * scale), log["speed_mps"] / scale,
+                                              np.full(len(log), 0.3 / scale)])
+    np.testing.assert_array_equal(seen[1], log[["gradient_pct", "speed_mps", "accel_mps2"]].to_numpy())
