@@ -10,7 +10,7 @@ over the whole drive, larger on the climbs where a mass fitted on the gradient l
 The GPS track measures ε: over 1 s between fixes the chord is the path within millimetres, and its
 noise (the receiver's position error changes little within a second under open sky) adds ~0.01 %
 to the length. Multipath in towns makes the steps jitter by metres and the track too long (on the
-matrix's `harsh` long-haul drive seed 3: 1.51 % with every fix against 2.06 % open-sky and 2.09 %
+matrix's `harsh` long-haul drive seed 3: 1.51 % with every fix against 1.96 % open-sky and 2.09 %
 true), so only steps between two fixes whose stated accuracy is within √2 of the receiver's
 open-sky level are summed (`gradient.gps_altitude`'s threshold of multipath).
 """
