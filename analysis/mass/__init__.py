@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ..distance_scale import wheel_distance_scale
 from ..engine_torque import REPORTED, driveline_torque_nm, parasitic_torque_nm, torque_used
 from ..gradient.posterior import GradientPosterior
 from ..road_load import G_MPS2
@@ -78,6 +79,15 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     if "gradient_mass_pct" in frame.columns and frame["gradient_mass_pct"].notna().any():
         std = frame["gradient_mass_std_pct"] if "gradient_mass_std_pct" in frame.columns else np.nan
         frame = frame.assign(gradient_pct=frame["gradient_mass_pct"], gradient_std_pct=std)
+    posterior = _gradient_posterior(frame, gradient_posteriors)
+    odometer = wheel_distance_scale(frame) if posterior is not None else None
+    if odometer is not None:
+        # the wheel reads (1 + ε) times the speed, and so the acceleration; the gradient is binned by
+        # its distance, each height at its true place: the true gradient is (1 + ε) times it
+        # (`distance_scale`); the gradient stage's own output stays as it is
+        over_track = {name: frame[name] / (1 + odometer) for name in ("speed_mps", "accel_mps2") if name in frame}
+        frame = frame.assign(**over_track, gradient_pct=frame["gradient_pct"] * (1 + odometer),
+                             gradient_std_pct=frame["gradient_std_pct"] * (1 + odometer))
     regression = build_regression(frame, vehicle, filter_settings)
     time_s = frame["time_s"].to_numpy(dtype=float)
     speed = frame["speed_mps"].to_numpy(dtype=float)
@@ -113,6 +123,9 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     wind = _wind_regressors(frame, speed, time_s) if joint_settings.fit_wind else None
     offset = _offset_regressor(frame, regression, vehicle) if joint_settings.fit_torque_offset else None
     aux = _aux_regressor(frame, regression) if joint_settings.aux_power_sigma_w > 0 else None
+    if odometer is not None:
+        notes.append(f"the wheel's distance reads {100 * odometer:+.2f} % against the GPS track: speed, "
+                     f"acceleration and the gradient regressor taken over the track's distance")
     if wind is not None:
         notes.append("the drive's wind fitted with the masses from the heading along the GPS track")
     engine_torque = torque_used(frame)
@@ -122,7 +135,7 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
                               columns, max_mass, notes, segment_settings, wind,
                               offset, aux, aux_prior, speed,
-                              _gradient_posterior(frame, gradient_posteriors))
+                              posterior)
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint, engine_torque=engine_torque)
 

@@ -1,0 +1,93 @@
+"""The wheel odometer's scale against the GPS track (`distance_scale`), and the mass fitted on the
+smoother's gradient taking its regressor over the track's distance."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from haulprofile.analysis.distance_scale import wheel_distance_scale
+from haulprofile.analysis.geodesy import EARTH_RADIUS_M
+
+LATITUDE_DEG, LONGITUDE_DEG = 50.5, 7.3
+
+
+def _log(scale_error, seed=0, town=slice(0, 0)):
+    """10 Hz samples along a road with a long bend, GPS fixes at 1 Hz held between them (open-sky
+    error 1.3 m correlated over 30 s; in ``town``, seconds of the drive, 8 m correlated over 5 s
+    with a stated accuracy five times the open-sky one), ``distance_m`` from a wheel reading
+    (1 + ``scale_error``) times the true distance."""
+    rng = np.random.default_rng(seed)
+    time_s = np.arange(0.0, 1200.0, 0.1)
+    speed = 18 + 5 * np.sin(time_s / 90)
+    path = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * 0.1)])
+    heading = 0.6 * np.sin(path / 3000)
+    step = np.diff(path, prepend=0.0)
+    east, north = np.cumsum(step * np.cos(heading)), np.cumsum(step * np.sin(heading))
+    fix_s = np.arange(0, 1200)
+    in_town = (fix_s >= town.start) & (fix_s < town.stop)
+    jitter = np.empty((len(fix_s), 2))
+    state = rng.normal(size=2)
+    for k in range(len(fix_s)):
+        tau = 5.0 if in_town[k] else 30.0
+        phi = np.exp(-1 / tau)
+        state = phi * state + np.sqrt(1 - phi * phi) * rng.normal(size=2)
+        jitter[k] = state * (8.0 if in_town[k] else 1.3)
+    at = np.searchsorted(time_s, fix_s)
+    fix_east, fix_north = east[at] + jitter[:, 0], north[at] + jitter[:, 1]
+    held = np.searchsorted(fix_s, time_s, side="right") - 1
+    lat = LATITUDE_DEG + np.degrees(fix_north / EARTH_RADIUS_M)
+    lon = LONGITUDE_DEG + np.degrees(fix_east / (EARTH_RADIUS_M * np.cos(np.radians(LATITUDE_DEG))))
+    h_acc = np.where(in_town, 9.0, 1.8) * rng.uniform(0.9, 1.1, len(fix_s))
+    return pd.DataFrame({"time_s": time_s, "speed_mps": speed * (1 + scale_error),
+                         "distance_m": path * (1 + scale_error), "latitude_deg": lat[held],
+                         "longitude_deg": lon[held], "gps_h_acc_m": h_acc[held]})
+
+
+@pytest.mark.parametrize("scale_error", [-0.025, 0.0, 0.012])
+def test_the_odometers_scale_from_the_gps_track(scale_error):
+    assert wheel_distance_scale(_log(scale_error)) == pytest.approx(scale_error, abs=1e-3)
+
+
+def test_a_towns_jittering_fixes_do_not_lengthen_the_track():
+    """Multipath makes the steps jitter by metres: counted, the track reads long (the scale short);
+    the fixes whose stated accuracy shows it are left out."""
+    log = _log(0.02, seed=1, town=slice(300, 700))
+    assert wheel_distance_scale(log) == pytest.approx(0.02, abs=1e-3)
+    every_fix = log.assign(gps_h_acc_m=1.8)
+    assert wheel_distance_scale(every_fix) < 0.015
+
+
+def test_no_track_no_scale():
+    log = _log(0.02)
+    assert wheel_distance_scale(log.drop(columns=["latitude_deg"])) is None
+    assert wheel_distance_scale(log.iloc[:500]) is None
+
+
+def test_the_mass_on_the_smoothers_gradient_takes_it_over_the_tracks_distance(monkeypatch):
+    """Where the gradient is the smoother's (its posterior describes it) the regression gets it
+    times (1 + ε), the speed and the acceleration over (1 + ε); elsewhere the log as it is."""
+    from haulprofile.analysis import mass
+
+    class Built(Exception):
+        pass
+
+    seen = []
+
+    def build_regression(frame, vehicle, settings):
+        seen.append(frame[["gradient_pct", "speed_mps", "accel_mps2"]].to_numpy().copy())
+        raise Built
+
+    class Posterior:
+        def describes(self, gradient_pct):
+            return True
+
+    monkeypatch.setattr(mass, "build_regression", build_regression)
+    log = _log(0.02).assign(gradient_pct=2.0, gradient_std_pct=0.1, accel_mps2=0.3)
+    for posteriors in ((Posterior(),), ()):
+        with pytest.raises(Built):
+            mass.estimate_mass(log, vehicle=None, gradient_posteriors=posteriors)
+    scale = 1 + wheel_distance_scale(log)
+    assert scale == pytest.approx(1.02, abs=1e-3)
+    np.testing.assert_allclose(seen[0], np.c_[np.full(len(log), 2.0 * scale), log["speed_mps"] / scale,
+                                              np.full(len(log), 0.3 / scale)])
+    np.testing.assert_array_equal(seen[1], log[["gradient_pct", "speed_mps", "accel_mps2"]].to_numpy())
