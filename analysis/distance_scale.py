@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import median_filter
 
-from .geodesy import EARTH_RADIUS_M
+from .geodesy import step_lengths_m
 
 MAX_STEP_S = 1.5
 """Longest time [s] between two fixes whose step is summed: longer chords cut the curves."""
@@ -49,7 +49,7 @@ def wheel_distance_scale(frame) -> float | None:
     if len(fix) < 3:
         return None
     open_sky = float(np.min(median_filter(h_acc[fix], size=min(OPEN_SKY_FIXES, len(fix)), mode="nearest")))
-    step_m = _step_lengths_m(lat[fix], lon[fix])
+    step_m = step_lengths_m(lat[fix], lon[fix])
     clear = h_acc[fix] <= np.sqrt(2.0) * open_sky
     fast = speed[fix] > MIN_SPEED_MPS
     ok = ((np.diff(time_s[fix]) <= MAX_STEP_S) & clear[1:] & clear[:-1] & fast[1:] & fast[:-1]
@@ -59,11 +59,3 @@ def wheel_distance_scale(frame) -> float | None:
         return None
     return float(np.sum(np.diff(distance[fix])[ok]) / track - 1.0)
 
-
-def _step_lengths_m(latitude_deg, longitude_deg) -> np.ndarray:
-    """Lengths [m] of the steps between consecutive positions on the sphere, each with its own
-    latitude's scale of longitude (a projection around one point is off by tan φ Δφ far from it)."""
-    north = np.radians(np.diff(latitude_deg)) * EARTH_RADIUS_M
-    middle = np.radians((latitude_deg[1:] + latitude_deg[:-1]) / 2)
-    east = np.radians(np.diff(longitude_deg)) * EARTH_RADIUS_M * np.cos(middle)
-    return np.hypot(east, north)

@@ -19,3 +19,12 @@ def local_east_north_m(latitude_deg, longitude_deg):
     north = np.radians(lat - lat0) * EARTH_RADIUS_M
     east = np.radians(lon - lon0) * EARTH_RADIUS_M * np.cos(np.radians(lat0))
     return east, north
+
+
+def step_lengths_m(latitude_deg, longitude_deg) -> np.ndarray:
+    """Lengths [m] of the steps between consecutive positions on the sphere, each with its own
+    latitude's scale of longitude (a projection around one point is off by tan φ Δφ far from it)."""
+    north = np.radians(np.diff(latitude_deg)) * EARTH_RADIUS_M
+    middle = np.radians((latitude_deg[1:] + latitude_deg[:-1]) / 2)
+    east = np.radians(np.diff(longitude_deg)) * EARTH_RADIUS_M * np.cos(middle)
+    return np.hypot(east, north)
