@@ -2,10 +2,12 @@
 
 ``distance_m`` is integrated wheel speed (`kinematics`), whose scale is the tyres' rolling
 circumference as the logger's speed signal assumes it: tyre wear (15-20 mm of tread on a
-500 mm radius), pressure and load move it by a few per cent. The gradient stage bins its heights by
-that distance while each height is the one at the fix's true place, so its gradient is the true
-one over (1 + ε), ε the odometer's relative scale error: a share of the gradient itself, one sign
-over the whole drive, larger on the climbs where a mass fitted on the gradient leans hardest.
+500 mm radius), pressure and load move it by a few per cent. Heights binned by that distance are
+each the one at the fix's true place, so their gradient is the true one over (1 + ε), ε the
+odometer's relative scale error: a share of the gradient itself, one sign over the whole drive,
+larger on the climbs where a mass fitted on the gradient leans hardest. The gradient stage grids
+the road by the track's distance where ε is known (`gradient.force_balance.estimate_gradient_for_log`);
+the mass takes the wheel's speed and acceleration over (1 + ε) where it fits on that gradient.
 
 The GPS track measures ε: over 1 s between fixes the chord is the path within millimetres, and its
 noise (the receiver's position error changes little within a second under open sky) adds ~0.01 %
