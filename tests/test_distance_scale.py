@@ -114,3 +114,17 @@ def test_the_mass_on_the_smoothers_gradient_takes_it_over_the_tracks_distance(mo
     np.testing.assert_allclose(seen[0], np.c_[np.full(len(log), 2.0), log["speed_mps"] / scale,
                                               np.full(len(log), 0.3 / scale)])
     np.testing.assert_array_equal(seen[1], log[["gradient_pct", "speed_mps", "accel_mps2"]].to_numpy())
+
+
+def test_a_fast_receivers_jitter_is_taken_a_second_apart_and_a_wild_scale_is_none():
+    """Positions jittering white by 1.5 m in every 10 Hz row: steps of 2 m would read the track 46 %
+    long; fixes a second apart read it within 1 %. A scale no tyre makes (the distance doubled) is
+    not told."""
+    log = _log(0.02)
+    rng = np.random.default_rng(5)
+    metres = 1.5 / EARTH_RADIUS_M
+    jittered = log.assign(latitude_deg=log["latitude_deg"] + np.degrees(rng.normal(0, metres, len(log))),
+                          longitude_deg=log["longitude_deg"] + np.degrees(rng.normal(0, metres, len(log))
+                                                                          / np.cos(np.radians(LATITUDE_DEG))))
+    assert wheel_distance_scale(jittered) == pytest.approx(0.02, abs=0.01)
+    assert wheel_distance_scale(log.assign(distance_m=2 * log["distance_m"])) is None
