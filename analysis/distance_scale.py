@@ -40,12 +40,21 @@ MIN_TRACK_M = 2000.0
 """Less open-sky track than this tells no scale."""
 OPEN_SKY_FIXES = 60
 """Running-median length [fixes] whose lowest value is the receiver's open-sky accuracy."""
+BLOCK_M = 500.0
+"""Track length [m] of the blocks whose scales' scatter gives ε's own σ."""
+MIN_BLOCKS = 4
+"""Fewer blocks than this tell no σ, and no scale."""
+SIGNIFICANCE = 2.0
+"""An ε within this many of its σ is not told from 0: a correction smaller than its own
+uncertainty moves the estimates by chance (the matrix's `ideal` drives, no scale injected: the
+track read −0.11 to +0.05 %)."""
 
 
 def wheel_distance_scale(frame) -> float | None:
     """ε [-]: ``distance_m`` over the GPS track's length on open-sky steps, less 1 (positive: the
     odometer reads long); None without positions, horizontal accuracy or `MIN_TRACK_M` of track,
-    or beyond `MAX_SCALE`.
+    beyond `MAX_SCALE`, or within `SIGNIFICANCE` times its σ (the scatter of its `BLOCK_M` blocks'
+    scales, each weighted by its length) of 0.
     A fix is a row whose position or accuracy differs from the row before (a logger holds its last
     fix between them)."""
     needed = {"latitude_deg", "longitude_deg", "gps_h_acc_m", "distance_m", "speed_mps", "time_s"}
@@ -65,11 +74,22 @@ def wheel_distance_scale(frame) -> float | None:
     fast = speed[fix] > MIN_SPEED_MPS
     ok = ((np.diff(time_s[fix]) <= MAX_STEP_S) & clear[1:] & clear[:-1] & fast[1:] & fast[:-1]
           & np.isfinite(step_m))
-    track = float(np.sum(step_m[ok]))
+    track_m, wheel_m = step_m[ok], np.diff(distance[fix])[ok]
+    track = float(np.sum(track_m))
     if track < MIN_TRACK_M:
         return None
-    scale = float(np.sum(np.diff(distance[fix])[ok]) / track - 1.0)
-    return scale if abs(scale) <= MAX_SCALE else None
+    scale = float(np.sum(wheel_m) / track - 1.0)
+    block = np.floor(np.cumsum(track_m) / BLOCK_M).astype(np.int64)
+    block_track, block_wheel = np.bincount(block, weights=track_m), np.bincount(block, weights=wheel_m)
+    full = block_track >= 0.5 * BLOCK_M
+    if full.sum() < MIN_BLOCKS:
+        return None
+    weight = block_track[full] / block_track[full].sum()
+    ratios = block_wheel[full] / block_track[full] - 1.0
+    sigma = float(np.sqrt(np.sum(weight ** 2 * (ratios - scale) ** 2) * full.sum() / (full.sum() - 1)))
+    if abs(scale) > MAX_SCALE or abs(scale) <= SIGNIFICANCE * sigma:
+        return None
+    return scale
 
 
 def _about_a_second_apart(fix: np.ndarray, time_s: np.ndarray) -> np.ndarray:
