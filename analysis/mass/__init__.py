@@ -82,12 +82,10 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     posterior = _gradient_posterior(frame, gradient_posteriors)
     odometer = wheel_distance_scale(frame) if posterior is not None else None
     if odometer is not None:
-        # the wheel reads (1 + ε) times the speed, and so the acceleration; the gradient is binned by
-        # its distance, each height at its true place: the true gradient is (1 + ε) times it
-        # (`distance_scale`); the gradient stage's own output stays as it is
+        # the wheel reads (1 + ε) times the speed, and so the acceleration (`distance_scale`); the
+        # gradient stage gridded the road by the GPS track's distance already
         over_track = {name: frame[name] / (1 + odometer) for name in ("speed_mps", "accel_mps2") if name in frame}
-        frame = frame.assign(**over_track, gradient_pct=frame["gradient_pct"] * (1 + odometer),
-                             gradient_std_pct=frame["gradient_std_pct"] * (1 + odometer))
+        frame = frame.assign(**over_track)
     regression = build_regression(frame, vehicle, filter_settings)
     time_s = frame["time_s"].to_numpy(dtype=float)
     speed = frame["speed_mps"].to_numpy(dtype=float)
@@ -124,8 +122,8 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     offset = _offset_regressor(frame, regression, vehicle) if joint_settings.fit_torque_offset else None
     aux = _aux_regressor(frame, regression) if joint_settings.aux_power_sigma_w > 0 else None
     if odometer is not None:
-        notes.append(f"the wheel's distance reads {100 * odometer:+.2f} % against the GPS track: speed, "
-                     f"acceleration and the gradient regressor taken over the track's distance")
+        notes.append(f"the wheel's distance reads {100 * odometer:+.2f} % against the GPS track: speed and "
+                     f"acceleration taken over the track's distance")
     if wind is not None:
         notes.append("the drive's wind fitted with the masses from the heading along the GPS track")
     engine_torque = torque_used(frame)
