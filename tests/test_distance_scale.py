@@ -91,15 +91,17 @@ def test_the_gradient_is_gridded_by_the_tracks_distance():
     for over_track in (True, False):
         result = estimate_gradient_for_log(log, None, replace(GradientSettings(), distance_over_track=over_track))
         median[over_track] = float(np.nanmedian(result.samples["gradient_pct"]))
+        assert [posterior.distance_scale for posterior in result.posteriors] == (
+            [pytest.approx(0.02, abs=1e-3)] if over_track else [None])
         assert result.grid["distance_m"].max() == pytest.approx(log["distance_m"].max(), abs=20.0)
     assert median[True] == pytest.approx(3.0, abs=0.01)
     assert median[False] == pytest.approx(3.0 / 1.02, abs=0.01)
 
 
 def test_the_mass_on_the_smoothers_gradient_takes_it_over_the_tracks_distance(monkeypatch):
-    """Where the gradient is the smoother's (its posterior describes it) the regression gets the
-    speed and the acceleration over (1 + ε) (the gradient stage gridded the road by the track's
-    distance already); elsewhere the log as it is."""
+    """Where the gradient is the smoother's (its posterior describes it) and was gridded by the
+    track's distance (its posterior names ε), the regression gets the speed and the acceleration
+    over (1 + ε); elsewhere the log as it is."""
     from haulprofile.analysis import mass
 
     class Built(Exception):
@@ -111,12 +113,15 @@ def test_the_mass_on_the_smoothers_gradient_takes_it_over_the_tracks_distance(mo
         seen.append(frame[["gradient_pct", "speed_mps", "accel_mps2"]].to_numpy().copy())
         raise Built
 
+    log = _log(0.02).assign(gradient_pct=2.0, gradient_std_pct=0.1, accel_mps2=0.3)
+
     class Posterior:
+        distance_scale = wheel_distance_scale(log)
+
         def describes(self, gradient_pct):
             return True
 
     monkeypatch.setattr(mass, "build_regression", build_regression)
-    log = _log(0.02).assign(gradient_pct=2.0, gradient_std_pct=0.1, accel_mps2=0.3)
     for posteriors in ((Posterior(),), ()):
         with pytest.raises(Built):
             mass.estimate_mass(log, vehicle=None, gradient_posteriors=posteriors)

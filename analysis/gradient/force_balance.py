@@ -691,6 +691,7 @@ def estimate_gradient_for_log(frame: pd.DataFrame, dem, settings: GradientSettin
     result = _estimate_gradient_for_log(frame.assign(distance_m=frame["distance_m"] / (1 + scale)), dem, settings,
                                         vehicle)
     result.grid["distance_m"] = result.grid["distance_m"] * (1 + scale)
+    result.posteriors = tuple(replace(posterior, distance_scale=scale) for posterior in result.posteriors)
     result.notes.append(f"the wheel's distance reads {100 * scale:+.2f} % against the GPS track: the road is "
                         f"gridded by the track's distance (the grid's distance_m at the wheel's)")
     return result

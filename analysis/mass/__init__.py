@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..distance_scale import wheel_distance_scale
 from ..engine_torque import REPORTED, driveline_torque_nm, parasitic_torque_nm, torque_used
 from ..gradient.posterior import GradientPosterior
 from ..road_load import G_MPS2
@@ -80,10 +79,10 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
         std = frame["gradient_mass_std_pct"] if "gradient_mass_std_pct" in frame.columns else np.nan
         frame = frame.assign(gradient_pct=frame["gradient_mass_pct"], gradient_std_pct=std)
     posterior = _gradient_posterior(frame, gradient_posteriors)
-    odometer = wheel_distance_scale(frame) if posterior is not None else None
+    odometer = None if posterior is None else posterior.distance_scale
     if odometer is not None:
         # the wheel reads (1 + ε) times the speed, and so the acceleration (`distance_scale`); the
-        # gradient stage gridded the road by the GPS track's distance already
+        # gradient the mass is fitted on was gridded by the GPS track's distance with the same ε
         over_track = {name: frame[name] / (1 + odometer) for name in ("speed_mps", "accel_mps2") if name in frame}
         frame = frame.assign(**over_track)
     regression = build_regression(frame, vehicle, filter_settings)
