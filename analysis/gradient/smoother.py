@@ -453,7 +453,7 @@ class GradientSmoother:
             x, _, _, _ = self.run(r, use=(True, False, True, True))
             if have[kalman.IMU]:
                 gamma = x[:, kalman.GAMMA]
-                residual = z[:, kalman.IMU] - G_MPS2 * gamma / np.sqrt(1 + gamma ** 2) - x[:, kalman.BIAS]
+                residual = z[:, kalman.IMU] - _gravity_along_road_mps2(gamma) - x[:, kalman.BIAS]
                 var = _residual_var(residual / np.sqrt(imu_scale))
                 if np.isfinite(var):
                     r[:, kalman.IMU] = max(var, 1e-6) * imu_scale
@@ -608,7 +608,7 @@ class GradientSmoother:
             self.curvature_psd = candidate
             x, _, _, _ = self.run(r, use=(True, False, False, True))
             gamma = x[:, kalman.GAMMA]
-            residual = z - G_MPS2 * gamma / np.sqrt(1 + gamma ** 2)
+            residual = z - _gravity_along_road_mps2(gamma)
             filled = np.interp(grid, grid[ok], residual[ok])
             high = residual - uniform_filter1d(filled, window, mode="nearest")
             score = float(np.sum((high[ok] ** 2) / imu_scale[ok]) / np.sum(1 / imu_scale[ok]))
@@ -684,7 +684,7 @@ class GradientSmoother:
                 x, _, _, _ = self.run(held, use=(True, False, True, True))
                 gamma = x[:, kalman.GAMMA]
                 scale = np.exp(x[:, kalman.SCALE]) if self.scaled else 1.0
-                predicted = scale * (G_MPS2 * gamma / np.sqrt(1 + gamma ** 2) + u) - u + x[:, kalman.BIAS]
+                predicted = scale * (_gravity_along_road_mps2(gamma) + u) - u + x[:, kalman.BIAS]
                 square += float(np.sum((z[hidden] - predicted[hidden]) ** 2))
                 count += int(hidden.sum())
             if square / count < best_score:
@@ -715,7 +715,7 @@ class GradientSmoother:
                 trial[:, kalman.IMU] = var * imu_scale
                 x, p, _, _ = self.run(trial, use=(True, False, True, True))
                 gamma = x[:, kalman.GAMMA]
-                residual = (z - G_MPS2 * gamma / np.sqrt(1 + gamma ** 2) - x[:, kalman.BIAS]) / np.sqrt(imu_scale)
+                residual = (z - _gravity_along_road_mps2(gamma) - x[:, kalman.BIAS]) / np.sqrt(imu_scale)
                 spread = G_MPS2 ** 2 * (p[:, kalman.GAMMA, kalman.GAMMA] + p[:, kalman.BIAS, kalman.BIAS]
                                         + 2 * p[:, kalman.GAMMA, kalman.BIAS]) / imu_scale
                 new = _mean_square(residual) + float(np.nanmean(np.where(np.isfinite(z), spread, np.nan)))
@@ -951,6 +951,12 @@ class GradientSmoother:
         total = sum(information.values())
         with np.errstate(invalid="ignore", divide="ignore"):
             return {name: np.where(total > 0, info / total, 0.0) for name, info in information.items()}
+
+
+def _gravity_along_road_mps2(gamma):
+    """What gravity adds to a level-mounted accelerometer on a road of gradient ``gamma`` (tan α):
+    g sin α [m/s²], the accelerometer channel's measurement model (`kalman`)."""
+    return G_MPS2 * gamma / np.sqrt(1 + gamma ** 2)
 
 
 def dem_unchecked_note(sigma_m: float, correlation_m: float, imu: bool) -> str:
