@@ -8,6 +8,7 @@ from test_distance_scale import _log
 
 from haulprofile.analysis.gradient.sensor_sets import without_sensors
 from haulprofile.analysis.kinematics import KinematicsOptions, add_kinematics, distance_m
+from haulprofile.testing.accuracy import sensor_set_signals
 
 
 def _wheel_log(scale_error):
@@ -90,3 +91,21 @@ def test_a_log_without_gps_keeps_the_wheels_speed_and_says_why():
     assert result.notes == ["speed and distance are the wheel's: the log has no GPS track to measure the "
                             "wheel's scale against"]
 
+
+def test_the_matrixs_sensor_sets_get_what_their_loggers_kinematics_give():
+    """The accuracy harness strips sensors from a log whose speed the full set's GPS corrected: a
+    logger without GPS has the wheel's speed, distance and acceleration; one with GPS the same
+    correction as the full log."""
+    full = _wheel_log(0.02)
+    wheel = full["speed_mps"].to_numpy().copy()
+    add_kinematics(full)
+    assert not np.allclose(full["speed_mps"], wheel)
+    bare = _wheel_log(0.02).drop(columns=["latitude_deg", "longitude_deg", "gps_h_acc_m"])
+    add_kinematics(bare)
+    can_only = sensor_set_signals(full, "can-only")
+    assert "wheel_speed_mps" not in can_only
+    for name in ("speed_mps", "distance_m", "accel_mps2"):
+        np.testing.assert_array_equal(can_only[name], bare[name])
+    no_imu = sensor_set_signals(full, "no-imu")
+    for name in ("speed_mps", "wheel_speed_mps", "distance_m", "accel_mps2"):
+        np.testing.assert_array_equal(no_imu[name], full[name])
