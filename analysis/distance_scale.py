@@ -5,9 +5,9 @@ circumference as the logger's speed signal assumes it: tyre wear (15-20 mm of tr
 500 mm radius), pressure and load move it by a few per cent. Heights binned by that distance are
 each the one at the fix's true place, so their gradient is the true one over (1 + ε), ε the
 odometer's relative scale error: a share of the gradient itself, one sign over the whole drive,
-larger on the climbs where a mass fitted on the gradient leans hardest. The gradient stage grids
-the road by the track's distance where ε is known (`gradient.force_balance.estimate_gradient_for_log`);
-the mass takes the wheel's speed and acceleration over (1 + ε) where it fits on that gradient.
+larger on the climbs where a mass fitted on the gradient leans hardest. Speed, acceleration and
+distance are all the wheel's times (1 + ε): the kinematics stage divides them once, for every stage
+after it, where the track tells ε (`kinematics.add_kinematics`).
 
 The GPS track measures ε: over 1 s between fixes the chord is the path within millimetres, and its
 noise (the receiver's position error changes little within a second under open sky) adds ~0.01 %

@@ -22,8 +22,9 @@ OPTIONAL = {
 DERIVED = {
     "wall_time_ns": "wall-clock time (GPS UTC where known) [ns since epoch]",
     "valid": "sample backed by data (False inside gaps)",
-    "distance_m": "driven distance from wheel speed [m]",
-    "accel_mps2": "longitudinal acceleration from wheel speed [m/s^2]",
+    "distance_m": "driven distance from speed [m]",
+    "accel_mps2": "longitudinal acceleration from speed [m/s^2]",
+    "wheel_speed_mps": "the wheel's own speed where speed_mps was taken to the GPS track's scale [m/s]",
     "height_m": "fused road height [m]",
     "gradient_pct": "fused road gradient [%]",
     "mass_kg": "estimated total vehicle mass [kg]",

@@ -1,5 +1,5 @@
-"""The wheel odometer's scale against the GPS track (`distance_scale`), the gradient gridded by the
-track's distance, and the mass fitted on the smoother's gradient taking its speed over the track's."""
+"""The wheel odometer's scale against the GPS track (`distance_scale`), and the gradient and mass
+on the kinematics stage's distance and speed at the track's scale, ε applied once."""
 
 import numpy as np
 import pandas as pd
@@ -74,14 +74,13 @@ def test_no_track_no_scale():
     assert wheel_distance_scale(log.iloc[:500]) is None
 
 
-def test_the_gradient_is_gridded_by_the_tracks_distance():
-    """A 3 % climb whose GPS altitude is at each fix's true place: over the wheel's distance, 2 %
-    long, it reads 3 / 1.02 %; over the track's, 3 %. The grid's distance is given at the wheel's,
-    the signals' own."""
-    from dataclasses import replace
-
-    from haulprofile.analysis.gradient import GradientSettings
+def test_the_gradient_over_the_kinematics_distance_reads_true_once():
+    """A 3 % climb whose GPS altitude is at each fix's true place, the wheel 2 % long: the
+    kinematics stage takes the distance to the track's scale and the gradient reads 3.0 %, not
+    3 × 1.02 or 3 / 1.02 (ε applied once); with the correction off, over the wheel's distance,
+    3 / 1.02 %. The grid's distance is the signals' own."""
     from haulprofile.analysis.gradient.force_balance import estimate_gradient_for_log
+    from haulprofile.analysis.kinematics import KinematicsOptions, add_kinematics
 
     log = _log(0.02)
     rng = np.random.default_rng(3)
@@ -89,19 +88,19 @@ def test_the_gradient_is_gridded_by_the_tracks_distance():
     log = log.assign(gps_altitude_m=0.03 * true_m + rng.normal(0, 0.3, len(log)), gps_v_acc_m=1.0)
     median = {}
     for over_track in (True, False):
-        result = estimate_gradient_for_log(log, None, replace(GradientSettings(), distance_over_track=over_track))
+        frame = log.drop(columns=["distance_m"])
+        add_kinematics(frame, KinematicsOptions(speed_over_track=over_track))
+        result = estimate_gradient_for_log(frame, None)
         median[over_track] = float(np.nanmedian(result.samples["gradient_pct"]))
-        assert [posterior.distance_scale for posterior in result.posteriors] == (
-            [pytest.approx(0.02, abs=1e-3)] if over_track else [None])
-        assert result.grid["distance_m"].max() == pytest.approx(log["distance_m"].max(), abs=20.0)
+        assert result.grid["distance_m"].max() == pytest.approx(frame["distance_m"].max(), abs=20.0)
     assert median[True] == pytest.approx(3.0, abs=0.01)
     assert median[False] == pytest.approx(3.0 / 1.02, abs=0.01)
 
 
-def test_the_mass_on_the_smoothers_gradient_takes_it_over_the_tracks_distance(monkeypatch):
-    """Where the gradient is the smoother's (its posterior describes it) and was gridded by the
-    track's distance (its posterior names ε), the regression gets the speed and the acceleration
-    over (1 + ε); elsewhere the log as it is."""
+def test_the_mass_takes_the_signals_speed_as_it_is(monkeypatch):
+    """The kinematics stage gave the speed and acceleration at the track's scale: the mass's
+    regression gets them unchanged, with or without the gradient's posterior (no second division
+    by 1 + ε, which a posterior naming ε made before)."""
     from haulprofile.analysis import mass
 
     class Built(Exception):
@@ -116,7 +115,7 @@ def test_the_mass_on_the_smoothers_gradient_takes_it_over_the_tracks_distance(mo
     log = _log(0.02).assign(gradient_pct=2.0, gradient_std_pct=0.1, accel_mps2=0.3)
 
     class Posterior:
-        distance_scale = wheel_distance_scale(log)
+        distance_scale = 0.02
 
         def describes(self, gradient_pct):
             return True
@@ -125,11 +124,8 @@ def test_the_mass_on_the_smoothers_gradient_takes_it_over_the_tracks_distance(mo
     for posteriors in ((Posterior(),), ()):
         with pytest.raises(Built):
             mass.estimate_mass(log, vehicle=None, gradient_posteriors=posteriors)
-    scale = 1 + wheel_distance_scale(log)
-    assert scale == pytest.approx(1.02, abs=1e-3)
-    np.testing.assert_allclose(seen[0], np.c_[np.full(len(log), 2.0), log["speed_mps"] / scale,
-                                              np.full(len(log), 0.3 / scale)])
-    np.testing.assert_array_equal(seen[1], log[["gradient_pct", "speed_mps", "accel_mps2"]].to_numpy())
+    for columns in seen:
+        np.testing.assert_array_equal(columns, log[["gradient_pct", "speed_mps", "accel_mps2"]].to_numpy())
 
 
 def test_a_fast_receivers_jitter_is_taken_a_second_apart_and_a_wild_scale_is_none():

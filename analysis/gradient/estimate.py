@@ -51,10 +51,6 @@ class GradientSettings:
     smoother's bias cannot step while the truck stands. Off by default: on drives never tuned on
     (the matrix's seeds 4-7) it made the mass's tails after a stop worse and its σ less honest
     than the standstill's change held in σ alone (docs/estimation.md, stop 40)."""
-    distance_over_track: bool = True
-    """Grid the road by the GPS track's distance where the track measures the wheel odometer's scale
-    (`distance_scale`): a height is the one at its true place, so over the wheel's distance the
-    gradient is the true one over (1 + ε) (`force_balance.estimate_gradient_for_log`)."""
 
 
 @dataclass

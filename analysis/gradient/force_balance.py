@@ -36,7 +36,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from ..distance_scale import wheel_distance_scale
 from ..engine_torque import NET, driveline_torque_nm, knows_engine_drag, torque_report_form
 from ..errors import UserError
 from ..mass.joint import JointSettings
@@ -680,24 +679,10 @@ def estimate_gradient_for_log(frame: pd.DataFrame, dem, settings: GradientSettin
     systematic (mass, torque gain, wind, auxiliaries), the smoother takes them for noise, and on the
     accuracy matrix it made the barometer-led gradient worse (``docs/estimation.md``).
 
-    Where the GPS track measures the wheel odometer's scale ε (`distance_scale`,
-    ``settings.distance_over_track``) the road is gridded by the track's distance, the wheel's over
-    (1 + ε): each height is the one at its true place, so over the wheel's distance the gradient
-    is the true one over (1 + ε), of one sign over the drive. The grid's ``distance_m`` is given back
-    at the wheel's distance, the signals' own."""
-    scale = wheel_distance_scale(frame) if settings.distance_over_track else None
-    if scale is None:
-        return _estimate_gradient_for_log(frame, dem, settings, vehicle)
-    result = _estimate_gradient_for_log(frame.assign(distance_m=frame["distance_m"] / (1 + scale)), dem, settings,
-                                        vehicle)
-    result.grid["distance_m"] = result.grid["distance_m"] * (1 + scale)
-    result.posteriors = tuple(replace(posterior, distance_scale=scale) for posterior in result.posteriors)
-    result.notes.append(f"the wheel's distance reads {100 * scale:+.2f} % against the GPS track: the road is "
-                        f"gridded by the track's distance (the grid's distance_m at the wheel's)")
-    return result
-
-
-def _estimate_gradient_for_log(frame, dem, settings, vehicle) -> GradientResult:
+    The road is gridded by the signals' ``distance_m``, which the kinematics stage gives at the GPS
+    track's scale where the track measures the wheel's (`kinematics.add_kinematics`): each height is
+    the one at its true place, so over the wheel's own distance the gradient would be the true one
+    over (1 + ε)."""
     has_imu = "accel_x_mps2" in frame.columns and frame["accel_x_mps2"].notna().any()
     has_baro = "pressure_pa" in frame.columns and frame["pressure_pa"].notna().any()
     has_torque = "engine_torque_nm" in frame.columns and frame["engine_torque_nm"].notna().any()

@@ -32,9 +32,6 @@ class GradientPosterior:
     """Per sample, its share of the grid point above (the samples are linear between grid points)."""
     gradient_pct: np.ndarray
     """Per sample, the gradient [%] this is the posterior of."""
-    distance_scale: float | None = None
-    """The wheel odometer's scale ε (`distance_scale`) whose track distance the gradient was gridded
-    over; None: the wheel's distance."""
 
     def describes(self, gradient_pct) -> bool:
         """Whether ``gradient_pct`` (per sample) is the gradient this is the posterior of."""

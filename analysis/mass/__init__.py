@@ -79,12 +79,6 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
         std = frame["gradient_mass_std_pct"] if "gradient_mass_std_pct" in frame.columns else np.nan
         frame = frame.assign(gradient_pct=frame["gradient_mass_pct"], gradient_std_pct=std)
     posterior = _gradient_posterior(frame, gradient_posteriors)
-    odometer = None if posterior is None else posterior.distance_scale
-    if odometer is not None:
-        # the wheel reads (1 + ε) times the speed, and so the acceleration (`distance_scale`); the
-        # gradient the mass is fitted on was gridded by the GPS track's distance with the same ε
-        over_track = {name: frame[name] / (1 + odometer) for name in ("speed_mps", "accel_mps2") if name in frame}
-        frame = frame.assign(**over_track)
     regression = build_regression(frame, vehicle, filter_settings)
     time_s = frame["time_s"].to_numpy(dtype=float)
     speed = frame["speed_mps"].to_numpy(dtype=float)
@@ -120,9 +114,6 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     wind = _wind_regressors(frame, speed, time_s) if joint_settings.fit_wind else None
     offset = _offset_regressor(frame, regression, vehicle) if joint_settings.fit_torque_offset else None
     aux = _aux_regressor(frame, regression) if joint_settings.aux_power_sigma_w > 0 else None
-    if odometer is not None:
-        notes.append(f"the wheel's distance reads {100 * odometer:+.2f} % against the GPS track: speed and "
-                     f"acceleration taken over the track's distance")
     if wind is not None:
         notes.append("the drive's wind fitted with the masses from the heading along the GPS track")
     engine_torque = torque_used(frame)

@@ -97,6 +97,10 @@ def drive_section(signals, summary: dict) -> Section:
     section.kpis += [("mean speed while moving", f"{np.nanmean(speed[moving]) * 3.6:.1f} km/h" if moving.any() else "–"),
                      ("maximum speed", f"{np.nanmax(speed) * 3.6:.1f} km/h" if np.isfinite(speed).any() else "–"),
                      ("starts from standstill", str(starts))]
+    odometer = summary.get("odometer") or {}
+    if odometer.get("corrected"):
+        section.kpis.append(("wheel speed against GPS", f"{odometer['scale_pct']:+.2f} %"))
+    section.notes.extend(f"{note[0].upper()}{note[1:]}." for note in odometer.get("notes", []))
     if "valid" in signals:
         invalid = float(1 - signals["valid"].mean())
         if invalid > 0:

@@ -207,18 +207,31 @@ def _gradient_columns(signals, dem_dir: Path):
     return signals
 
 
+def sensor_set_signals(base, set_name: str):
+    """``base`` (signals after the kinematics stage) as the kinematics stage of a logger with only
+    ``set_name``'s sensors gives them: the other sensors' columns out, the speed the wheel's again
+    and its scale measured on the track that is left (none without GPS: a logger without it never
+    has the track's speed)."""
+    from haulprofile.analysis.gradient.sensor_sets import without_sensors
+    from haulprofile.analysis.kinematics import add_kinematics
+    frame = without_sensors(base, set_name)
+    add_kinematics(frame)
+    return frame
+
+
 def _sensor_set_columns(base, dem_dir: Path, set_name: str, virtual):
     """The signals of ``base`` as a logger with only ``set_name``'s sensors gives them, with the
     gradient columns the estimator makes of them as the gradient stage does (the force balance as
     the accelerometer where there is neither IMU nor barometer; ``gradient_pct`` = the paper's fusion (8) where it can
-    run). A log with no height source (``can-only``) is given the true mass per sample, as a
-    weighing at every load change would give it, and scored against the flat road too. Returns the
-    signals and the gradient's posteriors (`GradientResult.posteriors`)."""
+    run). The kinematics are made again on what is left (`sensor_set_signals`). A log with no height
+    source (``can-only``) is given the true mass per sample, as a weighing at every load change would
+    give it, and scored against the flat road too. Returns the signals and the gradient's posteriors
+    (`GradientResult.posteriors`)."""
     from haulprofile.analysis.dem import open_dem
     from haulprofile.analysis.errors import UserError
     from haulprofile.analysis.gradient.force_balance import estimate_gradient_for_log, estimate_gradient_force_balance
-    from haulprofile.analysis.gradient.sensor_sets import sensors_present, without_sensors
-    frame = without_sensors(base, set_name)
+    from haulprofile.analysis.gradient.sensor_sets import sensors_present
+    frame = sensor_set_signals(base, set_name)
     given = None
     if "gps" not in sensors_present(frame):
         given = np.interp(frame["time_s"], virtual.truth["time_s"], virtual.truth["mass_kg"])
