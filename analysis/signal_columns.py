@@ -17,6 +17,7 @@ OPTIONAL = {
     "pressure_pa": "barometric pressure [Pa]",
     "air_temperature_c": "air temperature [degC]",
     "accel_x_mps2": "longitudinal IMU acceleration [m/s^2]",
+    "imu_temperature_c": "the IMU die's temperature (LSM9DS1 OUT_TEMP), which its bias follows [degC]",
     "reported_mass_kg": "the vehicle's own mass estimate (J1939 VW/CVW) [kg]",
 }
 DERIVED = {

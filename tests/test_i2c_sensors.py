@@ -147,8 +147,9 @@ def test_lsm9ds1_fifo_delivers_every_sample_at_952_hz(rate_error):
     samples = []
     for gap_ns in rng.uniform(1e6, 15e6, size=polls).astype(np.int64):
         clock.now_ns += int(gap_ns)
-        samples += [contract.unpack(contract.IMU, p) for _, p, _, _ in driver.poll()]
-    samples.extend(contract.unpack(contract.IMU, payload) for _, payload, _, _ in driver.flush())
+        samples += [contract.unpack(contract.IMU, p) for topic, p, _, _ in driver.poll() if topic is contract.IMU]
+    samples.extend(contract.unpack(contract.IMU, payload) for topic, payload, _, _ in driver.flush()
+                   if topic is contract.IMU)
     samples = np.concatenate(samples)
     assert model.overwritten == 0 and driver.overruns == 0
     assert len(samples) == len(model.served) == model.produced >= 0.95 * polls * 8e-3 * 952
@@ -176,9 +177,10 @@ def test_lsm9ds1_in_real_time_counts_what_a_busy_machine_loses():
     driver.configure()
     samples = []
     for _ in range(60):
-        samples += [contract.unpack(contract.IMU, p) for _, p, _, _ in driver.poll()]
+        samples += [contract.unpack(contract.IMU, p) for topic, p, _, _ in driver.poll() if topic is contract.IMU]
         time.sleep(0.008)
-    samples.extend(contract.unpack(contract.IMU, payload) for _, payload, _, _ in driver.flush())
+    samples.extend(contract.unpack(contract.IMU, payload) for topic, payload, _, _ in driver.flush()
+                   if topic is contract.IMU)
     samples = np.concatenate(samples)
     model = bus.models["lsm9ds1"]
     assert len(samples) == len(model.served) > 0
@@ -273,7 +275,8 @@ def test_bus_thread_reads_the_imu_fifo_before_it_fills_when_wakeups_come_late(la
     model, results = _bus_thread_with_late_wakeups(late_ms * 1_000_000)
     assert model.produced > 4000 and model.overwritten == 0
     assert sum(overruns for name, _, overruns, _, _ in results if name == "lsm9ds1") == 0
-    imu_records = sum(records for name, out, *_ in results if name == "lsm9ds1" for *_, records in out)
+    imu_records = sum(records for name, out, *_ in results if name == "lsm9ds1"
+                      for topic, *_, records in out if topic is contract.IMU)
     assert imu_records == len(model.served) == model.produced - len(model.fifo)
 
 
@@ -281,6 +284,38 @@ def test_bus_thread_counts_the_loss_when_wakeups_come_later_than_the_fifo_holds(
     model, results = _bus_thread_with_late_wakeups(34_000_000)
     lost = sum(overruns for name, _, overruns, _, _ in results if name == "lsm9ds1")
     assert model.overwritten > 0 and lost > 0
+
+
+def test_lsm9ds1_reads_its_die_temperature_once_a_second():
+    """OUT_TEMP (two's complement, 16 LSB/degC, 0 at 25 degC) read beside the FIFO once a second,
+    below and above 25 degC, and every FIFO sample still delivered."""
+    clock = SteppedClock()
+    t = np.arange(0.0, 60.0, 0.001)  # the emulator holds each value until the next
+    signals = TimeSeries({"time_s": t, "accel_z_mps2": np.full(t.size, 9.80665), "imu_temperature_c": 24.0 + t})
+    bus = sensor_board(signals, clock, clock.now_ns)
+    driver = Lsm9ds1(bus, 0x6B, clock, 952.0)
+    driver.probe()
+    driver.configure()
+    model = bus.models["lsm9ds1"]
+    out = []
+    for _ in range(3000):  # 3000 polls 10 ms apart: 30 s
+        clock.now_ns += 10_000_000
+        out += driver.poll()
+    out += driver.flush()
+    temperature = [(t_ns, c, raw) for topic, payload, *_ in out if topic is contract.IMU_TEMPERATURE
+                   for t_ns, c, raw, _ in contract.unpack(contract.IMU_TEMPERATURE, payload).tolist()]
+    imu = sum(count for topic, *_, count in out if topic is contract.IMU)
+    assert imu == len(model.served) == model.produced - len(model.fifo)
+    assert len(temperature) == 30
+    stamps = np.array([t_ns for t_ns, _, _ in temperature])
+    assert np.allclose(np.diff(stamps), 1e9, atol=1e7)
+    expected = 24.0 + (stamps - 1_000_000_000_000) / 1e9  # 1 K/s from the board's start
+    celsius = np.array([c for _, c, _ in temperature])
+    raw = np.array([r for _, _, r in temperature])
+    assert np.array_equal(celsius, 25.0 + raw / 16.0) and raw[0] < 0 < raw[-1]
+    assert np.all(np.abs(celsius - expected) <= 1 / 32 + 0.012)  # half a count, a poll's 10 ms, a sample
+    metadata = driver.channel_metadata()[contract.IMU_TEMPERATURE.name]
+    assert float(metadata["temperature_lsb_per_c"]) == 16.0 and float(metadata["temperature_zero_c"]) == 25.0
 
 
 def test_magnetometer_and_metadata():

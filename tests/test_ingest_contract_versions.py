@@ -17,6 +17,8 @@ from haulprofile.analysis.kinematics import kinematics_stage
 from haulprofile.analysis.pipeline import RunContext
 
 V1_LOG = "logger-v1/haulprofile-contract-1-30s.mcap"
+V1_SENSOR_TOPICS = (contract.BAROMETER.name, contract.HUMIDITY.name, contract.MAGNETOMETER.name)
+"""The sensor topics contract 1 wrote as JSON (the IMU's temperature came later, packed only)."""
 
 
 def _digest(frame: pd.DataFrame) -> dict:
@@ -32,7 +34,8 @@ def test_contract_1_log_of_the_old_logger_reads_as_it_did(data_dir):
         encodings.update({c.topic: c.message_encoding for c in window.channels.values()})
         assert not any(window.packed_channels(topic) for topic in contract.SENSOR_TOPICS)  # JSON, not records
     assert report.library == "haulprofile-contract-1"
-    assert {encodings[t] for t in contract.SENSOR_TOPICS} == {contract.JSON_ENCODING}
+    assert {encodings[t] for t in V1_SENSOR_TOPICS} == {contract.JSON_ENCODING}
+    assert contract.IMU_TEMPERATURE.name not in encodings  # the old logger did not read it
     golden = json.loads((data_dir / "logger-v1" / "ingest-golden.json").read_text())
     frame, summary = ingest_logs([path])
     kinematics_stage(RunContext(inputs=[], out_dir=data_dir, signals=frame))  # the golden table was made with both
@@ -72,7 +75,7 @@ def test_a_directory_of_both_versions_reads_as_one_drive(tmp_path):
 def test_packed_sensor_records_round_trip(tmp_path):
     path = _log(tmp_path, 2, seconds=10.0)
     arrays = read_frames([path])
-    assert set(arrays.sensors) == set(contract.SENSOR_TOPICS)
+    assert set(arrays.sensors) == set(V1_SENSOR_TOPICS)  # the synthetic log has no IMU temperature
     baro = arrays.sensors[contract.BAROMETER.name]
     assert baro.dtype == contract.BAROMETER_SAMPLE_DTYPE and len(baro) == 300  # 3 a bin, as the JSON form had
     assert np.all(np.diff(baro["t_mono_ns"].astype(np.int64)) > 0)

@@ -125,6 +125,16 @@ def test_every_sensor_sample_bit_exact(logged, topic, model, fields):
     assert len(logged_raw) >= emulated.produced - 1 - emulated.overwritten
 
 
+def test_imu_temperature_once_a_second(logged):
+    arrays, *_, columns = logged
+    records = arrays.sensors[contract.IMU_TEMPERATURE.name]
+    assert len(records) == pytest.approx(DRIVE_S, rel=0.02)
+    assert np.median(np.diff(records["t_mono_ns"].astype(np.int64))) == pytest.approx(1e9, rel=0.02)
+    assert np.array_equal(records["temperature_c"], 25.0 + records["temperature_raw"] / 16.0)
+    held = np.unique(np.round((columns["imu_temperature_c"] - 25.0) * 16.0))
+    assert set(records["temperature_raw"].tolist()) <= set(held.tolist())
+
+
 def test_barometer_values_follow_the_datasheet(logged):
     arrays, *_ = logged
     records = arrays.sensors["/barometer"]

@@ -76,7 +76,7 @@ def _decoded(frames, pgn):
 def test_topics_schemas_and_times(log, virtual, scenario):
     _, summary, messages = log
     topics = {c.topic for c in summary.channels.values()}
-    assert topics == {"/can/frames", "/imu", "/barometer", "/humidity", "/gps/fix", "/time/sync"}
+    assert topics == {"/can/frames", "/imu", "/imu/temperature", "/barometer", "/humidity", "/gps/fix", "/time/sync"}
     for channel in summary.channels.values():
         topic = contract.TOPICS[channel.topic]
         assert channel.message_encoding == topic.encoding
@@ -145,6 +145,55 @@ def test_imu_counts_and_scales(log, virtual):
                          states["accel_mps2"] + 9.81 * np.sin(np.arctan(states["gradient_pct"] / 100)))
     residual = sensors["accel_x_mps2"] - expected
     assert abs(np.median(residual)) < 0.2 and np.std(residual) < 0.1
+
+
+def test_imu_temperature_once_a_second_in_out_temp_steps(log, virtual):
+    """The die's temperature as the LSM9DS1's OUT_TEMP gives it (1/16 K, 0 at 25 degC), once a second."""
+    _, _, messages = log
+    records = np.concatenate([contract.unpack(contract.IMU_TEMPERATURE, m.data)
+                              for m, _ in _topic(messages, "/imu/temperature")])
+    seconds = (records["t_mono_ns"].astype(np.int64) - BOOT_OFFSET_NS) / 1e9
+    assert len(records) == pytest.approx(virtual.duration_s, abs=2)
+    assert np.allclose(np.diff(seconds), 1.0, atol=0.01)
+    assert np.array_equal(records["temperature_c"], 25.0 + records["temperature_raw"] / 16.0)
+    truth = np.interp(seconds, virtual.sensors["imu"]["time_s"], virtual.sensors["imu"]["imu_temperature_c"])
+    assert np.all(np.abs(records["temperature_c"] - truth) <= 1 / 32 + 1e-9)
+
+
+def test_the_imu_temperature_in_a_viewer_copy(log, tmp_path):
+    """The Foxglove copy holds every temperature record, as JSON its schema validates."""
+    import jsonschema
+    from haulprofile.analysis.export import export_logs
+
+    path, _, messages = log
+    packed = np.concatenate([contract.unpack(contract.IMU_TEMPERATURE, m.data)
+                             for m, _ in _topic(messages, "/imu/temperature")])
+    exported = export_logs([path], "foxglove", tmp_path)[0]
+    with open(exported.target, "rb") as stream:
+        copied = [(schema, json.loads(message.data)) for schema, channel, message in make_reader(stream).iter_messages()
+                  if channel.topic == "/imu/temperature"]
+    assert [r["temperature_raw"] for _, r in copied] == packed["temperature_raw"].tolist()
+    validator = jsonschema.Draft202012Validator(json.loads(copied[0][0].data))
+    for _, record in copied:
+        validator.validate(record)
+
+
+def test_a_warming_imu_reaches_the_signals_table(scenario, tmp_path):
+    """At `typical` the cab warms the IMU up; the ingest gives its temperature per row, and a logger
+    without the IMU (`no-imu`) has none."""
+    from haulprofile.analysis.gradient.sensor_sets import without_sensors
+    from haulprofile.analysis.ingest import ingest_logs
+
+    warming = drive(scenario, seed=1, realism="typical")
+    frame, _ = ingest_logs([write_mcap(warming, tmp_path / "warming.mcap")])
+    imu = warming.sensors["imu"]
+    truth = np.interp(frame["time_s"], imu["time_s"] - imu["time_s"].iloc[0], imu["imu_temperature_c"])
+    logged = frame["imu_temperature_c"].to_numpy()
+    assert np.isfinite(logged).mean() > 0.99
+    rise_per_s = np.max(np.abs(np.diff(imu["imu_temperature_c"]) / np.diff(imu["time_s"])))
+    assert np.nanmax(np.abs(logged - truth)) <= 1 / 32 + 1.5 * rise_per_s + 1e-9  # a count's half, a held second
+    assert np.ptp(imu["imu_temperature_c"]) > 0.5  # it did warm up
+    assert "imu_temperature_c" not in without_sensors(frame, "no-imu")
 
 
 def test_barometer_values_come_from_raw_counts_and_follow_the_road(log, virtual):

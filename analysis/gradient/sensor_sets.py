@@ -13,10 +13,11 @@ import pandas as pd
 
 SENSOR_COLUMNS = {
     "baro": ("pressure_pa", "air_temperature_c", "relative_humidity_pct"),
-    "imu": ("accel_x_mps2", "accel_y_mps2", "accel_z_mps2"),
+    "imu": ("accel_x_mps2", "accel_y_mps2", "accel_z_mps2", "imu_temperature_c"),
     "gps": ("latitude_deg", "longitude_deg", "gps_altitude_m", "gps_h_acc_m", "gps_v_acc_m", "gps_hdop", "gps_vdop"),
 }
-"""The columns each sensor gives (the barometer board's temperature and humidity go with it)."""
+"""The columns each sensor gives (the barometer board's temperature and humidity go with it, the
+IMU's die temperature with the IMU)."""
 DEFINING_COLUMN = {"baro": "pressure_pa", "imu": "accel_x_mps2", "gps": "latitude_deg"}
 """The column whose presence means the sensor is there."""
 

@@ -18,6 +18,9 @@ from . import align
 from .logs import LogError
 
 KMH = 1.0 / 3.6
+IMU_TEMPERATURE_HOLD_S = 2.5
+"""The IMU's temperature comes once a second: held over a reading that arrived late or was lost, not
+over a sensor that stopped."""
 
 
 def _sources(acc: align.BinAccumulator, spn_name: str) -> list[tuple[str, int]]:
@@ -130,6 +133,8 @@ def build_table(ingest) -> tuple[pd.DataFrame, dict]:
                         ("accel_x_mps2", "accel_x_mps2"), ("accel_y_mps2", "accel_y_mps2"),
                         ("accel_z_mps2", "accel_z_mps2")):
         columns[column] = c.pick(column, None, key)
+    columns["imu_temperature_c"] = c.pick("imu_temperature_c", None, "imut:temperature_c",
+                                          max_hold_s=IMU_TEMPERATURE_HOLD_S)
     columns["pressure_pa"] = c.pick("pressure_pa", None, "baro:pressure_pa")
     if columns["pressure_pa"] is None:
         columns["pressure_pa"] = c.pick("pressure_pa", None, "obd:barometric_pressure_kpa", 1000.0)

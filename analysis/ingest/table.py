@@ -209,6 +209,7 @@ def _loads(payload: bytes):
 JSON_FIELDS = {
     contract.BAROMETER.name: ("pressure_pa", "temperature_c"),
     contract.HUMIDITY.name: ("relative_humidity_pct", "temperature_c"),
+    contract.IMU_TEMPERATURE.name: ("temperature_c",),
     contract.GPS_FIX.name: ("latitude", "longitude", "altitude", "h_acc_m", "v_acc_m", "hdop", "vdop", "speed_mps",
                             "gps_time_utc_ns", "fix_quality"),
     contract.TIME_SYNC.name: ("t_realtime_ns", "gps_time_utc_ns"),
@@ -393,7 +394,8 @@ class Ingest:
             t = _joined(stream.time_ns, np.int64)
             self.acc.mark_recorded(np.sort(t))
             prefix = {contract.BAROMETER.name: "baro", contract.HUMIDITY.name: "hum",
-                      contract.GPS_FIX.name: "gps", contract.TIME_SYNC.name: "sync"}[topic]
+                      contract.IMU_TEMPERATURE.name: "imut", contract.GPS_FIX.name: "gps",
+                      contract.TIME_SYNC.name: "sync"}[topic]
             valid = np.ones(len(t), dtype=bool)
             if topic == contract.GPS_FIX.name:
                 valid = stream.arrays("fix_quality")[1] != 0

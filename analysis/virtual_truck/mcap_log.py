@@ -31,6 +31,9 @@ IMU_BATCH_S = 0.1
 BAROMETER_BATCH_S = 0.32
 """The logger reads the LPS25HB's FIFO every 8 samples at 25 Hz: one message per read."""
 HUMIDITY_BATCH_S = 1.0
+IMU_TEMPERATURE_BATCH_S = 10.0
+IMU_TEMPERATURE_STEP_S = 1.0
+"""The logger reads the IMU's OUT_TEMP once a second (the LSM9DS1 driver's ``TEMP_INTERVAL_S``)."""
 
 ENGINE_ADDRESS = 0x00
 TRANSMISSION_ADDRESS = 0x03
@@ -115,6 +118,19 @@ def _packed_sensor(table, topic: contract.Topic, order: int, batch_s: float, fie
             yield int(part["t_mono_ns"][0]), order, topic, contract.pack(topic, part)
 
 
+def _imu_temperature(imu):
+    """The IMU's die temperature as the logger reads it: once a second, OUT_TEMP's 1/16 K steps."""
+    import pandas as pd
+
+    time_s = imu["time_s"].to_numpy()
+    second = np.floor(time_s / IMU_TEMPERATURE_STEP_S)
+    first = np.flatnonzero(np.diff(second, prepend=-1.0) > 0)
+    raw = np.clip(np.round((imu["imu_temperature_c"].to_numpy()[first] - contract.IMU_TEMPERATURE_ZERO_C) * contract.IMU_TEMPERATURE_LSB_PER_C),
+                  -32768, 32767).astype(np.int16)
+    return pd.DataFrame({"time_s": time_s[first], "temperature_c": contract.IMU_TEMPERATURE_ZERO_C + raw / contract.IMU_TEMPERATURE_LSB_PER_C,
+                         "temperature_raw": raw})
+
+
 def _messages(drive, contract_version: int = contract.CONTRACT_VERSION):
     """(t_mono_ns, order, topic, payload) of every message in the log."""
     start_ns = drive.scenario.start_epoch_ns
@@ -131,6 +147,10 @@ def _messages(drive, contract_version: int = contract.CONTRACT_VERSION):
     edges = np.flatnonzero(np.diff(window)) + 1
     for part in np.split(samples, edges):
         yield int(part["t_mono_ns"][-1]), 1, contract.IMU, contract.pack(contract.IMU, part)
+
+    if contract_version >= 2 and "imu_temperature_c" in imu:
+        yield from _packed_sensor(_imu_temperature(imu), contract.IMU_TEMPERATURE, 6, IMU_TEMPERATURE_BATCH_S,
+                                  ("temperature_c", "temperature_raw"))
 
     if contract_version >= 2:
         yield from _packed_sensor(drive.sensors["barometer"], contract.BAROMETER, 2, BAROMETER_BATCH_S,

@@ -77,6 +77,7 @@ def imu(stream: pd.DataFrame, level: Realism, rng) -> dict:
     for j, axis in enumerate("xyz"):
         stream[f"accel_{axis}_raw"] = raw[:, j]
         stream[f"accel_{axis}_mps2"] = raw[:, j] * ACCEL_SCALE_MPS2_PER_LSB
+    stream["imu_temperature_c"] = imu_temperature_c(t, start_c)
     return {"imu_mount_pitch_deg": float(np.degrees(pitch)), "imu_start_temperature_c": start_c,
             "imu_temp_drift_mps2_per_k": drift.tolist()}
 

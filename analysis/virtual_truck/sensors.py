@@ -23,6 +23,9 @@ ACCEL_SCALE_MPS2_PER_LSB = 0.122e-3 * STANDARD_GRAVITY_MPS2
 """LSM9DS1 linear acceleration sensitivity at +-4 g: 0.122 mg/LSB (datasheet Table 3)."""
 GYRO_SCALE_RADPS_PER_LSB = 8.75e-3 * np.pi / 180.0
 """LSM9DS1 angular rate sensitivity at +-245 dps: 8.75 mdps/LSB."""
+IDEAL_IMU_TEMPERATURE_C = 25.0
+"""The IMU die's temperature in the ideal world, which does not warm up (the realistic levels'
+warm-up: `sensor_errors.imu_temperature_c`)."""
 
 BARO_PA_PER_LSB = 100.0 / 4096.0
 """LPS25HB PRESS_OUT: 4096 LSB/hPa."""
@@ -179,6 +182,7 @@ def imu_stream(states, sensors, rng) -> pd.DataFrame:
         frame[f"accel_{axis}_mps2"] = accel_raw[:, j] * ACCEL_SCALE_MPS2_PER_LSB
     for j, axis in enumerate("xyz"):
         frame[f"gyro_{axis}_radps"] = gyro_raw[:, j] * GYRO_SCALE_RADPS_PER_LSB
+    frame["imu_temperature_c"] = np.full(t.size, IDEAL_IMU_TEMPERATURE_C)
     return pd.DataFrame(frame)
 
 

@@ -111,6 +111,21 @@ MAGNETOMETER_SAMPLE_DTYPE = np.dtype(
 )
 """One LSM9DS1 magnetometer sample, 40 bytes: field [T] (x, y, z) and raw counts."""
 
+IMU_TEMPERATURE_SAMPLE_DTYPE = np.dtype(
+    [
+        ("t_mono_ns", "<u8"),
+        ("temperature_c", "<f8"),
+        ("temperature_raw", "<i2"),
+        ("reserved", "<u2", (3,)),
+    ]
+)
+"""One reading of the LSM9DS1's temperature sensor, 24 bytes: OUT_TEMP (0x15-0x16, two's complement,
+16 LSB/degC, 0 at 25 degC) and its value. The die's temperature is what the accelerometer's bias
+follows as the cab warms up (`IMU_TEMPERATURE`)."""
+IMU_TEMPERATURE_LSB_PER_C = 16.0
+IMU_TEMPERATURE_ZERO_C = 25.0
+"""OUT_TEMP's scale and the temperature its 0 reads (LSM9DS1 datasheet, table 4: TSen, TODR)."""
+
 
 @dataclass(frozen=True)
 class Topic:
@@ -261,9 +276,24 @@ HUMIDITY = _packed_sensor("/humidity", "haulprofile.HumiditySamples", 12.5,
 MAGNETOMETER = _packed_sensor("/magnetometer", "haulprofile.MagnetometerSamples", 10.0,
                               "LSM9DS1 magnetometer, tesla and raw counts, batched.", MAGNETOMETER_SAMPLE_DTYPE)
 
-SENSOR_TOPICS: dict[str, Topic] = {t.name: t for t in (BAROMETER, HUMIDITY, MAGNETOMETER)}
-"""Topics packed since contract version 2; a channel of theirs is packed only if its message
-encoding says so (else it is contract 1's JSON)."""
+IMU_TEMPERATURE = Topic(
+    name="/imu/temperature",
+    schema_name="haulprofile.ImuTemperatureSamples",
+    encoding=PACKED_ENCODING,
+    rate_hz=1.0,
+    description="LSM9DS1 die temperature (OUT_TEMP), degC and raw counts, once a second, batched.",
+    dtype=IMU_TEMPERATURE_SAMPLE_DTYPE,
+    json_schema=_obj({**_T_MONO, "temperature_c": _NUM, "temperature_raw": _INT}, title="haulprofile.ImuTemperature"),
+    units={"t_mono_ns": "ns", "temperature_c": "degC", "temperature_raw": "LSB"},
+)
+"""Written since December 2026 (packed only; ``json_schema`` is its records' form in a viewer copy;
+older logs have no such channel). An
+accelerometer's bias moves with its temperature (a MEMS part: about 0.5 mg/K), so the warm-up of a
+cab that the estimator could only follow as a rate in time is logged as what drives it."""
+
+SENSOR_TOPICS: dict[str, Topic] = {t.name: t for t in (BAROMETER, HUMIDITY, MAGNETOMETER, IMU_TEMPERATURE)}
+"""Topics packed since contract version 2 (the IMU's temperature since it was added); a channel of
+theirs is packed only if its message encoding says so (else it is contract 1's JSON)."""
 
 GPS_FIX = Topic(
     name="/gps/fix",
@@ -371,8 +401,8 @@ PRIVACY_EVENTS = ("entered", "left")
 
 TOPICS: dict[str, Topic] = {
     t.name: t
-    for t in (CAN_FRAMES, IMU, BAROMETER, HUMIDITY, MAGNETOMETER, GPS_FIX, GPS_NMEA, TIME_SYNC, DIAGNOSTICS,
-              PRIVACY_ZONE)
+    for t in (CAN_FRAMES, IMU, BAROMETER, HUMIDITY, MAGNETOMETER, IMU_TEMPERATURE, GPS_FIX, GPS_NMEA, TIME_SYNC,
+              DIAGNOSTICS, PRIVACY_ZONE)
 }
 
 PROFILE = "haulprofile"

@@ -15,6 +15,8 @@ import threading
 
 import numpy as np
 
+from haulprofile import contract
+
 from ..clock import Clock
 from ..sources.i2c import hts221 as hts, lps25hb as lps, lsm9ds1 as lsm
 from .signals import TimeSeries
@@ -210,7 +212,8 @@ IMU_DEFAULTS = (0.0, 0.0, 0.0, 0.0, 0.0, lsm.STANDARD_GRAVITY)
 
 
 class Lsm9ds1AgModel(RegisterDevice):
-    """Accelerometer+gyroscope with a 32-slot FIFO; reading OUT_Z_H_XL (0x2D) pops a slot.
+    """Accelerometer+gyroscope with a 32-slot FIFO; reading OUT_Z_H_XL (0x2D) pops a slot. OUT_TEMP
+    holds the newest sample's die temperature (``imu_temperature_c``, 25 degC without it).
 
     Samples are computed ``BLOCK_SAMPLES`` at a time (one numpy pass) and handed out one by one,
     so emulating 952 Hz costs little next to the driver being measured.
@@ -262,6 +265,9 @@ class Lsm9ds1AgModel(RegisterDevice):
         return self._block[offset]
 
     def new_samples(self, first: int, end: int) -> None:
+        temperature_c = self.signals.value("imu_temperature_c", float(self.sample_time_s(end - 1)), contract.IMU_TEMPERATURE_ZERO_C)
+        raw = int(np.clip(round((temperature_c - contract.IMU_TEMPERATURE_ZERO_C) * contract.IMU_TEMPERATURE_LSB_PER_C), -32768, 32767))
+        self.regs[lsm.OUT_TEMP_L:lsm.OUT_TEMP_L + 2] = bytes(_le(raw, 2))
         if not self.regs[lsm.CTRL_REG9] & lsm.CTRL_REG9_FIFO_EN:
             row = self._sample_bytes(end - 1)
             self.regs[0x18:0x1E] = row[:6]

@@ -5,7 +5,9 @@ then each sample's gyroscope (OUT_X_L_G..) and accelerometer (OUT_X_L_XL..) word
 lost between polls. An overrun flag (OVRN) is counted as a drop. Samples are handed to the writer
 in batches of ``batch_s`` (one ``/imu`` message per 0.1 s by default). Sample stamps come from a
 continuous sample clock (`FifoSampleClock`): evenly spaced at the ODR period, strictly increasing,
-kept within the window each FIFO read allows by a bounded correction.
+kept within the window each FIFO read allows by a bounded correction. Once a second the die's
+temperature (OUT_TEMP) is read beside the FIFO, for ``/imu/temperature``: the accelerometer's bias
+follows it.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from .sample_clock import FifoSampleClock
 WHO_AM_I_AG = 0x68
 WHO_AM_I_M = 0x3D
 CTRL_REG1_G = 0x10
+OUT_TEMP_L = 0x15
 OUT_X_L_G = 0x18
 CTRL_REG6_XL = 0x20
 CTRL_REG8 = 0x22
@@ -40,6 +43,9 @@ MAX_POLL_INTERVAL_S = 0.1
 CTRL_REG8_BDU = 0x40
 CTRL_REG8_IF_ADD_INC = 0x04
 CTRL_REG9_FIFO_EN = 0x02
+TEMP_INTERVAL_S = 1.0
+"""How often the temperature is read [s]: a die warms by a few kelvin a minute at most."""
+TEMP_BATCH_S = 10.0
 
 CTRL_REG1_M = 0x20
 CTRL_REG2_M = 0x21
@@ -85,6 +91,8 @@ class Lsm9ds1(Driver):
         self.batch_ns = int(batch_s * 1e9)
         self._pending = bytearray()
         self._pending_count = 0
+        self.temperature = RecordBatch(contract.IMU_TEMPERATURE, int(TEMP_INTERVAL_S * 1e9), TEMP_BATCH_S)
+        self._next_temperature_ns: int | None = None
 
     def configure(self) -> None:
         self.sample_clock.last_ns = None  # a (re)configured FIFO starts a new sample sequence
@@ -101,7 +109,10 @@ class Lsm9ds1(Driver):
             "sensor": "LSM9DS1", "odr_hz": repr(self.odr_hz),
             "accel_scale_mps2_per_lsb": repr(accel_scale_mps2_per_lsb(self.accel_range_g)),
             "gyro_scale_radps_per_lsb": repr(gyro_scale_radps_per_lsb(self.gyro_range_dps)),
-            "accel_range_g": str(self.accel_range_g), "gyro_range_dps": str(self.gyro_range_dps)}}
+            "accel_range_g": str(self.accel_range_g), "gyro_range_dps": str(self.gyro_range_dps)},
+            contract.IMU_TEMPERATURE.name: {"sensor": "LSM9DS1", "register": "OUT_TEMP",
+                                            "temperature_lsb_per_c": repr(contract.IMU_TEMPERATURE_LSB_PER_C),
+                                            "temperature_zero_c": repr(contract.IMU_TEMPERATURE_ZERO_C)}}
 
     def poll(self) -> list:
         """Read what the FIFO holds; hand out one ``/imu`` message per ``batch_s`` of samples."""
@@ -124,14 +135,33 @@ class Lsm9ds1(Driver):
             pending.extend(accel)
             pending.extend(gyro)
         self._pending_count += n
+        output = self._read_temperature(after_ns)
         if self._pending_count * self._period_ns >= self.batch_ns:
-            return self.flush()
-        return []
+            output += self._flush_samples()
+        return output
 
-    def flush(self) -> list:
+    def _read_temperature(self, now_ns: int) -> list:
+        """OUT_TEMP once every `TEMP_INTERVAL_S` on average, not once per interval plus a poll's delay
+        (block data update keeps its two bytes one reading); after a gap, no burst of catch-up reads."""
+        interval_ns = int(TEMP_INTERVAL_S * 1e9)
+        if self._next_temperature_ns is None:
+            self._next_temperature_ns = now_ns
+        if now_ns < self._next_temperature_ns:
+            return []
+        self._next_temperature_ns += interval_ns
+        if self._next_temperature_ns <= now_ns:
+            self._next_temperature_ns = now_ns + interval_ns
+        low, high = self.bus.read_i2c_block_data(self.address, OUT_TEMP_L, 2)
+        raw = s16(low, high)
+        return self.temperature.add(self.clock.monotonic_ns(), contract.IMU_TEMPERATURE_ZERO_C + raw / contract.IMU_TEMPERATURE_LSB_PER_C, raw, 0, 0, 0)
+
+    def _flush_samples(self) -> list:
         output = packed_output(contract.IMU, self._pending, self._pending_count)
         self._pending_count = 0
         return output
+
+    def flush(self) -> list:
+        return self._flush_samples() + self.temperature.flush()
 
 
 def _full_scale(accel: list[int]) -> bool:
