@@ -24,9 +24,11 @@ constant. Within one drive the force balance alone cannot tell the mass from the
 (GPS altitude, the DEM, a barometer) and the acceleration pin the mass: the first pass's mass
 and, in the second pass, the scale state, whose stated sigma says how well (on the accuracy
 matrix too small: its truth inside ±2σ on 48-76 % of the segments, so it corrects the gradient
-and is reported, not used as a mass). Re-estimating the mass on the force-balance gradient
-returns the mass put in, so the two are not iterated; a torque-report gain enters the same way
-as a mass error and needs a weighing.
+and is reported, not used as a mass). The masses are fitted once more on the second pass's
+gradient and the force balance run again with them (`MASS_REFIT`): the first pass's GPS-altitude
+gradient is too noisy a regressor for them. Not iterated further: with the force balance carrying
+the gradient each refit returns mostly the mass put in, and its own regressor noise drifts it low.
+A torque-report gain enters the same way as a mass error and needs a weighing.
 """
 
 from __future__ import annotations
@@ -188,26 +190,26 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         bias_sigma = G_MPS2 * vehicle.rolling_resistance_coefficient * ROLLING_RESISTANCE_UNCERTAINTY
         settings = replace(settings, smoother=replace(settings.smoother, imu_bias_prior_sigma_mps2=bias_sigma))
     settings = replace(settings, smoother=replace(settings.smoother, force_balance=True))
-    virtual = virtual_accelerometer_mps2(forced, vehicle, mass, slow=mass_kg is None)
-    if not np.isfinite(virtual).any():
-        raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
-    accel = frame["accel_mps2"].to_numpy(dtype=float)
-    extra_var, gaps = np.zeros(len(frame)), None
-    if FORCE_GAPS:
-        # with a given mass above the mass filter's speed floor, as its data filter (`slow`)
-        gaps = _with_force_gaps(forced, vehicle, mass, virtual, accel,
-                                MOVING_SPEED_MPS if mass_kg is None else _force_filter(True).min_speed_mps)
-        virtual, accel, extra_var = gaps.virtual_mps2, gaps.accel_mps2, gaps.variance_m2ps4
-        frame = frame.assign(accel_x_excess_mps2=gaps.excess_mps2)
-    if scaled:
-        regressor = accel + G_MPS2 * vehicle.rolling_resistance_coefficient
-        frame = frame.assign(accel_x_scale_regressor_mps2=regressor,
-                             accel_x_scale_segment=segment, accel_x_scale_sigma=np.log1p(relative))
-    # the mass's share in the noise stays beside the scale state: the state is one constant per
-    # segment, the force balance's scale varies within it (the driveline's efficiency by gear, the
-    # auxiliaries); the state alone left 62 % of the bins inside ±2σ on the least typical drive
-    frame = frame.assign(accel_x_scale_var_m2ps4=scale_variance_m2ps4(virtual, relative, vehicle) + extra_var)
-    result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
+    log = frame
+    frame, virtual, gaps, result = _force_balance_pass(log, forced, dem, vehicle, settings, mass, relative,
+                                                       segment if scaled else None, mass_kg is None)
+    mass_gradient, mass_gradient_std = gradient, gradient_std
+    if mass_kg is None and MASS_REFIT:
+        # the masses again on the second pass's gradient (where the scale state let the height
+        # sources correct the first pass's masses), and the force balance again with them
+        second = np.asarray(result.samples["gradient_pct"], dtype=float)
+        second_std = np.asarray(result.samples["gradient_smooth_std_pct"], dtype=float) \
+            if settings.gradient_method == "smoother" else np.full(len(log), np.nan)
+        refit, refit_sigma, refit_segment = segment_masses_kg(
+            first.assign(gradient_pct=np.nan_to_num(second), gradient_std_pct=second_std), vehicle)
+        if np.isfinite(refit).any():
+            mass, mass_sigma = _with_unknown_masses(refit, refit_sigma)
+            # the refit is fitted on a gradient that carried the first pass's masses, so its error
+            # holds part of theirs, which its own sigma does not see: at least the first pass's width
+            relative, segment = np.fmax(mass_sigma / mass, relative), refit_segment
+            mass_gradient, mass_gradient_std = second, second_std
+            frame, virtual, gaps, result = _force_balance_pass(log, forced, dem, vehicle, settings, mass, relative,
+                                                               segment if scaled else None, True)
     measured = virtual
     no_height_source = not _has_height_source(result)
     # only with no height source: there the sigma comes from the road's spread away from the
@@ -257,11 +259,11 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
             _widen_where_measured(result, frame, unheld_drag_sigma_mps2(frame, vehicle, mass, virtual, offset_sigma),
                                   settings.spacing_m)
     if mass_kg is None:
-        result.samples["gradient_mass_pct"] = np.asarray(gradient, dtype=float)
-        result.samples["gradient_mass_std_pct"] = np.asarray(gradient_std, dtype=float)
-        # not the first pass's posterior (`posterior`): GPS altitude's gradient is too flat where
-        # it carries the mass (the matrix's truth: masses 5-23 % low on average at typical and
-        # harsh), a bias no posterior of zero-mean errors states; its σ as one error stays
+        result.samples["gradient_mass_pct"] = np.asarray(mass_gradient, dtype=float)
+        result.samples["gradient_mass_std_pct"] = np.asarray(mass_gradient_std, dtype=float)
+        # the gradient the masses were fitted on (the second pass's with `MASS_REFIT`), not its
+        # posterior: its errors hold the force balance's, with the mass put in, which no posterior
+        # of zero-mean errors states; its σ as one error stays
     result.notes = [n for n in result.notes if "IMU carries the gradient" not in n]
     result.notes.append(f"no IMU: the force balance (engine torque, gears, wheel speed, {source}) stands in for "
                         f"the accelerometer on {100 * np.isfinite(virtual).mean():.0f} % of the samples; a mass or "
@@ -271,6 +273,40 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         result.grid = result.grid.rename(columns={"gradient_imu_pct": "gradient_force_balance_pct"})
         result.samples["gradient_force_balance_pct"] = result.samples.pop("gradient_imu_pct")
     return result
+
+
+def _force_balance_pass(frame, forced, dem, vehicle, settings, mass, relative, segment, first_pass_masses):
+    """One smoother pass with the force balance of ``mass`` [kg per sample] (relative 1-sigma
+    ``relative``) as the accelerometer, a scale state per ``segment`` (None: no state). Returns the
+    log with the smoother's force-balance columns, a_virtual, the force gaps and the result."""
+    virtual = virtual_accelerometer_mps2(forced, vehicle, mass, slow=first_pass_masses)
+    if not np.isfinite(virtual).any():
+        raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
+    accel = frame["accel_mps2"].to_numpy(dtype=float)
+    extra_var, gaps = np.zeros(len(frame)), None
+    if FORCE_GAPS:
+        # with a given mass above the mass filter's speed floor, as its data filter (`slow`)
+        gaps = _with_force_gaps(forced, vehicle, mass, virtual, accel,
+                                MOVING_SPEED_MPS if first_pass_masses else _force_filter(True).min_speed_mps)
+        virtual, accel, extra_var = gaps.virtual_mps2, gaps.accel_mps2, gaps.variance_m2ps4
+        frame = frame.assign(accel_x_excess_mps2=gaps.excess_mps2)
+    if segment is not None:
+        regressor = accel + G_MPS2 * vehicle.rolling_resistance_coefficient
+        frame = frame.assign(accel_x_scale_regressor_mps2=regressor,
+                             accel_x_scale_segment=segment, accel_x_scale_sigma=np.log1p(relative))
+    # the mass's share in the noise stays beside the scale state: the state is one constant per
+    # segment, the force balance's scale varies within it (the driveline's efficiency by gear, the
+    # auxiliaries); the state alone left 62 % of the bins inside ±2σ on the least typical drive
+    frame = frame.assign(accel_x_scale_var_m2ps4=scale_variance_m2ps4(virtual, relative, vehicle) + extra_var)
+    return frame, virtual, gaps, estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
+
+
+MASS_REFIT = True
+"""With a first pass's masses: fit them again on the second pass's gradient and run the force
+balance once more with those. The first pass's GPS-altitude gradient is too noisy a regressor
+(errors-in-variables: its masses low, and most not confident); the second pass's is 2-4 times
+better. Not iterated further: each refit's own regressor noise drifts the masses low (measured,
+``docs/estimation.md``)."""
 
 
 FORCE_GAPS = True

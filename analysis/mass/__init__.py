@@ -75,9 +75,11 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     estimate without it, and the mass is fitted on that: on its own force-balance gradient any
     mass fits its torque, and would look confident."""
     frame = _with_gradient_std(frame)
+    own_gradient_error = False
     if "gradient_mass_pct" in frame.columns and frame["gradient_mass_pct"].notna().any():
         std = frame["gradient_mass_std_pct"] if "gradient_mass_std_pct" in frame.columns else np.nan
         frame = frame.assign(gradient_pct=frame["gradient_mass_pct"], gradient_std_pct=std)
+        own_gradient_error = True
     posterior = _gradient_posterior(frame, gradient_posteriors)
     odometer = None if posterior is None else posterior.distance_scale
     if odometer is not None:
@@ -132,7 +134,7 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
                               columns, max_mass, notes, segment_settings, wind,
                               offset, aux, aux_prior, speed,
-                              posterior)
+                              posterior, own_gradient_error)
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint, engine_torque=engine_torque)
 
@@ -260,11 +262,13 @@ def _aux_power(fit: JointFit, j: int, gain: float) -> dict:
 
 
 def _joint(regression, time_s, bounds, vehicle, settings, known, segments, columns, max_mass, notes,
-           segment_settings, wind=None, offset=None, aux=None, aux_prior=None, speed=None, posterior=None):
+           segment_settings, wind=None, offset=None, aux=None, aux_prior=None, speed=None, posterior=None,
+           own_gradient_error=False):
     """Joint fit with the IMU regressor (else the gradient one), calibration, and per segment the
     chosen ``mass_kg`` and its total ``mass_uncertainty_kg``; the gradient-based joint fit too,
     for comparison. ``posterior``: the gradient's (`gradient.posterior`), for the gradient
-    regressor's share of the masses' covariance; None: its stated σ as one error of each segment."""
+    regressor's share of the masses' covariance; None: its stated σ as one error of each segment,
+    shared by the drive's segments, or with ``own_gradient_error`` each segment's own."""
     fits = {}
     if regression.excess_imu is not None:
         fits["imu"] = fit_joint(regression.force, regression.excess_imu, regression.cos_angle,
@@ -297,7 +301,9 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
             fit.sensitivity_kg = np.sqrt(fit.sensitivity_kg ** 2 + np.clip(np.diag(regressor_kg2), 0.0, None))
             continue
         bias_kg = regressor_bias_kg(fit, regressor_std, bounds)
-        shared_kg = bias_kg
+        # the force balance's gradient (`gradient_mass_pct`) has its error through each segment's
+        # own mass and scale state: a weighing tells the torque gain, not another segment's error
+        shared_kg = np.zeros(len(bounds)) if name == "gradient" and own_gradient_error else bias_kg
         if name == "imu" and regression.excess_imu_shared_std is not None:
             shared = regression.excess_imu_shared_std
             shared_kg = regressor_bias_kg(fit, np.where(np.isfinite(shared), shared, regressor_std), bounds)
