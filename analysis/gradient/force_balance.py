@@ -195,21 +195,11 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
                                                        segment if scaled else None, mass_kg is None)
     mass_gradient, mass_gradient_std = gradient, gradient_std
     if mass_kg is None and MASS_REFIT:
-        # the masses again on the second pass's gradient (where the scale state let the height
-        # sources correct the first pass's masses), and the force balance again with them
-        second = np.asarray(result.samples["gradient_pct"], dtype=float)
-        second_std = np.asarray(result.samples["gradient_smooth_std_pct"], dtype=float) \
+        # the masses are fitted again on this pass's gradient (where the scale state let the height
+        # sources correct the first pass's masses); the gradient itself stays on the first pass's
+        mass_gradient = np.asarray(result.samples["gradient_pct"], dtype=float).copy()
+        mass_gradient_std = np.asarray(result.samples["gradient_smooth_std_pct"], dtype=float).copy() \
             if settings.gradient_method == "smoother" else np.full(len(log), np.nan)
-        refit, refit_sigma, refit_segment = segment_masses_kg(
-            first.assign(gradient_pct=np.nan_to_num(second), gradient_std_pct=second_std), vehicle)
-        if np.isfinite(refit).any():
-            mass, mass_sigma = _with_unknown_masses(refit, refit_sigma)
-            # the refit is fitted on a gradient that carried the first pass's masses, so its error
-            # holds part of theirs, which its own sigma does not see: at least the first pass's width
-            relative, segment = np.fmax(mass_sigma / mass, relative), refit_segment
-            mass_gradient, mass_gradient_std = second, second_std
-            frame, virtual, gaps, result = _force_balance_pass(log, forced, dem, vehicle, settings, mass, relative,
-                                                               segment if scaled else None, True)
     measured = virtual
     no_height_source = not _has_height_source(result)
     # only with no height source: there the sigma comes from the road's spread away from the
@@ -302,11 +292,12 @@ def _force_balance_pass(frame, forced, dem, vehicle, settings, mass, relative, s
 
 
 MASS_REFIT = True
-"""With a first pass's masses: fit them again on the second pass's gradient and run the force
-balance once more with those. The first pass's GPS-altitude gradient is too noisy a regressor
-(errors-in-variables: its masses low, and most not confident); the second pass's is 2-4 times
-better. Not iterated further: each refit's own regressor noise drifts the masses low (measured,
-``docs/estimation.md``)."""
+"""With a first pass's masses: the masses the mass stage reports are fitted on the second pass's
+gradient (`gradient_mass_pct`), not the first pass's GPS-altitude one (errors-in-variables: its
+masses low, and most not confident; the second pass's is 2-4 times better). The force balance is
+not run again with them: in town, where the height sources cannot pin the scale state, the refitted
+masses (8-50 % off) made a third pass's gradient worse (``docs/estimation.md``); so the gradient is
+the second pass's, on the first pass's masses, whatever this says."""
 
 
 FORCE_GAPS = True

@@ -80,7 +80,9 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
         std = frame["gradient_mass_std_pct"] if "gradient_mass_std_pct" in frame.columns else np.nan
         frame = frame.assign(gradient_pct=frame["gradient_mass_pct"], gradient_std_pct=std)
         own_gradient_error = True
-    posterior = _gradient_posterior(frame, gradient_posteriors)
+    # a gradient that rests on a mass (`gradient_mass_pct`, the force balance's) has no posterior
+    # of its own errors: the smoother's is conditional on the mass put in
+    posterior = None if own_gradient_error else _gradient_posterior(frame, gradient_posteriors)
     odometer = None if posterior is None else posterior.distance_scale
     if odometer is not None:
         # the wheel reads (1 + ε) times the speed, and so the acceleration (`distance_scale`); the
