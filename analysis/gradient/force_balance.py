@@ -229,6 +229,8 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
                             f"{offset.applications} brake applications) taken off the force balance")
     if scaled:
         _report_scale(result, frame, mass)
+        if mass_kg is None and MASS_REFIT:
+            result.samples["gradient_mass_scale_rel_std"] = _scale_std_per_sample(result, frame)
     _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m,
                           None if mass_kg is None else mass)
     if no_height_source:
@@ -385,6 +387,17 @@ def _report_scale(result: GradientResult, frame, mass):
                             "acceleration and the height sources; a correction of the gradient, not a mass: its statistical "
                             "sigma understates the error): " + ", ".join(
                                 f"{r['segment']}: {100 * r['scale']:+.1f} ± {100 * r['scale_std']:.1f} %" for r in rows))
+
+
+def _scale_std_per_sample(result: GradientResult, frame) -> np.ndarray:
+    """Per sample its segment's scale state's 1-sigma [-] (`_report_scale`), NaN outside: how well
+    the second pass pinned the first pass's mass that its gradient, the refit's regressor
+    (`MASS_REFIT`), carries; the rest of that mass's error is in the refit's, each segment's own."""
+    time_s = frame["time_s"].to_numpy(dtype=float)
+    std = np.full(len(frame), np.nan)
+    for row in result.smoother.get("force_balance_scale", []):
+        std[(time_s >= row["start_s"]) & (time_s <= row["end_s"])] = row["scale_std"]
+    return std
 
 
 def scale_variance_m2ps4(virtual, relative, vehicle) -> np.ndarray:
