@@ -456,3 +456,26 @@ def test_the_masses_are_fitted_again_on_the_second_passs_gradient(drive, monkeyp
         assert segment["mass_joint_status"] == "ok"
         assert abs(segment["mass_kg"] / true_kg - 1) < 0.11
         assert abs(segment["mass_kg"] - true_kg) <= 2 * segment["mass_uncertainty_kg"]
+
+
+def test_the_refitted_masses_sigma_holds_the_scale_states_sigma(drive):
+    """The refit's regressor, the second pass's gradient, carries the first pass's mass as far as the
+    height sources did not pin it (the scale state's σ): each segment's mass σ holds that share of
+    its mass, in quadrature, and the masses themselves do not move."""
+    from haulprofile.analysis.mass import estimate_mass
+    vehicle = load_vehicle("rigid-18t")
+    gps_can = drive.drop(columns=["pressure_pa", "accel_x_mps2"]).assign(
+        gps_altitude_m=gps_altitude_m(drive, seed=7), gps_v_acc_m=4.0)
+    result = estimate_gradient_force_balance(gps_can, None, vehicle)
+    scale_std = result.samples["gradient_mass_scale_rel_std"]
+    rows = result.smoother["force_balance_scale"]
+    assert rows and np.isfinite(scale_std).any()
+    assert {float(v) for v in scale_std[np.isfinite(scale_std)]} == {r["scale_std"] for r in rows}
+    signals = gps_can.assign(**result.samples)
+    with_term = estimate_mass(signals, vehicle).segments
+    without = estimate_mass(signals.drop(columns=["gradient_mass_scale_rel_std"]), vehicle).segments
+    for a, b in zip(with_term, without):
+        assert a["mass_gradient_kg"] == pytest.approx(b["mass_gradient_kg"], rel=1e-9)
+        row = min(rows, key=lambda r: abs(r["start_s"] - a["start_s"]))
+        floor = np.hypot(b["mass_gradient_uncertainty_kg"], 0.9 * row["scale_std"] * a["mass_gradient_kg"])
+        assert a["mass_gradient_uncertainty_kg"] >= floor
