@@ -24,10 +24,11 @@ constant. Within one drive the force balance alone cannot tell the mass from the
 (GPS altitude, the DEM, a barometer) and the acceleration pin the mass: the first pass's mass
 and, in the second pass, the scale state, whose stated sigma says how well (on the accuracy
 matrix too small: its truth inside ±2σ on 48-76 % of the segments, so it corrects the gradient
-and is reported, not used as a mass). The masses are fitted once more on the second pass's
-gradient and the force balance run again with them (`MASS_REFIT`): the first pass's GPS-altitude
-gradient is too noisy a regressor for them. Not iterated further: with the force balance carrying
-the gradient each refit returns mostly the mass put in, and its own regressor noise drifts it low.
+and is reported, not used as a mass). The mass stage fits the masses again on the second pass's
+gradient (`MASS_REFIT`): the first pass's GPS-altitude gradient is too noisy a regressor for them.
+The force balance is not run again with those (in town they made its gradient worse), and they are
+not iterated: with the force balance carrying the gradient each refit returns mostly the mass put
+in, and its own regressor noise drifts it low; their σ holds the scale state's.
 A torque-report gain enters the same way as a mass error and needs a weighing.
 """
 
