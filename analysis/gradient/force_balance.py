@@ -300,7 +300,7 @@ gradient (`gradient_mass_pct`), not the first pass's GPS-altitude one (errors-in
 masses low, and most not confident; the second pass's is 2-4 times better). The force balance is
 not run again with them: in town, where the height sources cannot pin the scale state, the refitted
 masses (8-50 % off) made a third pass's gradient worse (``docs/estimation.md``); so the gradient is
-the second pass's, on the first pass's masses, whatever this says."""
+the second pass's, on the first pass's masses, with this on or off."""
 
 
 FORCE_GAPS = True
