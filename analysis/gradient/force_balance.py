@@ -24,9 +24,12 @@ constant. Within one drive the force balance alone cannot tell the mass from the
 (GPS altitude, the DEM, a barometer) and the acceleration pin the mass: the first pass's mass
 and, in the second pass, the scale state, whose stated sigma says how well (on the accuracy
 matrix too small: its truth inside ±2σ on 48-76 % of the segments, so it corrects the gradient
-and is reported, not used as a mass). Re-estimating the mass on the force-balance gradient
-returns the mass put in, so the two are not iterated; a torque-report gain enters the same way
-as a mass error and needs a weighing.
+and is reported, not used as a mass). The mass stage fits the masses again on the second pass's
+gradient (`MASS_REFIT`): the first pass's GPS-altitude gradient is too noisy a regressor for them.
+The force balance is not run again with those (in town they made its gradient worse), and they are
+not iterated: with the force balance carrying the gradient each refit returns mostly the mass put
+in, and its own regressor noise drifts it low; their σ holds the scale state's.
+A torque-report gain enters the same way as a mass error and needs a weighing.
 """
 
 from __future__ import annotations
@@ -187,26 +190,16 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         bias_sigma = G_MPS2 * vehicle.rolling_resistance_coefficient * ROLLING_RESISTANCE_UNCERTAINTY
         settings = replace(settings, smoother=replace(settings.smoother, imu_bias_prior_sigma_mps2=bias_sigma))
     settings = replace(settings, smoother=replace(settings.smoother, force_balance=True))
-    virtual = virtual_accelerometer_mps2(forced, vehicle, mass, slow=mass_kg is None)
-    if not np.isfinite(virtual).any():
-        raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
-    accel = frame["accel_mps2"].to_numpy(dtype=float)
-    extra_var, gaps = np.zeros(len(frame)), None
-    if FORCE_GAPS:
-        # with a given mass above the mass filter's speed floor, as its data filter (`slow`)
-        gaps = _with_force_gaps(forced, vehicle, mass, virtual, accel,
-                                MOVING_SPEED_MPS if mass_kg is None else _force_filter(True).min_speed_mps)
-        virtual, accel, extra_var = gaps.virtual_mps2, gaps.accel_mps2, gaps.variance_m2ps4
-        frame = frame.assign(accel_x_excess_mps2=gaps.excess_mps2)
-    if scaled:
-        regressor = accel + G_MPS2 * vehicle.rolling_resistance_coefficient
-        frame = frame.assign(accel_x_scale_regressor_mps2=regressor,
-                             accel_x_scale_segment=segment, accel_x_scale_sigma=np.log1p(relative))
-    # the mass's share in the noise stays beside the scale state: the state is one constant per
-    # segment, the force balance's scale varies within it (the driveline's efficiency by gear, the
-    # auxiliaries); the state alone left 62 % of the bins inside ±2σ on the least typical drive
-    frame = frame.assign(accel_x_scale_var_m2ps4=scale_variance_m2ps4(virtual, relative, vehicle) + extra_var)
-    result = estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
+    log = frame
+    frame, virtual, gaps, result = _force_balance_pass(log, forced, dem, vehicle, settings, mass, relative,
+                                                       segment if scaled else None, mass_kg is None)
+    mass_gradient, mass_gradient_std = gradient, gradient_std
+    if mass_kg is None and MASS_REFIT:
+        # the masses are fitted again on this pass's gradient (where the scale state let the height
+        # sources correct the first pass's masses); the gradient itself stays on the first pass's
+        mass_gradient = np.asarray(result.samples["gradient_pct"], dtype=float).copy()
+        mass_gradient_std = np.asarray(result.samples["gradient_smooth_std_pct"], dtype=float).copy() \
+            if settings.gradient_method == "smoother" else np.full(len(log), np.nan)
     measured = virtual
     no_height_source = not _has_height_source(result)
     # only with no height source: there the sigma comes from the road's spread away from the
@@ -236,6 +229,8 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
                             f"{offset.applications} brake applications) taken off the force balance")
     if scaled:
         _report_scale(result, frame, mass)
+        if mass_kg is None and MASS_REFIT:
+            result.samples["gradient_mass_scale_rel_std"] = _scale_std_per_sample(result, frame)
     _add_mass_uncertainty(result, frame, virtual, relative, vehicle, settings.spacing_m,
                           None if mass_kg is None else mass)
     if no_height_source:
@@ -256,11 +251,11 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
             _widen_where_measured(result, frame, unheld_drag_sigma_mps2(frame, vehicle, mass, virtual, offset_sigma),
                                   settings.spacing_m)
     if mass_kg is None:
-        result.samples["gradient_mass_pct"] = np.asarray(gradient, dtype=float)
-        result.samples["gradient_mass_std_pct"] = np.asarray(gradient_std, dtype=float)
-        # not the first pass's posterior (`posterior`): GPS altitude's gradient is too flat where
-        # it carries the mass (the matrix's truth: masses 5-23 % low on average at typical and
-        # harsh), a bias no posterior of zero-mean errors states; its σ as one error stays
+        result.samples["gradient_mass_pct"] = np.asarray(mass_gradient, dtype=float)
+        result.samples["gradient_mass_std_pct"] = np.asarray(mass_gradient_std, dtype=float)
+        # the gradient the masses were fitted on (the second pass's with `MASS_REFIT`), not its
+        # posterior: its errors hold the force balance's, with the mass put in, which no posterior
+        # of zero-mean errors states; its σ as one error stays
     result.notes = [n for n in result.notes if "IMU carries the gradient" not in n]
     result.notes.append(f"no IMU: the force balance (engine torque, gears, wheel speed, {source}) stands in for "
                         f"the accelerometer on {100 * np.isfinite(virtual).mean():.0f} % of the samples; a mass or "
@@ -270,6 +265,41 @@ def estimate_gradient_force_balance(frame: pd.DataFrame, dem, vehicle, settings:
         result.grid = result.grid.rename(columns={"gradient_imu_pct": "gradient_force_balance_pct"})
         result.samples["gradient_force_balance_pct"] = result.samples.pop("gradient_imu_pct")
     return result
+
+
+def _force_balance_pass(frame, forced, dem, vehicle, settings, mass, relative, segment, first_pass_masses):
+    """One smoother pass with the force balance of ``mass`` [kg per sample] (relative 1-sigma
+    ``relative``) as the accelerometer, a scale state per ``segment`` (None: no state). Returns the
+    log with the smoother's force-balance columns, a_virtual, the force gaps and the result."""
+    virtual = virtual_accelerometer_mps2(forced, vehicle, mass, slow=first_pass_masses)
+    if not np.isfinite(virtual).any():
+        raise UserError("gradient: no sample passes the force balance's data filter (traction, no brake, no shift)")
+    accel = frame["accel_mps2"].to_numpy(dtype=float)
+    extra_var, gaps = np.zeros(len(frame)), None
+    if FORCE_GAPS:
+        # with a given mass above the mass filter's speed floor, as its data filter (`slow`)
+        gaps = _with_force_gaps(forced, vehicle, mass, virtual, accel,
+                                MOVING_SPEED_MPS if first_pass_masses else _force_filter(True).min_speed_mps)
+        virtual, accel, extra_var = gaps.virtual_mps2, gaps.accel_mps2, gaps.variance_m2ps4
+        frame = frame.assign(accel_x_excess_mps2=gaps.excess_mps2)
+    if segment is not None:
+        regressor = accel + G_MPS2 * vehicle.rolling_resistance_coefficient
+        frame = frame.assign(accel_x_scale_regressor_mps2=regressor,
+                             accel_x_scale_segment=segment, accel_x_scale_sigma=np.log1p(relative))
+    # the mass's share in the noise stays beside the scale state: the state is one constant per
+    # segment, the force balance's scale varies within it (the driveline's efficiency by gear, the
+    # auxiliaries); the state alone left 62 % of the bins inside ±2σ on the least typical drive
+    frame = frame.assign(accel_x_scale_var_m2ps4=scale_variance_m2ps4(virtual, relative, vehicle) + extra_var)
+    return frame, virtual, gaps, estimate_gradient(frame.assign(accel_x_mps2=virtual), dem, settings)
+
+
+MASS_REFIT = True
+"""With a first pass's masses: the masses the mass stage reports are fitted on the second pass's
+gradient (`gradient_mass_pct`), not the first pass's GPS-altitude one (errors-in-variables: its
+masses low, and most not confident; the second pass's is 2-4 times better). The force balance is
+not run again with them: in town, where the height sources cannot pin the scale state, the refitted
+masses (8-50 % off) made a third pass's gradient worse (``docs/estimation.md``); so the gradient is
+the second pass's, on the first pass's masses, with this on or off."""
 
 
 FORCE_GAPS = True
@@ -357,6 +387,17 @@ def _report_scale(result: GradientResult, frame, mass):
                             "acceleration and the height sources; a correction of the gradient, not a mass: its statistical "
                             "sigma understates the error): " + ", ".join(
                                 f"{r['segment']}: {100 * r['scale']:+.1f} ± {100 * r['scale_std']:.1f} %" for r in rows))
+
+
+def _scale_std_per_sample(result: GradientResult, frame) -> np.ndarray:
+    """Per sample its segment's scale state's 1-sigma [-] (`_report_scale`), NaN outside: how well
+    the second pass pinned the first pass's mass that its gradient, the refit's regressor
+    (`MASS_REFIT`), carries; the rest of that mass's error is in the refit's, each segment's own."""
+    time_s = frame["time_s"].to_numpy(dtype=float)
+    std = np.full(len(frame), np.nan)
+    for row in result.smoother.get("force_balance_scale", []):
+        std[(time_s >= row["start_s"]) & (time_s <= row["end_s"])] = row["scale_std"]
+    return std
 
 
 def scale_variance_m2ps4(virtual, relative, vehicle) -> np.ndarray:

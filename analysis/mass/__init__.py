@@ -75,10 +75,14 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     estimate without it, and the mass is fitted on that: on its own force-balance gradient any
     mass fits its torque, and would look confident."""
     frame = _with_gradient_std(frame)
+    own_gradient_error = False
     if "gradient_mass_pct" in frame.columns and frame["gradient_mass_pct"].notna().any():
         std = frame["gradient_mass_std_pct"] if "gradient_mass_std_pct" in frame.columns else np.nan
         frame = frame.assign(gradient_pct=frame["gradient_mass_pct"], gradient_std_pct=std)
-    posterior = _gradient_posterior(frame, gradient_posteriors)
+        own_gradient_error = True
+    # a gradient that rests on a mass (`gradient_mass_pct`, the force balance's) has no posterior
+    # of its own errors: the smoother's is conditional on the mass put in
+    posterior = None if own_gradient_error else _gradient_posterior(frame, gradient_posteriors)
     regression = build_regression(frame, vehicle, filter_settings)
     time_s = frame["time_s"].to_numpy(dtype=float)
     speed = frame["speed_mps"].to_numpy(dtype=float)
@@ -120,10 +124,15 @@ def estimate_mass(frame: pd.DataFrame, vehicle, filter_settings: FilterSettings 
     if engine_torque != REPORTED:
         notes.append(f"engine torque: {engine_torque}")
     aux_prior = _aux_prior_w(frame, regression, bounds, joint_settings) if aux is not None else None
+    carried = None
+    if own_gradient_error and "gradient_mass_scale_rel_std" in frame.columns:
+        scale_std = frame["gradient_mass_scale_rel_std"].to_numpy(dtype=float)
+        carried = np.array([np.nanmedian(scale_std[start:end]) if np.isfinite(scale_std[start:end]).any() else 0.0
+                            for start, end in bounds])
     road_load, joint = _joint(regression, time_s, bounds, vehicle, joint_settings, known_masses or {}, segments,
                               columns, max_mass, notes, segment_settings, wind,
                               offset, aux, aux_prior, speed,
-                              posterior)
+                              posterior, own_gradient_error, carried)
     return MassResult(segments=segments, columns=columns, regression=regression, notes=notes, road_load=road_load,
                       joint=joint, engine_torque=engine_torque)
 
@@ -251,11 +260,15 @@ def _aux_power(fit: JointFit, j: int, gain: float) -> dict:
 
 
 def _joint(regression, time_s, bounds, vehicle, settings, known, segments, columns, max_mass, notes,
-           segment_settings, wind=None, offset=None, aux=None, aux_prior=None, speed=None, posterior=None):
+           segment_settings, wind=None, offset=None, aux=None, aux_prior=None, speed=None, posterior=None,
+           own_gradient_error=False, carried_relative=None):
     """Joint fit with the IMU regressor (else the gradient one), calibration, and per segment the
     chosen ``mass_kg`` and its total ``mass_uncertainty_kg``; the gradient-based joint fit too,
     for comparison. ``posterior``: the gradient's (`gradient.posterior`), for the gradient
-    regressor's share of the masses' covariance; None: its stated σ as one error of each segment."""
+    regressor's share of the masses' covariance; None: its stated σ as one error of each segment,
+    shared by the drive's segments, or with ``own_gradient_error`` each segment's own, with
+    ``carried_relative`` (per segment, relative) the share of the mass the force balance's gradient
+    carried that its height sources did not pin (the scale state's σ), each segment's own too."""
     fits = {}
     if regression.excess_imu is not None:
         fits["imu"] = fit_joint(regression.force, regression.excess_imu, regression.cos_angle,
@@ -288,11 +301,17 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
             fit.sensitivity_kg = np.sqrt(fit.sensitivity_kg ** 2 + np.clip(np.diag(regressor_kg2), 0.0, None))
             continue
         bias_kg = regressor_bias_kg(fit, regressor_std, bounds)
-        shared_kg = bias_kg
+        # the force balance's gradient (`gradient_mass_pct`) has its error through each segment's
+        # own mass and scale state: a weighing tells the torque gain, not another segment's error
+        shared_kg = np.zeros(len(bounds)) if name == "gradient" and own_gradient_error else bias_kg
         if name == "imu" and regression.excess_imu_shared_std is not None:
             shared = regression.excess_imu_shared_std
             shared_kg = regressor_bias_kg(fit, np.where(np.isfinite(shared), shared, regressor_std), bounds)
         own_kg = np.sqrt(np.clip(bias_kg ** 2 - shared_kg ** 2, 0.0, None))
+        carried_kg = np.zeros(len(bounds))
+        if name == "gradient" and carried_relative is not None:
+            carried_kg = np.nan_to_num(fit.masses_kg * carried_relative)
+            own_kg = np.hypot(own_kg, carried_kg)
         ramp_kg = np.zeros(len(bounds))
         if name == "imu" and regression.excess_imu_ramp_std is not None:
             ramp_kg = regressor_bias_kg(fit, np.nan_to_num(regression.excess_imu_ramp_std, nan=0.0), bounds)
@@ -307,7 +326,7 @@ def _joint(regression, time_s, bounds, vehicle, settings, known, segments, colum
         # either side of a stop, so a weighing before the stop tells nothing of it after
         covariances[name] = (fit.mass_covariance_kg2 + np.diag(fit.sensitivity_kg ** 2 + ramp_kg ** 2 + own_kg ** 2)
                              + np.outer(shared_kg, shared_kg))
-        fit.sensitivity_kg = np.sqrt(fit.sensitivity_kg ** 2 + bias_kg ** 2 + ramp_kg ** 2)
+        fit.sensitivity_kg = np.sqrt(fit.sensitivity_kg ** 2 + bias_kg ** 2 + ramp_kg ** 2 + carried_kg ** 2)
     gain_uncertainty = float(np.hypot(settings.torque_gain_uncertainty, settings.driveline_efficiency_uncertainty))
     results = {}
     for name, fit in fits.items():
