@@ -12,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from haulprofile import contract
 from haulprofile.contract import j1939
@@ -32,6 +33,7 @@ BAROMETER_BATCH_S = 0.32
 """The logger reads the LPS25HB's FIFO every 8 samples at 25 Hz: one message per read."""
 HUMIDITY_BATCH_S = 1.0
 IMU_TEMPERATURE_BATCH_S = 10.0
+"""The logger's `/imu/temperature` messages hold ten readings."""
 IMU_TEMPERATURE_STEP_S = 1.0
 """The logger reads the IMU's OUT_TEMP once a second (the LSM9DS1 driver's ``TEMP_INTERVAL_S``)."""
 
@@ -118,17 +120,14 @@ def _packed_sensor(table, topic: contract.Topic, order: int, batch_s: float, fie
             yield int(part["t_mono_ns"][0]), order, topic, contract.pack(topic, part)
 
 
-def _imu_temperature(imu):
+def _imu_temperature(imu) -> pd.DataFrame:
     """The IMU's die temperature as the logger reads it: once a second, OUT_TEMP's 1/16 K steps."""
-    import pandas as pd
-
     time_s = imu["time_s"].to_numpy()
-    second = np.floor(time_s / IMU_TEMPERATURE_STEP_S)
-    first = np.flatnonzero(np.diff(second, prepend=-1.0) > 0)
-    raw = np.clip(np.round((imu["imu_temperature_c"].to_numpy()[first] - contract.IMU_TEMPERATURE_ZERO_C) * contract.IMU_TEMPERATURE_LSB_PER_C),
-                  -32768, 32767).astype(np.int16)
-    return pd.DataFrame({"time_s": time_s[first], "temperature_c": contract.IMU_TEMPERATURE_ZERO_C + raw / contract.IMU_TEMPERATURE_LSB_PER_C,
-                         "temperature_raw": raw})
+    first = np.flatnonzero(np.diff(np.floor(time_s / IMU_TEMPERATURE_STEP_S), prepend=-1.0) > 0)
+    zero_c, per_c = contract.IMU_TEMPERATURE_ZERO_C, contract.IMU_TEMPERATURE_LSB_PER_C
+    raw = np.clip(np.round((imu["imu_temperature_c"].to_numpy()[first] - zero_c) * per_c), -32768, 32767)
+    raw = raw.astype(np.int16)
+    return pd.DataFrame({"time_s": time_s[first], "temperature_c": zero_c + raw / per_c, "temperature_raw": raw})
 
 
 def _messages(drive, contract_version: int = contract.CONTRACT_VERSION):

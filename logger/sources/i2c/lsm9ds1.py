@@ -46,6 +46,7 @@ CTRL_REG9_FIFO_EN = 0x02
 TEMP_INTERVAL_S = 1.0
 """How often the temperature is read [s]: a die warms by a few kelvin a minute at most."""
 TEMP_BATCH_S = 10.0
+"""Readings per `/imu/temperature` message: ten, a message every 10 s."""
 
 CTRL_REG1_M = 0x20
 CTRL_REG2_M = 0x21
@@ -115,7 +116,8 @@ class Lsm9ds1(Driver):
                                             "temperature_zero_c": repr(contract.IMU_TEMPERATURE_ZERO_C)}}
 
     def poll(self) -> list:
-        """Read what the FIFO holds; hand out one ``/imu`` message per ``batch_s`` of samples."""
+        """Read what the FIFO holds, and the temperature when it is due; hand out one ``/imu`` message
+        per ``batch_s`` of samples and one ``/imu/temperature`` message per `TEMP_BATCH_S`."""
         before_ns = self.clock.monotonic_ns()
         src = self.bus.read_byte_data(self.address, FIFO_SRC)
         after_ns = self.clock.monotonic_ns()
@@ -153,7 +155,8 @@ class Lsm9ds1(Driver):
             self._next_temperature_ns = now_ns + interval_ns
         low, high = self.bus.read_i2c_block_data(self.address, OUT_TEMP_L, 2)
         raw = s16(low, high)
-        return self.temperature.add(self.clock.monotonic_ns(), contract.IMU_TEMPERATURE_ZERO_C + raw / contract.IMU_TEMPERATURE_LSB_PER_C, raw, 0, 0, 0)
+        celsius = contract.IMU_TEMPERATURE_ZERO_C + raw / contract.IMU_TEMPERATURE_LSB_PER_C
+        return self.temperature.add(self.clock.monotonic_ns(), celsius, raw, 0, 0, 0)
 
     def _flush_samples(self) -> list:
         output = packed_output(contract.IMU, self._pending, self._pending_count)
