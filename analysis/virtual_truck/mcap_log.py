@@ -124,10 +124,9 @@ def _imu_temperature(imu) -> pd.DataFrame:
     """The IMU's die temperature as the logger reads it: once a second, OUT_TEMP's 1/16 K steps."""
     time_s = imu["time_s"].to_numpy()
     first = np.flatnonzero(np.diff(np.floor(time_s / IMU_TEMPERATURE_STEP_S), prepend=-1.0) > 0)
-    zero_c, per_c = contract.IMU_TEMPERATURE_ZERO_C, contract.IMU_TEMPERATURE_LSB_PER_C
-    raw = np.clip(np.round((imu["imu_temperature_c"].to_numpy()[first] - zero_c) * per_c), -32768, 32767)
-    raw = raw.astype(np.int16)
-    return pd.DataFrame({"time_s": time_s[first], "temperature_c": zero_c + raw / per_c, "temperature_raw": raw})
+    raw = contract.imu_temperature_counts(imu["imu_temperature_c"].to_numpy()[first])
+    return pd.DataFrame({"time_s": time_s[first], "temperature_c": contract.imu_temperature_c(raw),
+                         "temperature_raw": raw})
 
 
 def _messages(drive, contract_version: int = contract.CONTRACT_VERSION):

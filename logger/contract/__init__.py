@@ -127,6 +127,17 @@ IMU_TEMPERATURE_ZERO_C = 25.0
 """OUT_TEMP's scale and the temperature its 0 reads (LSM9DS1 datasheet, table 4: TSen, TODR)."""
 
 
+def imu_temperature_counts(celsius):
+    """OUT_TEMP's two's-complement count for a die temperature [degC]: rounded, within int16."""
+    counts = np.round((np.asarray(celsius, dtype=float) - IMU_TEMPERATURE_ZERO_C) * IMU_TEMPERATURE_LSB_PER_C)
+    return np.clip(counts, -32768, 32767).astype(np.int16)
+
+
+def imu_temperature_c(counts):
+    """The die temperature [degC] an OUT_TEMP count reads."""
+    return IMU_TEMPERATURE_ZERO_C + np.asarray(counts) / IMU_TEMPERATURE_LSB_PER_C
+
+
 @dataclass(frozen=True)
 class Topic:
     """One MCAP channel: name, schema and what a reader needs to know about it."""

@@ -265,9 +265,9 @@ class Lsm9ds1AgModel(RegisterDevice):
         return self._block[offset]
 
     def new_samples(self, first: int, end: int) -> None:
-        zero_c = contract.IMU_TEMPERATURE_ZERO_C
-        temperature_c = self.signals.value("imu_temperature_c", float(self.sample_time_s(end - 1)), zero_c)
-        raw = int(np.clip(round((temperature_c - zero_c) * contract.IMU_TEMPERATURE_LSB_PER_C), -32768, 32767))
+        temperature_c = self.signals.value("imu_temperature_c", float(self.sample_time_s(end - 1)),
+                                           contract.IMU_TEMPERATURE_ZERO_C)
+        raw = int(contract.imu_temperature_counts(temperature_c))
         self.regs[lsm.OUT_TEMP_L:lsm.OUT_TEMP_L + 2] = bytes(_le(raw, 2))
         if not self.regs[lsm.CTRL_REG9] & lsm.CTRL_REG9_FIFO_EN:
             row = self._sample_bytes(end - 1)

@@ -155,8 +155,7 @@ class Lsm9ds1(Driver):
             self._next_temperature_ns = now_ns + interval_ns
         low, high = self.bus.read_i2c_block_data(self.address, OUT_TEMP_L, 2)
         raw = s16(low, high)
-        celsius = contract.IMU_TEMPERATURE_ZERO_C + raw / contract.IMU_TEMPERATURE_LSB_PER_C
-        return self.temperature.add(self.clock.monotonic_ns(), celsius, raw, 0, 0, 0)
+        return self.temperature.add(self.clock.monotonic_ns(), float(contract.imu_temperature_c(raw)), raw, 0, 0, 0)
 
     def _flush_samples(self) -> list:
         output = packed_output(contract.IMU, self._pending, self._pending_count)
