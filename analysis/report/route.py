@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..geodesy import step_lengths_m
 from .html import Section
 
 TITLE = "The route"
@@ -41,8 +42,7 @@ def _segments(lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     """Line segments between consecutive positions in (lon, lat), and which of them join (not a gap)."""
     points = np.column_stack([lon, lat])
     segments = np.stack([points[:-1], points[1:]], axis=1)
-    step_m = np.hypot(np.diff(lat) * M_PER_DEG, np.diff(lon) * M_PER_DEG * np.cos(np.radians(lat[:-1])))
-    return segments, step_m <= GAP_M
+    return segments, step_lengths_m(lat, lon) <= GAP_M
 
 
 def hillshade(dem, lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, tuple[float, float, float, float]] | None:
